@@ -1,0 +1,46 @@
+"""moreau: non-smooth multibody mechanics with a Moreau–Jean midpoint time-stepper.
+
+The pieces, in the field's vocabulary:
+
+* a *system* (:class:`FunctionSystem`, or a subclass of :class:`MechanicalSystem`): q, M(q);
+* *effects* (:mod:`moreau.forces`): smooth forces f(t, q, v);
+* *contacts*: a *barrier* g(q) >= 0 (:mod:`moreau.barriers`) with a Newton impact law;
+* a *scene* (:class:`Scene`): exactly the effects and contacts asked for;
+* an *integrator* (:class:`MoreauJeanMidpoint`) and a contact *solver*
+  (:mod:`moreau.solvers`);
+* the front door :func:`simulate`, which returns a :class:`Trajectory`.
+"""
+
+from importlib.metadata import PackageNotFoundError, version as _version
+
+try:
+    __version__ = _version("moreau")
+except PackageNotFoundError:  # running from a source tree that is not installed
+    __version__ = "0+unknown"
+
+from .barriers import Barrier, FunctionBarrier, LinearBarrier, check_jacobian
+from .errors import SimulationError, SolverError
+from .forces import ConstantForce, Effect, FunctionForce, LinearDamping, LinearSpring
+from .integrator import MoreauJeanMidpoint, OneStepIntegrator
+from .laws import NewtonImpact
+from .onestep import OneStepProblem, Residuals
+from .result import ImpactLog, SolverStats, Trajectory, load
+from .scene import Contact, Scene
+from .simulate import simulate
+from .solvers import ContactSolver, EnumerationSolver, OSQPSolver, QpsolversSolver, make_solver
+from .system import FunctionSystem, MechanicalSystem
+
+__all__ = [
+    "__version__",
+    "Barrier", "FunctionBarrier", "LinearBarrier", "check_jacobian",
+    "SimulationError", "SolverError",
+    "ConstantForce", "Effect", "FunctionForce", "LinearDamping", "LinearSpring",
+    "MoreauJeanMidpoint", "OneStepIntegrator",
+    "NewtonImpact",
+    "OneStepProblem", "Residuals",
+    "ImpactLog", "SolverStats", "Trajectory", "load",
+    "Contact", "Scene",
+    "simulate",
+    "ContactSolver", "EnumerationSolver", "OSQPSolver", "QpsolversSolver", "make_solver",
+    "FunctionSystem", "MechanicalSystem",
+]

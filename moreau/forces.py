@@ -1,0 +1,197 @@
+"""Effects: smooth generalized forces f(t, q, v) that a scene may include.
+
+Every effect is a small object with
+
+* ``force(t, q, v) -> (n,)``: the generalized force on the right-hand side of
+  ``M dv/dt = ... + f`` (units of generalized force: N for lengths, N m for angles);
+* ``potential(q) -> float`` (J) when the effect is conservative (``has_potential``);
+* flags ``velocity_dependent`` and ``time_dependent`` that tell integrators and
+  diagnostics what the force depends on.
+
+A scene evaluates exactly the effects it was given and nothing else. Effects specific to
+a model (gravity on a pendulum chain, a force at a point of a link) live with the model
+(:mod:`moreau.chain`); the ones here work on any system.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+
+import numpy as np
+
+from ._validation import as_matrix, as_vector
+
+__all__ = ["Effect", "ConstantForce", "LinearDamping", "LinearSpring", "FunctionForce"]
+
+
+class Effect(ABC):
+    """Base class of a smooth generalized force.
+
+    Attributes
+    ----------
+    name : str
+        Label of the effect (``"gravity"``, ``"damping"``, ...).
+    velocity_dependent : bool
+        True when the force depends on v (damping). A scene of position-only effects and
+        a constant mass matrix is integrated to order 2 by the midpoint scheme.
+    time_dependent : bool
+        True when the force depends explicitly on t.
+    has_potential : bool
+        True when :meth:`potential` is available (conservative effect).
+    """
+
+    name: str = "effect"
+    velocity_dependent: bool = False
+    time_dependent: bool = False
+    has_potential: bool = False
+
+    @abstractmethod
+    def force(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Generalized force, shape (n,)."""
+
+    def potential(self, q: np.ndarray) -> float:
+        """Potential energy (J) of a conservative effect."""
+        raise NotImplementedError(f"effect {self.name!r} has no potential energy")
+
+    def power(self, t: float, q: np.ndarray, v: np.ndarray) -> float:
+        """Power vᵀ f (W) the effect puts into the system."""
+        return float(v @ self.force(t, q, v))
+
+    def describe(self) -> dict:
+        """Parameters as JSON-serializable data."""
+        return {"type": type(self).__name__, "name": self.name}
+
+
+class ConstantForce(Effect):
+    """A constant generalized force f (n,), e.g. uniform gravity on point masses.
+
+    Its potential is ``-fᵀ q``.
+
+    Parameters
+    ----------
+    f : array_like, shape (n,)
+        Generalized force.
+    name : str
+        Label (``"gravity"`` by default).
+    """
+
+    has_potential = True
+
+    def __init__(self, f, name: str = "gravity") -> None:
+        self.f = as_vector(f, f"{type(self).__name__}.f")
+        self.f.setflags(write=False)
+        self.name = name
+
+    def force(self, t, q, v):
+        return self.f
+
+    def potential(self, q):
+        return -float(self.f @ q)
+
+    def describe(self):
+        return {**super().describe(), "f": self.f.tolist()}
+
+
+class LinearDamping(Effect):
+    """Viscous damping ``f = -C v`` with C symmetric positive semi-definite (n x n).
+
+    Parameters
+    ----------
+    C : array_like, shape (n, n) or scalar
+        Damping matrix (N s/m, N m s/rad). A scalar c means c·I.
+    """
+
+    velocity_dependent = True
+
+    def __init__(self, C, ndof: int | None = None, name: str = "damping") -> None:
+        C = np.array(C, dtype=float)
+        if C.ndim == 0:
+            if ndof is None:
+                raise ValueError("LinearDamping: ndof is required for a scalar C")
+            C = C * np.eye(ndof)
+        self.C = as_matrix(C, "LinearDamping.C")
+        if self.C.shape[0] != self.C.shape[1]:
+            raise ValueError(f"LinearDamping.C must be square, got shape {self.C.shape}")
+        if np.linalg.eigvalsh(0.5 * (self.C + self.C.T))[0] < -1e-12 * max(1.0, np.abs(self.C).max()):
+            raise ValueError(f"LinearDamping.C must be positive semi-definite, got {self.C.tolist()}")
+        self.name = name
+
+    def force(self, t, q, v):
+        return -(self.C @ v)
+
+    def describe(self):
+        return {**super().describe(), "C": self.C.tolist()}
+
+
+class LinearSpring(Effect):
+    """Linear spring ``f = -K (q - q_ref)``, K symmetric positive semi-definite.
+
+    Parameters
+    ----------
+    K : array_like, shape (n, n)
+        Stiffness (N/m, N m/rad).
+    q_ref : array_like, shape (n,), optional
+        Rest configuration (zeros by default).
+    """
+
+    has_potential = True
+
+    def __init__(self, K, q_ref=None, name: str = "spring") -> None:
+        self.K = as_matrix(K, "LinearSpring.K")
+        n = self.K.shape[0]
+        if self.K.shape != (n, n) or np.max(np.abs(self.K - self.K.T)) > 1e-12 * max(1.0, np.abs(self.K).max()):
+            raise ValueError(f"LinearSpring.K must be square and symmetric, got {self.K.tolist()}")
+        self.q_ref = np.zeros(n) if q_ref is None else as_vector(q_ref, "LinearSpring.q_ref", n)
+        self.name = name
+
+    def force(self, t, q, v):
+        return -(self.K @ (q - self.q_ref))
+
+    def potential(self, q):
+        dq = q - self.q_ref
+        return 0.5 * float(dq @ self.K @ dq)
+
+    def describe(self):
+        return {**super().describe(), "K": self.K.tolist(), "q_ref": self.q_ref.tolist()}
+
+
+class FunctionForce(Effect):
+    """A user force from a callable ``fun(t, q, v) -> (n,)``.
+
+    Parameters
+    ----------
+    fun : callable
+        The generalized force.
+    potential : callable ``potential(q) -> float``, optional
+        Its potential energy, when conservative.
+    velocity_dependent, time_dependent : bool
+        What ``fun`` depends on (default: both True, the safe assumption).
+    name : str
+        Label.
+    """
+
+    def __init__(
+        self,
+        fun: Callable[[float, np.ndarray, np.ndarray], np.ndarray],
+        potential: Callable[[np.ndarray], float] | None = None,
+        velocity_dependent: bool = True,
+        time_dependent: bool = True,
+        name: str = "force",
+    ) -> None:
+        if not callable(fun):
+            raise ValueError(f"FunctionForce: fun must be callable, got {fun!r}")
+        self.force = fun  # bound directly: no extra call layer on the hot path
+        self._potential = potential
+        self.has_potential = potential is not None
+        self.velocity_dependent = bool(velocity_dependent)
+        self.time_dependent = bool(time_dependent)
+        self.name = name
+
+    def force(self, t, q, v):  # pragma: no cover - replaced per instance
+        raise NotImplementedError
+
+    def potential(self, q):
+        if self._potential is None:
+            return super().potential(q)
+        return float(self._potential(q))

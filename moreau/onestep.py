@@ -1,0 +1,113 @@
+"""The one-step non-smooth problem: the contact problem of a single time step, as data.
+
+With the k active rows of the step (gaps closed at the midpoint), the velocity-level
+problem is the convex QP
+
+    minimize ½ vᵀ M v − vᵀ b   subject to   G v >= c,
+
+with ``b = M v_k + h f`` and ``c = −e ∘ U_k``; the contact impulses P >= 0 are the
+multipliers of the inequalities, so that ``M v = b + Gᵀ P`` and ``0 <= P ⟂ G v − c >= 0``.
+Equivalent LCP: ``W = G M⁻¹ Gᵀ``, ``w = G M⁻¹ b − c``, ``0 <= P ⟂ w + W P >= 0``.
+M is symmetric positive definite, so v is unique even when rows of G are redundant
+(P then is not: compare ``Gᵀ P``, never P, between solvers).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["OneStepProblem", "Residuals", "kkt_residuals"]
+
+
+@dataclass
+class OneStepProblem:
+    """Contact problem of one step, restricted to its k active rows.
+
+    Attributes
+    ----------
+    M : ndarray, shape (n, n)
+        Mass matrix at the midpoint.
+    b : ndarray, shape (n,)
+        ``M v_k + h f`` (momentum units).
+    G : ndarray, shape (k, n)
+        Jacobian of the active rows.
+    c : ndarray, shape (k,)
+        Lower bounds ``−e ∘ U_k`` on the post-step normal velocities.
+    """
+
+    M: np.ndarray
+    b: np.ndarray
+    G: np.ndarray
+    c: np.ndarray
+
+    def lcp(self) -> tuple[np.ndarray, np.ndarray]:
+        """The LCP form ``(W, w)`` with ``W = G M⁻¹ Gᵀ`` and ``w = G M⁻¹ b − c``."""
+        sol = np.linalg.solve(self.M, np.column_stack([self.b, self.G.T]))
+        return self.G @ sol[:, 1:], self.G @ sol[:, 0] - self.c
+
+    def residuals(self, v: np.ndarray, P: np.ndarray) -> "Residuals":
+        return kkt_residuals(self.M, self.b, self.G, self.c, v, P)
+
+
+@dataclass(frozen=True)
+class Residuals:
+    """Scaled KKT residuals of a candidate ``(v, P)``; each is dimensionless.
+
+    Attributes
+    ----------
+    primal : float
+        Largest violation of ``G v >= c``, relative to the normal-velocity scale.
+    dual : float
+        Largest negative impulse, relative to the impulse scale.
+    complementarity : float
+        Largest ``|P_i (G v − c)_i|``, relative to the product of both scales.
+    stationarity : float
+        ``|M v − b − Gᵀ P|_∞`` relative to the momentum scale.
+    """
+
+    primal: float
+    dual: float
+    complementarity: float
+    stationarity: float
+
+    @property
+    def worst(self) -> float:
+        return max(self.primal, self.dual, self.complementarity, self.stationarity)
+
+    def as_dict(self) -> dict[str, float]:
+        return {
+            "primal": self.primal,
+            "dual": self.dual,
+            "complementarity": self.complementarity,
+            "stationarity": self.stationarity,
+        }
+
+
+_TINY = 1e-300
+
+
+def kkt_residuals(M, b, G, c, v, P) -> Residuals:
+    """Scaled residuals of the KKT conditions of the one-step QP (see module docstring).
+
+    Scales: normal velocities are measured against ``|G| (|v| + |b| / diag M)`` and
+    ``|c|`` (so a contact at rest, v ≈ 0 and c ≈ 0, is still measured against the
+    velocity the step's forces would give), momenta against ``|b|`` and ``|Gᵀ P|``,
+    impulses against ``max |P|``.
+    """
+    slack = G @ v - c
+    vel_scale = max(
+        _TINY,
+        float((np.abs(G) @ (np.abs(v) + np.abs(b) / np.diag(M))).max()),
+        float(np.abs(c).max()),
+    )
+    GtP = P @ G
+    mom_scale = max(_TINY, float(np.abs(b).max()), float(np.abs(GtP).max()))
+    p_scale = max(_TINY, float(np.abs(P).max()))
+    return Residuals(
+        primal=max(0.0, -float(slack.min())) / vel_scale,
+        dual=max(0.0, -float(P.min())) / p_scale,
+        complementarity=float(np.abs(P * slack).max()) / (p_scale * vel_scale),
+        stationarity=float(np.abs(M @ v - b - GtP).max()) / mom_scale,
+    )

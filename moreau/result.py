@@ -1,0 +1,257 @@
+"""Results: the trajectory of a run, its impact log and solver statistics; save/load."""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+
+__all__ = ["Trajectory", "ImpactLog", "SolverStats", "load"]
+
+_FORMAT = 1
+
+
+@dataclass
+class ImpactLog:
+    """One entry per impact: a contact row whose impulse became positive in a step after
+    a step in which it carried none (the start of a bounce or of a sliding phase).
+
+    All arrays have shape (n_impacts,).
+
+    Attributes
+    ----------
+    t : ndarray
+        Time at the start of the impact step.
+    step : ndarray of int
+        Index of the step (0 = the step from t0).
+    row : ndarray of int
+        Contact row (see ``Trajectory.row_names``).
+    U_before, U_after : ndarray
+        Normal velocity G v before and after the step.
+    impulse : ndarray
+        Contact impulse P >= 0 of the step (N s, or the scene's momentum unit).
+    energy_lost : ndarray
+        Kinetic energy dissipated by the contact impulse in the step (J); see
+        :meth:`moreau.integrator.OneStepIntegrator.last_contact_details`.
+    """
+
+    t: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    step: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    row: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    U_before: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    U_after: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    impulse: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    energy_lost: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+    @classmethod
+    def from_rows(cls, rows: list[tuple]) -> "ImpactLog":
+        if not rows:
+            return cls()
+        cols = list(zip(*rows))
+        return cls(
+            t=np.array(cols[0], dtype=float),
+            step=np.array(cols[1], dtype=int),
+            row=np.array(cols[2], dtype=int),
+            U_before=np.array(cols[3], dtype=float),
+            U_after=np.array(cols[4], dtype=float),
+            impulse=np.array(cols[5], dtype=float),
+            energy_lost=np.array(cols[6], dtype=float),
+        )
+
+    def select(self, mask: np.ndarray) -> "ImpactLog":
+        """The entries where ``mask`` is True."""
+        return ImpactLog(**{f.name: getattr(self, f.name)[mask] for f in fields(self)})
+
+
+@dataclass
+class SolverStats:
+    """Counters of a run.
+
+    Attributes
+    ----------
+    solver, fallback : str
+        Names of the main and fallback backends.
+    steps : int
+        Steps taken.
+    contact_steps : int
+        Steps with at least one closed row (one contact solve each).
+    solves : int
+        Contact problems solved (= contact_steps).
+    fallbacks : int
+        Solves the main backend failed (wrong answer or error) and the fallback did.
+    worst_residual : float
+        Largest accepted scaled KKT residual.
+    wall_time : float
+        Seconds spent stepping.
+    """
+
+    solver: str = ""
+    fallback: str = ""
+    steps: int = 0
+    contact_steps: int = 0
+    solves: int = 0
+    fallbacks: int = 0
+    worst_residual: float = 0.0
+    wall_time: float = 0.0
+
+    @property
+    def us_per_step(self) -> float:
+        """Mean wall time per step (µs)."""
+        return 1e6 * self.wall_time / max(1, self.steps)
+
+
+@dataclass
+class Trajectory:
+    """The recorded result of :func:`moreau.simulate`. Arrays are time-major.
+
+    Attributes
+    ----------
+    t : ndarray, shape (N,)
+        Recorded times.
+    q, v : ndarray, shape (N, n)
+        Coordinates and velocities.
+    gaps : ndarray, shape (N, m)
+        Gaps g(q) at the recorded states.
+    impulses : ndarray, shape (N, m)
+        Contact impulses summed over the steps since the previous record.
+    active : ndarray of bool, shape (N, m)
+        True where the row was closed (at a midpoint) in any step since the previous record.
+    impacts : ImpactLog
+        Every impact, logged at the step it happened whatever ``record_every``.
+    stats : SolverStats
+        Solver counters and timing.
+    energy, kinetic_energy, potential_energy : ndarray, shape (N,) or None
+        Mechanical energy (J) at the records, when computed.
+    h : float
+        Step size.
+    record_every : int
+        Steps between records.
+    row_names : list of str
+        Names of the m contact rows.
+    scene : dict
+        The scene's parameters (``Scene.describe()``).
+    status : str
+        ``"completed"``, ``"interrupted"`` (KeyboardInterrupt) or ``"failed"``.
+    message : str
+        Why the run stopped early, if it did.
+    version : str
+        moreau version that computed it.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    gaps: np.ndarray
+    impulses: np.ndarray
+    active: np.ndarray
+    impacts: ImpactLog
+    stats: SolverStats
+    h: float
+    record_every: int = 1
+    row_names: list[str] = field(default_factory=list)
+    scene: dict = field(default_factory=dict)
+    energy: np.ndarray | None = None
+    kinetic_energy: np.ndarray | None = None
+    potential_energy: np.ndarray | None = None
+    status: str = "completed"
+    message: str = ""
+    version: str = ""
+    extra: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+    @property
+    def completed(self) -> bool:
+        return self.status == "completed"
+
+    def row_index(self, name: str) -> int:
+        """Index of a contact row by name (``ValueError`` listing the names otherwise)."""
+        try:
+            return self.row_names.index(name)
+        except ValueError:
+            raise ValueError(f"no contact row {name!r}; rows are {self.row_names}") from None
+
+    # -- persistence ----------------------------------------------------------------------
+    def save(self, path: str | os.PathLike) -> str:
+        """Write the trajectory to a ``.npz`` file (numpy only, no pickle); returns the path."""
+        path = os.fspath(path)
+        if not path.endswith(".npz"):
+            path += ".npz"
+        meta = {
+            "format": _FORMAT,
+            "h": self.h,
+            "record_every": self.record_every,
+            "row_names": self.row_names,
+            "scene": self.scene,
+            "status": self.status,
+            "message": self.message,
+            "version": self.version,
+            "stats": {f.name: getattr(self.stats, f.name) for f in fields(self.stats)},
+            "extra": self.extra,
+        }
+        arrays = {
+            "t": self.t, "q": self.q, "v": self.v, "gaps": self.gaps,
+            "impulses": self.impulses, "active": self.active,
+        }
+        for name in ("energy", "kinetic_energy", "potential_energy"):
+            if getattr(self, name) is not None:
+                arrays[name] = getattr(self, name)
+        for f in fields(ImpactLog):
+            arrays["impacts_" + f.name] = getattr(self.impacts, f.name)
+        tmp = path + ".tmp.npz"
+        np.savez_compressed(tmp, meta=np.array(json.dumps(meta, default=_json_default)), **arrays)
+        os.replace(tmp, path)
+        return path
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> "Trajectory":
+        """Read a trajectory written by :meth:`save`.
+
+        Raises
+        ------
+        ValueError
+            When the file is missing, unreadable, or not a moreau trajectory.
+        """
+        path = os.fspath(path)
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                data = {k: z[k] for k in z.files}
+            meta = json.loads(str(data.pop("meta")))
+        except FileNotFoundError:
+            raise ValueError(f"no trajectory file at {path!r}") from None
+        except Exception as exc:  # zipfile, json, numpy format errors
+            raise ValueError(f"cannot read trajectory file {path!r}: {exc}") from None
+        if not isinstance(meta, dict) or meta.get("format") != _FORMAT:
+            raise ValueError(f"{path!r} is not a moreau trajectory (format {meta.get('format')!r})")
+        try:
+            impacts = ImpactLog(**{f.name: data.pop("impacts_" + f.name) for f in fields(ImpactLog)})
+            return cls(
+                t=data["t"], q=data["q"], v=data["v"], gaps=data["gaps"],
+                impulses=data["impulses"], active=data["active"], impacts=impacts,
+                stats=SolverStats(**meta["stats"]), h=meta["h"], record_every=meta["record_every"],
+                row_names=meta["row_names"], scene=meta["scene"],
+                energy=data.get("energy"), kinetic_energy=data.get("kinetic_energy"),
+                potential_energy=data.get("potential_energy"), status=meta["status"],
+                message=meta["message"], version=meta["version"], extra=meta.get("extra", {}),
+            )
+        except (KeyError, TypeError) as exc:
+            raise ValueError(f"trajectory file {path!r} is incomplete: missing {exc}") from None
+
+
+def load(path: str | os.PathLike) -> Trajectory:
+    """Read a trajectory saved with :meth:`Trajectory.save`."""
+    return Trajectory.load(path)
+
+
+def _json_default(x):
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, np.generic):
+        return x.item()
+    raise TypeError(f"not JSON serializable: {type(x).__name__}")

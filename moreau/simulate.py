@@ -1,0 +1,232 @@
+"""The front door: :func:`simulate` runs a scene over a time span and returns a Trajectory."""
+
+from __future__ import annotations
+
+import logging
+import math
+import sys
+import time
+
+import numpy as np
+
+from ._validation import as_positive
+from .errors import SimulationError, SolverError
+from .integrator import MoreauJeanMidpoint, NonFiniteState, OneStepIntegrator
+from .result import ImpactLog, SolverStats, Trajectory
+from .scene import Scene
+from .solvers import ContactSolver
+
+__all__ = ["simulate"]
+
+log = logging.getLogger(__name__)
+
+_PROGRESS_MIN_STEPS = 20_000
+
+
+def simulate(
+    scene: Scene,
+    t_span: tuple[float, float],
+    q0,
+    v0,
+    h: float,
+    *,
+    solver: str | ContactSolver = "osqp",
+    fallback: str | ContactSolver | None = "enum",
+    integrator: type[OneStepIntegrator] = MoreauJeanMidpoint,
+    record_every: int = 1,
+    progress: bool | None = None,
+    energy: bool = True,
+    tol: float = 1e-6,
+) -> Trajectory:
+    """Integrate a scene with a fixed step from ``t_span[0]`` to ``t_span[1]``.
+
+    Parameters
+    ----------
+    scene : Scene
+        System, effects and contacts.
+    t_span : (float, float)
+        Start and end time; ``t1 > t0``. The run takes ``N = ceil((t1 - t0)/h)`` steps
+        (to within 1e-9 h) and ends at ``t0 + N h``.
+    q0, v0 : array_like, shape (n,)
+        Initial coordinates and velocities. A state that penetrates a barrier is
+        refused (``ValueError``); an approaching velocity on a closed contact is
+        resolved by the first step's impact.
+    h : float
+        Step size (> 0).
+    solver : str or ContactSolver
+        Contact backend: ``"osqp"`` (default), ``"enum"``, ``"daqp"``, ``"quadprog"``.
+    fallback : str or ContactSolver or None
+        Exact backend for steps the main one fails (default ``"enum"``).
+    integrator : OneStepIntegrator subclass
+        The time-stepper (default :class:`MoreauJeanMidpoint`).
+    record_every : int
+        Record every k-th step (and the last). Impulses are summed and activity is
+        or-ed over the steps between records; impacts are logged at every step.
+    progress : bool or None
+        Show a tqdm progress bar. None: only for long runs on a terminal.
+    energy : bool
+        Compute the mechanical energy at the records.
+    tol : float
+        Largest accepted scaled KKT residual of a contact solve.
+
+    Returns
+    -------
+    Trajectory
+        ``status == "completed"``, or ``"interrupted"`` after a KeyboardInterrupt (the
+        part computed so far; the interrupt is logged, not re-raised).
+
+    Raises
+    ------
+    ValueError
+        Bad input: non-finite or wrongly shaped states, h <= 0, a reversed time span,
+        a mass matrix that is not SPD, a penetrating initial state, ...
+    SolverError
+        Every backend failed on a step; ``exc.trajectory`` holds the run up to it.
+    SimulationError
+        The state became non-finite, or a user callable raised; ``exc.trajectory``
+        holds the run up to the last good step.
+    """
+    if not isinstance(scene, Scene):
+        raise ValueError(f"scene must be a Scene, got {scene!r}")
+    try:
+        t0, t1 = (float(x) for x in t_span)
+    except (TypeError, ValueError):
+        raise ValueError(f"t_span must be two numbers (t0, t1), got {t_span!r}") from None
+    if not (math.isfinite(t0) and math.isfinite(t1)):
+        raise ValueError(f"t_span must be finite, got {t_span!r}")
+    if t1 <= t0:
+        raise ValueError(f"t_span must satisfy t1 > t0, got t_span = ({t0!r}, {t1!r})")
+    h = as_positive(h, "step size h")
+    if isinstance(record_every, bool) or not isinstance(record_every, (int, np.integer)) or record_every < 1:
+        raise ValueError(f"record_every must be a positive integer, got {record_every!r}")
+    if not (isinstance(integrator, type) and issubclass(integrator, OneStepIntegrator)):
+        raise ValueError(f"integrator must be a OneStepIntegrator subclass, got {integrator!r}")
+
+    n_steps = max(1, math.ceil((t1 - t0) / h - 1e-9))
+    integ = integrator(scene, h, solver=solver, fallback=fallback, tol=tol)
+    integ.init(t0, q0, v0)
+
+    n, m = scene.ndof, scene.nrows
+    stride = int(record_every)
+    n_rec = n_steps // stride + 1 + (1 if n_steps % stride else 0)
+    T = np.empty(n_rec)
+    Q = np.empty((n_rec, n))
+    V = np.empty((n_rec, n))
+    PS = np.zeros((n_rec, m))
+    ACT = np.zeros((n_rec, m), dtype=bool)
+    T[0], Q[0], V[0] = t0, integ.q, integ.v
+    rec = 1
+    impacts: list[tuple] = []
+    P_acc = np.zeros(m)
+    act_acc = np.zeros(m, dtype=bool)
+    in_contact = np.zeros(m, dtype=bool)
+    has_contacts = m > 0
+
+    show = progress if progress is not None else (n_steps >= _PROGRESS_MIN_STEPS and sys.stderr.isatty())
+    bar = None
+    if show:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=n_steps, unit="step", desc=scene.name, mininterval=0.5, leave=False)
+    chunk = max(1, min(10_000, n_steps // 200))
+
+    status, message, error = "completed", "", None
+    wall0 = time.perf_counter()
+    k = 0
+    try:
+        step = integ.step
+        for k in range(1, n_steps + 1):
+            contact = step()
+            if has_contacts:
+                if contact:
+                    P = integ.P
+                    P_acc += P
+                    act_acc |= integ.active
+                    now = P > 0.0
+                    new = now & ~in_contact
+                    if new.any():
+                        _log_impacts(integ, np.flatnonzero(new), impacts)
+                    in_contact = now
+                elif in_contact.any():
+                    in_contact = np.zeros(m, dtype=bool)
+            if k % stride == 0 or k == n_steps:
+                T[rec], Q[rec], V[rec] = integ.t, integ.q, integ.v
+                if has_contacts:
+                    PS[rec] = P_acc
+                    ACT[rec] = act_acc
+                    P_acc[:] = 0.0
+                    act_acc[:] = False
+                rec += 1
+            if bar is not None and k % chunk == 0:
+                bar.update(chunk)
+    except KeyboardInterrupt:
+        status, message = "interrupted", f"interrupted by the user at step {k} (t = {integ.t:.9g})"
+        log.warning("%s; returning the %d records computed so far", message, rec)
+    except SolverError as exc:
+        status, message, error = "failed", str(exc), exc
+    except NonFiniteState as exc:
+        status, message = "failed", str(exc)
+        error = SimulationError(message, None, exc.step)
+        error.__cause__ = exc
+    except Exception as exc:  # a user callable raised inside the step
+        status = "failed"
+        message = f"step {k - 1} (t = {integ.t:.9g}) raised {type(exc).__name__}: {exc}"
+        error = SimulationError(message, None, k - 1)
+        error.__cause__ = exc
+    finally:
+        if bar is not None:
+            bar.close()
+    wall = time.perf_counter() - wall0
+    if status != "completed" and T[rec - 1] != integ.t:
+        # keep the last good state even when it falls between two records
+        T[rec], Q[rec], V[rec] = integ.t, integ.q, integ.v
+        if has_contacts:
+            PS[rec], ACT[rec] = P_acc, act_acc
+        rec += 1
+
+    traj = _assemble(scene, integ, h, stride, T[:rec], Q[:rec], V[:rec], PS[:rec], ACT[:rec],
+                     impacts, wall, status, message, energy)
+    if error is not None:
+        error.trajectory = traj
+        raise error
+    return traj
+
+
+def _log_impacts(integ: OneStepIntegrator, rows: np.ndarray, out: list[tuple]) -> None:
+    U_before, U_after, lost = integ.last_contact_details(rows)
+    t_start = integ.t - integ.h
+    for j, r in enumerate(rows):
+        out.append((t_start, integ.k - 1, int(r), float(U_before[j]), float(U_after[j]),
+                    float(integ.P[r]), float(lost[j])))
+
+
+def _assemble(scene, integ, h, stride, T, Q, V, PS, ACT, impacts, wall, status, message, energy) -> Trajectory:
+    from . import __version__
+
+    m = scene.nrows
+    gaps = np.empty((T.shape[0], m))
+    KE = PE = E = None
+    if m:
+        for i in range(T.shape[0]):
+            gaps[i] = scene.gaps(Q[i])
+    if energy and T.shape[0]:
+        KE = np.array([scene.kinetic_energy(Q[i], V[i]) for i in range(T.shape[0])])
+        PE = np.array([scene.potential_energy(Q[i]) for i in range(T.shape[0])])
+        E = KE + PE
+    stats = SolverStats(
+        solver=integ.solver.name,
+        fallback=integ.fallback.name if integ.fallback is not None else "",
+        steps=integ.k,
+        contact_steps=integ.n_contact_steps,
+        solves=integ.n_solves,
+        fallbacks=integ.n_fallbacks,
+        worst_residual=integ.worst_residual,
+        wall_time=wall,
+    )
+    return Trajectory(
+        t=T, q=Q, v=V, gaps=gaps, impulses=PS, active=ACT,
+        impacts=ImpactLog.from_rows(impacts), stats=stats, h=h, record_every=stride,
+        row_names=list(scene.row_names), scene=scene.describe(), energy=E,
+        kinetic_energy=KE, potential_energy=PE, status=status, message=message,
+        version=__version__,
+    )

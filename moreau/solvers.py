@@ -1,0 +1,324 @@
+"""Contact solvers: backends that solve the one-step QP and know no mechanics.
+
+Every solver takes the step's data for *all* m rows of the scene and the indices of the
+active ones, and returns ``(v, P)`` with P for the active rows only:
+
+``solve(M, b, G, c, rows) -> (v (n,), P (k,))``
+
+where G (m, n) and c (m,) are full-size (entries of inactive rows are ignored).
+
+Backends
+--------
+``"osqp"`` : :class:`OSQPSolver` (default). Set up once per scene, changed each step with
+    OSQP's ``update()`` on a fixed sparsity pattern (inactive rows opened with l = −∞),
+    warm-started, eps 1e-9 with polishing. Rebuilding OSQP every step through
+    ``qpsolvers.solve_qp`` costs ~20x more (see ``benchmarks/step_cost.py``).
+``"enum"`` : :class:`EnumerationSolver`, exact: enumerates the active sets of the LCP,
+    smallest first. Fast for the few active rows of a typical step; the default fallback.
+``"daqp"``, ``"quadprog"``, ``"qpsolvers:<name>"`` : :class:`QpsolversSolver`, exact
+    active-set QPs through qpsolvers.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import itertools
+import os
+from abc import ABC, abstractmethod
+
+import numpy as np
+
+__all__ = [
+    "ContactSolver",
+    "OSQPSolver",
+    "EnumerationSolver",
+    "QpsolversSolver",
+    "SolveFailed",
+    "make_solver",
+    "available_solvers",
+]
+
+
+class SolveFailed(RuntimeError):
+    """A backend could not solve a one-step problem (the integrator then falls back)."""
+
+
+class ContactSolver(ABC):
+    """Base class of the one-step contact solvers.
+
+    Attributes
+    ----------
+    name : str
+        Name used in results and on the command line.
+    exact : bool
+        True for solvers that return the exact (round-off level) solution.
+    """
+
+    name: str = "solver"
+    exact: bool = False
+
+    def setup(self, ndof: int, nrows: int, mass: np.ndarray | None = None) -> None:
+        """Prepare for a scene with ``ndof`` coordinates and ``nrows`` contact rows.
+
+        ``mass`` is the constant mass matrix when the system has one (None otherwise).
+        """
+
+    @abstractmethod
+    def solve(
+        self, M: np.ndarray, b: np.ndarray, G: np.ndarray, c: np.ndarray, rows: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Solve ``min ½ vᵀMv − bᵀv  s.t.  G[rows] v >= c[rows]``; return ``(v, P[rows])``."""
+
+    def describe(self) -> dict:
+        return {"name": self.name}
+
+
+class _CStdoutSilencer:
+    """Sends the C-level stdout to /dev/null around a call.
+
+    OSQP prints "Polishing not needed ..." from C even with ``verbose=False``. The redirect
+    costs ~1 µs per solve.
+    """
+
+    def __init__(self) -> None:
+        self._libc = ctypes.CDLL(None)
+        self._devnull = os.open(os.devnull, os.O_WRONLY)
+
+    def __enter__(self):
+        self._libc.fflush(None)
+        self._saved = os.dup(1)
+        os.dup2(self._devnull, 1)
+
+    def __exit__(self, *exc):
+        self._libc.fflush(None)
+        os.dup2(self._saved, 1)
+        os.close(self._saved)
+        return False
+
+    def __del__(self):
+        try:
+            os.close(self._devnull)
+        except (OSError, AttributeError):
+            pass
+
+
+class OSQPSolver(ContactSolver):
+    """OSQP, set up once and updated every step.
+
+    Parameters
+    ----------
+    eps : float
+        Absolute and relative tolerance (``eps_abs = eps_rel``). The default 1e-9 with
+        polishing matches an exact solve; at eps >= 1e-5 impact counts change.
+    polish : bool
+        Polish the solution (solve the reduced KKT system on the detected active set).
+    max_iter : int
+        Iteration limit.
+    name : str, optional
+        Name in results (default ``"osqp"`` or ``"osqp(eps=...)"``).
+    """
+
+    exact = False
+
+    def __init__(self, eps: float = 1e-9, polish: bool = True, max_iter: int = 20000, name: str | None = None) -> None:
+        if not (np.isfinite(eps) and eps > 0):
+            raise ValueError(f"OSQPSolver: eps must be positive, got {eps!r}")
+        self.eps = float(eps)
+        self.polish = bool(polish)
+        self.max_iter = int(max_iter)
+        self.name = name or ("osqp" if (eps == 1e-9 and polish) else f"osqp(eps={eps:g},polish={polish})")
+        self._solver = None
+
+    def setup(self, ndof, nrows, mass=None):
+        import osqp
+        import scipy.sparse as sp
+
+        n, m = ndof, nrows
+        self._n, self._m = n, m
+        # Dense patterns, kept fixed: upper triangle of P (CSC order), all of A.
+        Ppat = sp.csc_matrix(np.triu(np.ones((n, n))))
+        triu = [(i, j) for j in range(n) for i in range(j + 1)]
+        self._p_rows = np.array([i for i, _ in triu])
+        self._p_cols = np.array([j for _, j in triu])
+        Ppat.data = (np.eye(n) if mass is None else mass)[self._p_rows, self._p_cols].astype(float)
+        Apat = sp.csc_matrix(np.ones((m, n)))
+        self._l = np.full(m, -np.inf)
+        self._u = np.full(m, np.inf)
+        self._constant_mass = mass is not None
+        self._last_A = None
+        self._silencer = _CStdoutSilencer()
+        s = osqp.OSQP()
+        with self._silencer:
+            s.setup(
+                Ppat, np.zeros(n), Apat, self._l, self._u,
+                verbose=False, eps_abs=self.eps, eps_rel=self.eps, polishing=self.polish,
+                warm_starting=True, max_iter=self.max_iter, eps_prim_inf=1e-12, eps_dual_inf=1e-12,
+            )
+        self._solver = s
+        self._solved_status = s.constant("OSQP_SOLVED")
+
+    def solve(self, M, b, G, c, rows):
+        if self._solver is None:
+            raise SolveFailed("OSQPSolver.solve called before setup()")
+        l = self._l
+        l.fill(-np.inf)
+        l[rows] = c[rows]
+        kw = {"q": -b, "l": l}
+        if not self._constant_mass:
+            kw["Px"] = M[self._p_rows, self._p_cols]
+        if G is not self._last_A:
+            kw["Ax"] = G.ravel(order="F")
+            self._last_A = G
+        with self._silencer:
+            self._solver.update(**kw)
+            res = self._solver.solve(raise_error=False)
+        if res.info.status_val != self._solved_status:
+            raise SolveFailed(f"OSQP status {res.info.status!r} after {res.info.iter} iterations")
+        # OSQP: l <= Ax <= u with y < 0 on active lower bounds; P = -y.
+        return res.x, -res.y[rows]
+
+    def describe(self):
+        return {"name": self.name, "eps": self.eps, "polish": self.polish}
+
+
+class EnumerationSolver(ContactSolver):
+    """Exact LCP solver by enumeration of active sets, smallest first.
+
+    For k active rows it tries at most 2^k sets, each a k x k linear solve; with the
+    one or two active rows of a typical step it is the fastest backend. Singular
+    sub-blocks (redundant rows) are skipped: a solution on independent rows exists.
+
+    Parameters
+    ----------
+    max_rows : int
+        Refuse (raise :class:`SolveFailed`) above this many active rows.
+    tol : float
+        Relative feasibility tolerance.
+    """
+
+    exact = True
+    name = "enum"
+
+    def __init__(self, max_rows: int = 12, tol: float = 1e-12) -> None:
+        self.max_rows = int(max_rows)
+        self.tol = float(tol)
+
+    def setup(self, ndof, nrows, mass=None):
+        self._Minv = None if mass is None else np.linalg.inv(mass)
+
+    def solve(self, M, b, G, c, rows):
+        k = rows.shape[0]
+        if k > self.max_rows:
+            raise SolveFailed(f"enumeration refuses {k} active rows (max_rows={self.max_rows})")
+        GA = G[rows]
+        cA = c[rows]
+        if self._Minv is not None and M is not None:
+            v_free = self._Minv @ b
+            MinvGt = self._Minv @ GA.T
+        else:
+            sol = np.linalg.solve(M, np.column_stack((b, GA.T)))
+            v_free = sol[:, 0]
+            MinvGt = sol[:, 1:]
+        w = GA @ v_free - cA
+        absGA = np.abs(GA)
+        scale = max(
+            1e-300,
+            float((absGA @ (np.abs(v_free) + np.abs(b) / np.diag(M))).max()),
+            float(np.abs(cA).max()),
+        )
+        tol = self.tol * scale
+        if w.min() >= -tol:
+            return v_free, np.zeros(k)
+        W = GA @ MinvGt
+        if k == 1:
+            P = -w / W[0, 0]
+            return v_free + MinvGt[:, 0] * P[0], P
+        wmax = float(np.abs(W).max())
+        for size in range(1, k + 1):
+            for S in itertools.combinations(range(k), size):
+                S = list(S)
+                if size == 1:
+                    d = W[S[0], S[0]]
+                    if d <= 1e-14 * wmax:
+                        continue
+                    PS = np.array([-w[S[0]] / d])
+                else:
+                    WSS = W[np.ix_(S, S)]
+                    if np.linalg.cond(WSS) > 1e12:
+                        continue
+                    PS = np.linalg.solve(WSS, -w[S])
+                # impulses must be non-negative (round-off aside)
+                if PS.min() < -1e-10 * float(np.abs(PS).max()):
+                    continue
+                PS = np.maximum(PS, 0.0)
+                if (w + W[:, S] @ PS).min() >= -tol:
+                    P = np.zeros(k)
+                    P[S] = PS
+                    return v_free + MinvGt @ P, P
+        raise SolveFailed(f"enumeration found no solution among the active sets of {k} rows")
+
+
+class QpsolversSolver(ContactSolver):
+    """An exact QP backend through qpsolvers (``"daqp"``, ``"quadprog"``, ...).
+
+    Each step builds the QP on the active rows only and calls ``qpsolvers.solve_problem``.
+    """
+
+    exact = True
+
+    def __init__(self, backend: str) -> None:
+        import qpsolvers
+
+        if backend not in qpsolvers.available_solvers:
+            raise ValueError(
+                f"unknown or not installed qpsolvers backend {backend!r}; "
+                f"available: {sorted(qpsolvers.available_solvers)}"
+            )
+        self.backend = backend
+        self.name = backend
+        self._qpsolvers = qpsolvers
+
+    def solve(self, M, b, G, c, rows):
+        qp = self._qpsolvers
+        GA = G[rows]
+        problem = qp.Problem(P=M, q=-b, G=-GA, h=-c[rows])
+        sol = qp.solve_problem(problem, solver=self.backend)
+        if not sol.found or sol.x is None:
+            raise SolveFailed(f"{self.backend} found no solution")
+        P = sol.z if sol.z is not None else np.zeros(rows.shape[0])
+        return np.asarray(sol.x, dtype=float), np.asarray(P, dtype=float)
+
+
+_SIMPLE = {
+    "osqp": lambda: OSQPSolver(),
+    "enum": lambda: EnumerationSolver(),
+}
+
+
+def available_solvers() -> list[str]:
+    """Names accepted by :func:`make_solver`."""
+    import qpsolvers
+
+    exact_qp = [s for s in ("daqp", "quadprog") if s in qpsolvers.available_solvers]
+    return sorted(_SIMPLE) + exact_qp
+
+
+def make_solver(spec: "str | ContactSolver") -> ContactSolver:
+    """A solver from a name (``"osqp"``, ``"enum"``, ``"daqp"``, ``"quadprog"``,
+    ``"qpsolvers:<backend>"``) or an instance (returned as is).
+
+    Raises
+    ------
+    ValueError
+        For an unknown name.
+    """
+    if isinstance(spec, ContactSolver):
+        return spec
+    if not isinstance(spec, str):
+        raise ValueError(f"solver must be a name or a ContactSolver, got {spec!r}")
+    if spec in _SIMPLE:
+        return _SIMPLE[spec]()
+    name = spec.split(":", 1)[1] if spec.startswith("qpsolvers:") else spec
+    if name in ("daqp", "quadprog") or spec.startswith("qpsolvers:"):
+        return QpsolversSolver(name)
+    raise ValueError(f"unknown solver {spec!r}; choose one of {available_solvers()}")
