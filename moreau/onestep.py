@@ -96,18 +96,19 @@ def kkt_residuals(M, b, G, c, v, P) -> Residuals:
     velocity the step's forces would give), momenta against ``|b|`` and ``|Gᵀ P|``,
     impulses against ``max |P|``.
     """
-    slack = G @ v - c
-    vel_scale = max(
-        _TINY,
-        float((np.abs(G) @ (np.abs(v) + np.abs(b) / np.diag(M))).max()),
-        float(np.abs(c).max()),
-    )
+    # few numpy calls, reductions on Python floats: this runs after every contact solve
+    slack = (G @ v - c).tolist()
     GtP = P @ G
+    stat = np.abs(M @ v - b - GtP).tolist()
+    vel = (np.abs(G) @ (np.abs(v) + np.abs(b) / M.diagonal())).tolist()
+    Pl = P.tolist()
+    cl = c.tolist()
+    vel_scale = max(_TINY, max(vel), max(cl), -min(cl))
     mom_scale = max(_TINY, float(np.abs(b).max()), float(np.abs(GtP).max()))
-    p_scale = max(_TINY, float(np.abs(P).max()))
+    p_scale = max(_TINY, max(Pl), -min(Pl))
     return Residuals(
-        primal=max(0.0, -float(slack.min())) / vel_scale,
-        dual=max(0.0, -float(P.min())) / p_scale,
-        complementarity=float(np.abs(P * slack).max()) / (p_scale * vel_scale),
-        stationarity=float(np.abs(M @ v - b - GtP).max()) / mom_scale,
+        primal=max(0.0, -min(slack)) / vel_scale,
+        dual=max(0.0, -min(Pl)) / p_scale,
+        complementarity=max(abs(p * s) for p, s in zip(Pl, slack)) / (p_scale * vel_scale),
+        stationarity=max(stat) / mom_scale,
     )

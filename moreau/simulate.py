@@ -204,15 +204,20 @@ def _assemble(scene, integ, h, stride, T, Q, V, PS, ACT, impacts, wall, status, 
     from . import __version__
 
     m = scene.nrows
-    gaps = np.empty((T.shape[0], m))
+    N = T.shape[0]
+    gaps = np.full((N, m), np.nan)
     KE = PE = E = None
-    if m:
-        for i in range(T.shape[0]):
+    # post-processing of what was computed: a user callable failing here must not lose
+    # the trajectory (it may be why the run stopped), so failures leave NaN and a warning
+    try:
+        for i in range(N if m else 0):
             gaps[i] = scene.gaps(Q[i])
-    if energy and T.shape[0]:
-        KE = np.array([scene.kinetic_energy(Q[i], V[i]) for i in range(T.shape[0])])
-        PE = np.array([scene.potential_energy(Q[i]) for i in range(T.shape[0])])
-        E = KE + PE
+        if energy and N:
+            KE = np.array([scene.kinetic_energy(Q[i], V[i]) for i in range(N)])
+            PE = np.array([scene.potential_energy(Q[i]) for i in range(N)])
+            E = KE + PE
+    except Exception as exc:  # noqa: BLE001 - reported, and the data kept
+        log.warning("could not evaluate gaps/energy on the recorded states: %s", exc)
     stats = SolverStats(
         solver=integ.solver.name,
         fallback=integ.fallback.name if integ.fallback is not None else "",

@@ -24,6 +24,7 @@ from __future__ import annotations
 import ctypes
 import itertools
 import os
+import sys
 from abc import ABC, abstractmethod
 
 import numpy as np
@@ -73,18 +74,32 @@ class ContactSolver(ABC):
         return {"name": self.name}
 
 
-class _CStdoutSilencer:
-    """Sends the C-level stdout to /dev/null around a call.
+class _NullWriter:
+    def write(self, s):
+        return len(s)
 
-    OSQP prints "Polishing not needed ..." from C even with ``verbose=False``. The redirect
-    costs ~1 µs per solve.
+    def flush(self):
+        pass
+
+
+class _StdoutSilencer:
+    """Silences stdout around a call, at both levels OSQP may print on.
+
+    OSQP prints "Polishing not needed ..." even with ``verbose=False``: the Python
+    bindings of osqp 1.x through ``PySys_WriteStdout`` (that is, ``sys.stdout``), older
+    builds with C ``printf`` (file descriptor 1). Both are redirected for the duration of
+    the call; together this costs ~1 µs per solve.
     """
+
+    _null = _NullWriter()
 
     def __init__(self) -> None:
         self._libc = ctypes.CDLL(None)
         self._devnull = os.open(os.devnull, os.O_WRONLY)
 
     def __enter__(self):
+        self._py = sys.stdout
+        sys.stdout = self._null
         self._libc.fflush(None)
         self._saved = os.dup(1)
         os.dup2(self._devnull, 1)
@@ -93,6 +108,7 @@ class _CStdoutSilencer:
         self._libc.fflush(None)
         os.dup2(self._saved, 1)
         os.close(self._saved)
+        sys.stdout = self._py
         return False
 
     def __del__(self):
@@ -146,7 +162,7 @@ class OSQPSolver(ContactSolver):
         self._u = np.full(m, np.inf)
         self._constant_mass = mass is not None
         self._last_A = None
-        self._silencer = _CStdoutSilencer()
+        self._silencer = _StdoutSilencer()
         s = osqp.OSQP()
         with self._silencer:
             s.setup(
@@ -155,7 +171,7 @@ class OSQPSolver(ContactSolver):
                 warm_starting=True, max_iter=self.max_iter, eps_prim_inf=1e-12, eps_dual_inf=1e-12,
             )
         self._solver = s
-        self._solved_status = s.constant("OSQP_SOLVED")
+        self._solved_status = osqp.SolverStatus.OSQP_SOLVED
 
     def solve(self, M, b, G, c, rows):
         if self._solver is None:
@@ -172,7 +188,7 @@ class OSQPSolver(ContactSolver):
         with self._silencer:
             self._solver.update(**kw)
             res = self._solver.solve(raise_error=False)
-        if res.info.status_val != self._solved_status:
+        if res.info.status_val != self._solved_status:  # an IntEnum: compares with the int
             raise SolveFailed(f"OSQP status {res.info.status!r} after {res.info.iter} iterations")
         # OSQP: l <= Ax <= u with y < 0 on active lower bounds; P = -y.
         return res.x, -res.y[rows]
@@ -233,6 +249,10 @@ class EnumerationSolver(ContactSolver):
         if k == 1:
             P = -w / W[0, 0]
             return v_free + MinvGt[:, 0] * P[0], P
+        if k == 2:
+            P = _lcp2(W.tolist(), w.tolist(), tol)
+            if P is not None:
+                return v_free + MinvGt @ P, P
         wmax = float(np.abs(W).max())
         for size in range(1, k + 1):
             for S in itertools.combinations(range(k), size):
@@ -258,15 +278,44 @@ class EnumerationSolver(ContactSolver):
         raise SolveFailed(f"enumeration found no solution among the active sets of {k} rows")
 
 
+def _lcp2(W, w, tol):
+    """The 2 x 2 LCP ``0 <= P ⟂ w + W P >= 0`` in plain floats (W symmetric PSD, w has a
+    negative entry); None when no active set passes (the caller enumerates generally)."""
+    (a, b), (_, d) = W
+    w0, w1 = w
+    if a > 0.0:  # row 0 alone
+        p0 = -w0 / a
+        if p0 >= 0.0 and w1 + b * p0 >= -tol:
+            return np.array([p0, 0.0])
+    if d > 0.0:  # row 1 alone
+        p1 = -w1 / d
+        if p1 >= 0.0 and w0 + b * p1 >= -tol:
+            return np.array([0.0, p1])
+    det = a * d - b * b
+    if det > 1e-12 * a * d:  # both rows, when independent
+        p0 = (-w0 * d + w1 * b) / det
+        p1 = (-w1 * a + w0 * b) / det
+        if p0 >= 0.0 and p1 >= 0.0:
+            return np.array([p0, p1])
+    return None
+
+
 class QpsolversSolver(ContactSolver):
     """An exact QP backend through qpsolvers (``"daqp"``, ``"quadprog"``, ...).
 
-    Each step builds the QP on the active rows only and calls ``qpsolvers.solve_problem``.
+    Each step builds the QP on the active rows only and calls ``qpsolvers.solve_problem``
+    (so ``QpsolversSolver("osqp")`` rebuilds the OSQP workspace every step: the slow way,
+    kept for the benchmark that measures it).
+
+    Parameters
+    ----------
+    backend : str
+        A name in ``qpsolvers.available_solvers``.
+    **options
+        Passed to the backend (e.g. ``eps_abs=1e-9`` for OSQP).
     """
 
-    exact = True
-
-    def __init__(self, backend: str) -> None:
+    def __init__(self, backend: str, **options) -> None:
         import qpsolvers
 
         if backend not in qpsolvers.available_solvers:
@@ -275,18 +324,24 @@ class QpsolversSolver(ContactSolver):
                 f"available: {sorted(qpsolvers.available_solvers)}"
             )
         self.backend = backend
-        self.name = backend
+        self.name = backend if backend != "osqp" else "qpsolvers:osqp"
+        self.exact = backend != "osqp"
+        self.options = options
         self._qpsolvers = qpsolvers
+        self._silencer = _StdoutSilencer()
 
     def solve(self, M, b, G, c, rows):
         qp = self._qpsolvers
-        GA = G[rows]
-        problem = qp.Problem(P=M, q=-b, G=-GA, h=-c[rows])
-        sol = qp.solve_problem(problem, solver=self.backend)
+        problem = qp.Problem(P=M, q=-b, G=-G[rows], h=-c[rows])
+        with self._silencer:
+            sol = qp.solve_problem(problem, solver=self.backend, **self.options)
         if not sol.found or sol.x is None:
             raise SolveFailed(f"{self.backend} found no solution")
         P = sol.z if sol.z is not None else np.zeros(rows.shape[0])
         return np.asarray(sol.x, dtype=float), np.asarray(P, dtype=float)
+
+    def describe(self):
+        return {"name": self.name, "options": self.options}
 
 
 _SIMPLE = {

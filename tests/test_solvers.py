@@ -1,0 +1,144 @@
+"""Contact solvers agree, are checked, and fall back (issue 2 acceptance)."""
+
+import numpy as np
+import pytest
+
+import moreau as mo
+from moreau.onestep import OneStepProblem, kkt_residuals
+from moreau.solvers import SolveFailed
+from problems.bouncing_ball import bouncing_ball
+
+
+def random_problem(rng):
+    """A feasible one-step QP with redundant rows and strictly satisfied rows."""
+    n = int(rng.integers(1, 6))
+    m = int(rng.integers(1, 6))
+    A = rng.normal(size=(n, n))
+    M = A @ A.T + 0.1 * np.eye(n)
+    b = rng.normal(size=n)
+    G = rng.normal(size=(m, n))
+    redundant = m >= 2 and rng.random() < 0.5
+    if redundant:  # a duplicated (or scaled) row, with a consistent bound below
+        G[1] = G[0] * (1.0 if rng.random() < 0.5 else 2.0)
+    v0 = rng.normal(size=n)
+    slack = np.abs(rng.normal(size=m)) * (rng.random(m) < 0.5)
+    c = G @ v0 - slack  # feasible at v0
+    # some rows strictly satisfied by the unconstrained solution
+    v_free = np.linalg.solve(M, b)
+    loose = rng.random(m) < 0.3
+    c[loose] = np.minimum(c[loose], G[loose] @ v_free - 1.0)
+    if redundant:
+        c[1] = c[0] * (G[1, 0] / G[0, 0])
+    rows = np.flatnonzero(rng.random(m) < 0.8)
+    if rows.size == 0:
+        rows = np.arange(m)
+    return M, b, G, c, rows
+
+
+def test_osqp_and_exact_backends_agree_on_random_problems(rng):
+    exact = {"enum": mo.EnumerationSolver(), "daqp": mo.make_solver("daqp")}
+    checked = 0
+    for _ in range(250):
+        M, b, G, c, rows = random_problem(rng)
+        m, n = G.shape
+        osqp = mo.OSQPSolver()
+        osqp.setup(n, m, None)
+        v_o, P_o = osqp.solve(M, b, G, c, rows)
+        for name, s in exact.items():
+            s.setup(n, m, None)
+            v_e, P_e = s.solve(M, b, G, c, rows)
+            assert kkt_residuals(M, b, G[rows], c[rows], v_e, P_e).worst < 1e-9, name
+            np.testing.assert_allclose(v_o, v_e, atol=1e-8, rtol=0, err_msg=name)
+            # impulses may differ on redundant rows; the generalized impulse may not
+            np.testing.assert_allclose(G[rows].T @ P_o, G[rows].T @ P_e, atol=1e-7, rtol=0)
+        checked += 1
+    assert checked == 250
+
+
+def test_osqp_is_set_up_once_and_updated(monkeypatch):
+    import osqp
+
+    calls = {"setup": 0, "update": 0}
+    real_setup, real_update = osqp.OSQP.setup, osqp.OSQP.update
+
+    def setup(self, *a, **k):
+        calls["setup"] += 1
+        return real_setup(self, *a, **k)
+
+    def update(self, *a, **k):
+        calls["update"] += 1
+        return real_update(self, *a, **k)
+
+    monkeypatch.setattr(osqp.OSQP, "setup", setup)
+    monkeypatch.setattr(osqp.OSQP, "update", update)
+    traj = mo.simulate(bouncing_ball(0.5), (0.0, 1.0), [1.0], [0.0], 1e-3, solver="osqp")
+    assert calls["setup"] == 1
+    assert calls["update"] == traj.stats.solves > 0
+
+
+def test_osqp_prints_nothing(capfd):
+    mo.simulate(bouncing_ball(0.5), (0.0, 1.0), [1.0], [0.0], 1e-3, solver="osqp")
+    out, err = capfd.readouterr()
+    assert out == ""
+    assert "Polishing" not in err
+
+
+class WrongSolver(mo.ContactSolver):
+    """Returns the unconstrained velocity on chosen calls: a wrong answer that looks fine."""
+
+    name = "wrong"
+
+    def __init__(self, bad_calls):
+        self.bad_calls = set(bad_calls)
+        self.calls = 0
+        self.inner = mo.EnumerationSolver()
+
+    def setup(self, ndof, nrows, mass=None):
+        self.inner.setup(ndof, nrows, mass)
+
+    def solve(self, M, b, G, c, rows):
+        self.calls += 1
+        if self.calls in self.bad_calls:
+            return np.linalg.solve(M, b), np.zeros(rows.shape[0])
+        return self.inner.solve(M, b, G, c, rows)
+
+
+class FailingSolver(mo.ContactSolver):
+    name = "failing"
+
+    def solve(self, M, b, G, c, rows):
+        raise SolveFailed("always fails")
+
+
+def test_wrong_answers_are_caught_and_fallback_counted():
+    ref = mo.simulate(bouncing_ball(0.5), (0.0, 1.5), [1.0], [0.0], 1e-3, solver="enum")
+    wrong = WrongSolver(bad_calls=range(1, 10_000, 7))
+    traj = mo.simulate(bouncing_ball(0.5), (0.0, 1.5), [1.0], [0.0], 1e-3, solver=wrong)
+    expected = len([k for k in range(1, wrong.calls + 1) if k in wrong.bad_calls])
+    assert traj.stats.fallbacks == expected > 0
+    np.testing.assert_allclose(traj.q, ref.q, atol=1e-12)
+
+
+def test_all_backends_failing_raises_solver_error_with_context():
+    with pytest.raises(mo.SolverError) as info:
+        mo.simulate(bouncing_ball(0.5), (0.0, 1.0), [1.0], [0.0], 1e-3,
+                    solver=FailingSolver(), fallback=None)
+    exc = info.value
+    assert exc.rows == ["floor"]
+    assert exc.step == int(round(exc.t / 1e-3))
+    assert 0.44 < exc.t < 0.46  # the first impact
+    assert "failing" in exc.residuals and "always fails" in str(exc)
+    assert exc.trajectory.status == "failed"
+    assert exc.trajectory.t[-1] == pytest.approx(exc.t)  # kept up to the last good step
+
+
+def test_lcp_form_matches_qp_form(rng):
+    for _ in range(50):
+        M, b, G, c, rows = random_problem(rng)
+        s = mo.EnumerationSolver()
+        s.setup(*G.shape[::-1], None)
+        v, P = s.solve(M, b, G, c, rows)
+        W, w = OneStepProblem(M, b, G[rows], c[rows]).lcp()
+        slack = w + W @ P
+        assert slack.min() > -1e-9 and P.min() >= 0
+        assert np.abs(P * slack).max() < 1e-9
