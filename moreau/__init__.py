@@ -27,6 +27,7 @@ from .onestep import OneStepProblem, Residuals
 from .result import ImpactLog, SolverStats, Trajectory, load
 from .scene import Contact, Scene
 from .simulate import simulate
+from . import diagnostics
 from .solvers import ContactSolver, EnumerationSolver, OSQPSolver, QpsolversSolver, make_solver
 from .system import FunctionSystem, MechanicalSystem
 

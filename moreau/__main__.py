@@ -1,0 +1,7 @@
+"""``python -m moreau``: the same as the ``moreau`` command."""
+
+import sys
+
+from .cli import main
+
+sys.exit(main())

@@ -1,0 +1,169 @@
+"""The ``moreau`` command.
+
+    moreau ball [--e E] [--h H] [--t-end T] [--solver S] [--out DIR]
+
+Each subcommand writes its figures (PNG), a summary (CSV, also printed) and the
+trajectory (``.npz``) into ``--out``. Errors in the options end the command with exit
+code 2 and a one-line message; a failed or interrupted run saves what it computed first.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import logging
+import os
+import sys
+from collections.abc import Sequence
+
+log = logging.getLogger("moreau.cli")
+
+
+class CLIError(Exception):
+    """A problem with the command line: reported in one line, exit code 2."""
+
+
+def _float_in(lo: float | None = None, hi: float | None = None, lo_open: bool = False):
+    def parse(text: str) -> float:
+        try:
+            x = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+        if x != x or (lo is not None and (x < lo or (lo_open and x == lo))) or (hi is not None and x > hi):
+            lo_s = "-inf" if lo is None else f"{lo:g}"
+            hi_s = "inf" if hi is None else f"{hi:g}"
+            raise argparse.ArgumentTypeError(f"{text} is outside {'(' if lo_open else '['}{lo_s}, {hi_s}]")
+        return x
+
+    return parse
+
+
+def _positive_int(text: str) -> int:
+    try:
+        x = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if x < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {x}")
+    return x
+
+
+def write_summary(rows: list[dict], path: str) -> None:
+    """Write rows of a summary to CSV and print them as a table."""
+    if not rows:
+        return
+    keys = list(rows[0])
+    with open(path, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=keys)
+        w.writeheader()
+        w.writerows(rows)
+    widths = {k: max(len(k), *(len(_fmt(r[k])) for r in rows)) for k in keys}
+    print("  ".join(k.rjust(widths[k]) for k in keys))
+    for r in rows:
+        print("  ".join(_fmt(r[k]).rjust(widths[k]) for k in keys))
+    print(f"summary written to {path}")
+
+
+def _fmt(x) -> str:
+    if isinstance(x, float):
+        return f"{x:.6g}"
+    return str(x)
+
+
+# -- ball ---------------------------------------------------------------------------------
+def _cmd_ball(args) -> int:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    import moreau as mo
+    from problems.bouncing_ball import BallSolution, bouncing_ball
+
+    os.makedirs(args.out, exist_ok=True)
+    scene = bouncing_ball(args.e)
+    sol = BallSolution(args.h0, args.e)
+    traj = _run(scene, (0.0, args.t_end), [args.h0], [0.0], args, out_stem=os.path.join(args.out, "ball"))
+    fig, ax = plt.subplots(figsize=(7, 3.5))
+    ax.plot(traj.t, traj.q[:, 0], label=f"moreau, h = {args.h:g} s")
+    ax.plot(traj.t, sol.position(traj.t), "--", lw=1, label="analytic")
+    if np.isfinite(sol.zeno_time):
+        ax.axvline(sol.zeno_time, color="gray", lw=0.6, ls=":", label="Zeno time")
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel("height y (m)")
+    ax.set_title(f"Bouncing ball, e = {args.e:g}")
+    ax.legend()
+    fig.tight_layout()
+    fig_path = os.path.join(args.out, "ball.png")
+    fig.savefig(fig_path, dpi=120)
+    plt.close(fig)
+    row = {
+        "e": args.e, "h": args.h, "impacts": len(traj.impacts),
+        "zeno_time_analytic": sol.zeno_time,
+        "max_penetration": mo.diagnostics.max_penetration(traj),
+        "fallbacks": traj.stats.fallbacks, "wall_time_s": traj.stats.wall_time,
+        "us_per_step": traj.stats.us_per_step,
+    }
+    write_summary([row], os.path.join(args.out, "ball_summary.csv"))
+    print(f"figure written to {fig_path}")
+    return 0
+
+
+def _run(scene, t_span, q0, v0, args, out_stem: str, **kw):
+    """simulate() that saves the trajectory in every case (completed, failed, interrupted)."""
+    import moreau as mo
+
+    try:
+        traj = mo.simulate(scene, t_span, q0, v0, args.h, solver=args.solver,
+                           progress=not args.no_progress, **kw)
+    except (mo.SolverError, mo.SimulationError) as exc:
+        path = exc.trajectory.save(out_stem + ".partial.npz")
+        raise CLIError(f"{exc} (the {len(exc.trajectory)} records computed are saved in {path})") from None
+    path = traj.save(out_stem + (".npz" if traj.completed else ".partial.npz"))
+    if not traj.completed:
+        raise CLIError(f"{traj.message}; the {len(traj)} records computed are saved in {path}")
+    log.info("trajectory saved to %s", path)
+    return traj
+
+
+# -- entry point --------------------------------------------------------------------------
+def build_parser() -> argparse.ArgumentParser:
+    from moreau.solvers import available_solvers
+
+    p = argparse.ArgumentParser(prog="moreau", description="Non-smooth mechanics with the Moreau-Jean midpoint scheme.")
+    p.add_argument("-v", "--verbose", action="store_true", help="log progress details")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    b = sub.add_parser("ball", help="bouncing ball against its analytic solution")
+    b.add_argument("--e", type=_float_in(0.0, 1.0), default=0.5, help="restitution in [0, 1] (default 0.5)")
+    b.add_argument("--h0", type=_float_in(0.0, None, lo_open=True), default=1.0, help="drop height (m)")
+    b.add_argument("--h", type=_float_in(0.0, None, lo_open=True), default=1e-4, help="time step (s)")
+    b.add_argument("--t-end", type=_float_in(0.0, None, lo_open=True), default=2.0, help="end time (s)")
+    b.add_argument("--solver", choices=available_solvers(), default="osqp")
+    b.add_argument("--out", default="ball-out", help="output directory")
+    b.add_argument("--no-progress", action="store_true", help="no progress bar")
+    b.set_defaults(func=_cmd_ball)
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)  # bad options: argparse prints one line, exit 2
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
+                        format="%(levelname)s %(name)s: %(message)s")
+    try:
+        return args.func(args)
+    except CLIError as exc:
+        print(f"moreau {args.command}: error: {exc}", file=sys.stderr)
+        return 1
+    except ValueError as exc:
+        print(f"moreau {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"moreau {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
