@@ -1,5 +1,6 @@
 """The ``moreau`` command.
 
+    moreau piston [--e E] [--D MM] [--cycles N] [--transient N] [--h H] [--solver S] [--out DIR]
     moreau ball [--e E] [--h H] [--t-end T] [--solver S] [--out DIR]
 
 Each subcommand writes its figures (PNG), a summary (CSV, also printed) and the
@@ -46,6 +47,19 @@ def _positive_int(text: str) -> int:
     if x < 1:
         raise argparse.ArgumentTypeError(f"must be >= 1, got {x}")
     return x
+
+
+def _int_at_least(lo: int):
+    def parse(text: str) -> int:
+        try:
+            x = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+        if x < lo:
+            raise argparse.ArgumentTypeError(f"must be >= {lo}, got {x}")
+        return x
+
+    return parse
 
 
 def write_summary(rows: list[dict], path: str) -> None:
@@ -127,6 +141,26 @@ def _run(scene, t_span, q0, v0, args, out_stem: str, **kw):
     return traj
 
 
+# -- piston -------------------------------------------------------------------------------
+def _cmd_piston(args) -> int:
+    from problems.piston.job import PAPER_CASES, Case, run_cases
+
+    if args.e is None and args.D is None:
+        pairs = list(PAPER_CASES)
+    else:
+        pairs = [(0.0 if args.e is None else args.e, 0.08004 if args.D is None else args.D / 1e3)]
+    cases = [Case(e=e, D=D, h=args.h, cycles=args.cycles, transient=args.transient, solver=args.solver)
+             for e, D in pairs]
+    print(f"moreau piston: {len(cases)} case(s), {args.transient} transient + {args.cycles} analyzed "
+          f"cycles each, h = {args.h:g} (non-dimensional time), solver {args.solver}; output in {args.out}/")
+    rows = run_cases(cases, args.out, progress=not args.no_progress, workers=args.workers)
+    write_summary(rows, os.path.join(args.out, "summary.csv"))
+    bad = [r for r in rows if r["status"] != "completed"]
+    for r in bad:
+        print(f"case e={r['e']}, D={r['D_mm']} mm {r['status']}: partial trajectory saved", file=sys.stderr)
+    return 1 if bad else 0
+
+
 # -- entry point --------------------------------------------------------------------------
 def build_parser() -> argparse.ArgumentParser:
     from moreau.solvers import available_solvers
@@ -144,6 +178,24 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--out", default="ball-out", help="output directory")
     b.add_argument("--no-progress", action="store_true", help="no progress bar")
     b.set_defaults(func=_cmd_ball)
+
+    pi = sub.add_parser("piston", help="the paper's piston engine: figures, summary, trajectories",
+                        description="Simulate the piston - connecting rod - crankshaft engine (the paper's "
+                                    "three cases, or the one given by --e/--D), discard the transient, and "
+                                    "write figures, summary.csv and the trajectories into --out.")
+    pi.add_argument("--e", type=_float_in(0.0, 1.0), default=None, help="restitution in [0, 1]")
+    pi.add_argument("--D", type=_float_in(80.0, 100.0, lo_open=True), default=None,
+                    help="cylinder diameter in mm, > 80 (the piston's); paper: 80.04 and 80.2")
+    pi.add_argument("--cycles", type=_positive_int, default=3, help="engine cycles analyzed (default 3)")
+    pi.add_argument("--transient", type=_int_at_least(0), default=1, help="cycles discarded first (default 1)")
+    pi.add_argument("--h", type=_float_in(0.0, 0.05, lo_open=True), default=1e-4,
+                    help="time step in non-dimensional time τ = ωt (default 1e-4)")
+    pi.add_argument("--solver", choices=available_solvers(), default="enum",
+                    help="contact solver (default enum, the fastest exact one here)")
+    pi.add_argument("--workers", type=_positive_int, default=None, help="parallel processes (default: one per case, up to the cores)")
+    pi.add_argument("--out", default="piston-out", help="output directory (default piston-out)")
+    pi.add_argument("--no-progress", action="store_true", help="no progress bars")
+    pi.set_defaults(func=_cmd_piston)
     return p
 
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import logging
 from abc import ABC, abstractmethod
+from typing import NamedTuple
 
 import numpy as np
 
@@ -24,7 +25,7 @@ from .onestep import kkt_residuals
 from .scene import Scene
 from .solvers import ContactSolver, SolveFailed, make_solver
 
-__all__ = ["OneStepIntegrator", "MoreauJeanMidpoint", "NonFiniteState"]
+__all__ = ["OneStepIntegrator", "MoreauJeanMidpoint", "NonFiniteState", "ContactDetails"]
 
 log = logging.getLogger(__name__)
 
@@ -196,29 +197,46 @@ class OneStepIntegrator(ABC):
             )
 
     # -- what the last step did at the contacts (computed on request only) --------------
-    def last_contact_details(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Normal velocities before and after the last step and the kinetic energy the
-        contact impulses dissipated, for the given rows (all must have been active).
+    def last_contact_details(self, rows: np.ndarray) -> "ContactDetails":
+        """Normal velocities of the last step at the given rows (all must have been
+        active) and the kinetic energy the contact impulses dissipated there.
 
-        Returns
-        -------
-        U_before, U_after : ndarray, shape (len(rows),)
-            ``G v_k`` and ``G v⁺`` (length unit per time unit).
-        energy_lost : ndarray, shape (len(rows),)
-            Per row ``−½ P_i (U⁺_i + U_free_i)`` (J), where ``U_free = G v_free`` is the
-            normal velocity the step would have had without contact. Rows sum to
-            ``½ v_freeᵀ M v_free − ½ v⁺ᵀ M v⁺``; for one row it is ½ m_eff U²(1 − e²).
+        Computed on request only (a solve with M), never in the step itself.
         """
         M, G, v_old, v_new, P_all = self._last
-        GA_all = G[self.active]
-        P_act = P_all[self.active]
-        dv = np.linalg.solve(M, GA_all.T @ P_act)  # M⁻¹ Gᵀ P
-        v_free = v_new - dv
+        act = self.active
+        dv = np.linalg.solve(M, G[act].T @ P_all[act])  # M⁻¹ Gᵀ P
         Gr = G[rows]
-        U_before = Gr @ v_old
         U_after = Gr @ v_new
-        U_free = Gr @ v_free
-        return U_before, U_after, -0.5 * P_all[rows] * (U_after + U_free)
+        U_free = Gr @ (v_new - dv)
+        return ContactDetails(
+            U_before=Gr @ v_old,
+            U_after=U_after,
+            U_free=U_free,
+            energy_lost=-0.5 * P_all[rows] * (U_after + U_free),
+        )
+
+
+class ContactDetails(NamedTuple):
+    """What the last step did at some contact rows; each field has shape (len(rows),).
+
+    Attributes
+    ----------
+    U_before, U_after : ndarray
+        ``G v_k`` and ``G v⁺``.
+    U_free : ndarray
+        ``G v_free``, the normal velocity the step would have had without contact
+        (``U_free − U_before = h a_n``, the smooth forces' normal velocity change).
+    energy_lost : ndarray
+        Per row ``−½ P_i (U⁺_i + U_free_i)`` (J): the rows sum to
+        ``½ v_freeᵀ M v_free − ½ v⁺ᵀ M v⁺``; for one row ½ m_eff (U_free² − U⁺²), i.e.
+        ½ m_eff U²(1 − e²) for an isolated impact.
+    """
+
+    U_before: np.ndarray
+    U_after: np.ndarray
+    U_free: np.ndarray
+    energy_lost: np.ndarray
 
 
 class MoreauJeanMidpoint(OneStepIntegrator):

@@ -16,7 +16,9 @@ _FORMAT = 1
 @dataclass
 class ImpactLog:
     """One entry per impact: a contact row whose impulse became positive in a step after
-    a step in which it carried none (the start of a bounce or of a sliding phase).
+    a step in which it carried none, approaching faster than the smooth forces alone
+    change its normal velocity in one step (``−U_before > h |a_n|``; slower onsets are a
+    sliding contact closing again, see :func:`moreau.simulate`).
 
     All arrays have shape (n_impacts,).
 
@@ -34,7 +36,7 @@ class ImpactLog:
         Contact impulse P >= 0 of the step (N s, or the scene's momentum unit).
     energy_lost : ndarray
         Kinetic energy dissipated by the contact impulse in the step (J); see
-        :meth:`moreau.integrator.OneStepIntegrator.last_contact_details`.
+        :class:`moreau.integrator.ContactDetails`.
     """
 
     t: np.ndarray = field(default_factory=lambda: np.zeros(0))

@@ -27,3 +27,22 @@ def test_bad_option_is_one_line_and_nonzero(tmp_path):
     assert "argument --e: 1.5 is outside [0, 1]" in r.stderr
     r = subprocess.run([sys.executable, "-m", "moreau", "ball", "--h", "-1"], capture_output=True, text=True)
     assert r.returncode == 2 and "argument --h" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_piston_command_writes_figure_summary_trajectory(tmp_path):
+    out = tmp_path / "p"
+    rc = main(["piston", "--e", "0", "--D", "80.04", "--cycles", "1", "--transient", "0", "--h", "1e-3",
+               "--out", str(out), "--no-progress"])
+    assert rc == 0
+    assert (out / "piston_e0_D80.04mm.png").stat().st_size > 20_000
+    summary = (out / "summary.csv").read_text().splitlines()
+    assert summary[0].startswith("e,D_mm,h,status,cycles,rpm,side_changes_per_cycle")
+    assert summary[1].startswith("0.0,80.04,0.001,completed,1,")
+    traj = mo.load(out / "piston_e0_D80.04mm.npz")
+    assert traj.extra["case"]["e"] == 0.0 and traj.completed
+
+
+def test_piston_bad_diameter_is_rejected(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "moreau", "piston", "--D", "79", "--out", str(tmp_path)],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and "argument --D: 79 is outside (80, 100]" in r.stderr

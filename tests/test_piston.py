@@ -1,0 +1,92 @@
+"""The piston engine: the scene equals the paper's closed form; effects are the ones asked."""
+
+import numpy as np
+import pytest
+
+import moreau as mo
+from moreau.barriers import finite_difference_jacobian
+from problems.piston import EFFECTS, PistonParameters, closed_form, groups, piston_model
+
+
+@pytest.fixture(scope="module")
+def model():
+    return piston_model(PistonParameters(e=0.3))
+
+
+def random_states(rng, k=20):
+    for _ in range(k):
+        phi = rng.uniform(-np.pi, np.pi, 3) * np.array([1.0, 0.3, 0.01])
+        dphi = rng.normal(size=3) * np.array([1.0, 0.3, 0.01])
+        yield phi, dphi
+
+
+def test_scene_dynamics_equal_the_papers_closed_form(model, rng):
+    ref = closed_form(model.params, model.pressure)
+    scene = model.scene
+    for phi, dphi in random_states(rng):
+        M = scene.system.mass_matrix(phi)
+        np.testing.assert_allclose(M, ref["M"](phi), rtol=1e-12, atol=1e-15)
+        acc = np.linalg.solve(M, scene.force(0.0, phi, dphi))
+        np.testing.assert_allclose(acc, ref["acceleration"](phi, dphi), rtol=1e-12, atol=1e-14)
+        np.testing.assert_allclose(scene.gaps(phi), ref["gaps"](phi), rtol=1e-12, atol=1e-15)
+        G = scene.jacobian(phi)
+        np.testing.assert_allclose(G, finite_difference_jacobian(scene.gaps, phi), atol=1e-8)
+
+
+def test_gas_force_and_brake_generalized_components(model, rng):
+    G = groups(model.params)
+    gas = next(e for e in model.scene.effects if e.name == "gas")
+    brake = next(e for e in model.scene.effects if e.name == "brake")
+    for phi, dphi in random_states(rng):
+        p = model.pressure(phi[0]) / model.params.p_max
+        expected = np.array([G.F0 * p * np.sin(phi[0]), G.lambda2 * G.F0 * p * np.sin(phi[1]), 0.0])
+        np.testing.assert_allclose(gas.force(0.0, phi, dphi), expected, rtol=1e-12, atol=1e-16)
+        np.testing.assert_allclose(brake.force(0.0, phi, dphi), [-G.M0, 0.0, 0.0], rtol=1e-12)
+
+
+def test_groups_match_the_chain_scaling(model):
+    G = groups(model.params)
+    M0 = model.scene.system.mass_matrix(np.zeros(3))
+    np.testing.assert_allclose(np.diag(M0), [1.0, G.beta2, G.beta3], rtol=1e-12)
+    np.testing.assert_allclose([M0[0, 1], M0[0, 2], M0[1, 2]], [G.nu12, G.nu13, G.nu23], rtol=1e-12)
+    assert G.Delta - G.delta == pytest.approx(model.params.clearance / model.params.l1, rel=1e-9)
+
+
+@pytest.mark.parametrize("effects", [(), ("brake",), ("gravity", "damping"), EFFECTS])
+def test_scene_holds_only_the_effects_asked_for(effects, rng):
+    m = piston_model(effects=effects)
+    assert tuple(e.name for e in m.scene.effects) == effects
+    assert (m.pressure is None) == ("gas" not in effects)
+    ref = closed_form(m.params, m.pressure, **{k: k in effects for k in EFFECTS})
+    for phi, dphi in random_states(rng, 5):
+        acc = np.linalg.solve(m.scene.system.mass_matrix(phi), m.scene.force(0.0, phi, dphi))
+        np.testing.assert_allclose(acc, ref["acceleration"](phi, dphi), rtol=1e-12, atol=1e-14)
+
+
+def test_initial_state_is_centred_and_consistent(model):
+    q0, v0 = model.initial_state(phi1=0.7)
+    gaps = model.scene.gaps(q0)
+    half = 0.5 * model.params.clearance / model.params.l1
+    np.testing.assert_allclose(gaps, half, rtol=1e-9)
+    G = model.scene.jacobian(q0)
+    np.testing.assert_allclose(G @ v0, 0.0, atol=1e-14)  # no lateral pin velocity
+
+
+def test_bad_parameters_are_named():
+    with pytest.raises(ValueError, match="D = 0.079 m must exceed the piston diameter d = 0.08 m"):
+        PistonParameters(D=0.079)
+    with pytest.raises(ValueError, match="m3 must be positive, got -0.4"):
+        PistonParameters(m3=-0.4)
+    with pytest.raises(ValueError, match="restitution e must be in"):
+        piston_model(e=1.2)
+    with pytest.raises(ValueError, match="unknown piston effect"):
+        piston_model(effects=("gas", "friction"))
+
+
+def test_short_run_is_stable_and_records_contacts():
+    m = piston_model(PistonParameters(e=0.0))
+    traj = m.simulate(0.25, 1e-3, solver="enum", record_every=5)
+    assert traj.completed and np.all(np.isfinite(traj.q))
+    assert traj.impulses.sum() > 0 and traj.stats.fallbacks == 0
+    # the crank turns at about the reference speed
+    assert traj.v[:, 0].min() > 0.95 and traj.v[:, 0].max() < 1.05
