@@ -21,7 +21,8 @@ except PackageNotFoundError:  # running from a source tree that is not installed
 from .barriers import Barrier, FunctionBarrier, LinearBarrier, check_jacobian
 from .errors import SimulationError, SolverError
 from .forces import ConstantForce, Effect, FunctionForce, LinearDamping, LinearSpring
-from .integrator import MoreauJeanMidpoint, OneStepIntegrator
+from .drift import PositionProjection
+from .integrator import MoreauJeanMidpoint, MoreauJeanTheta, OneStepIntegrator
 from .laws import NewtonImpact
 from .onestep import OneStepProblem, Residuals
 from .result import ImpactLog, SolverStats, Trajectory, load
@@ -36,7 +37,7 @@ __all__ = [
     "Barrier", "FunctionBarrier", "LinearBarrier", "check_jacobian",
     "SimulationError", "SolverError",
     "ConstantForce", "Effect", "FunctionForce", "LinearDamping", "LinearSpring",
-    "MoreauJeanMidpoint", "OneStepIntegrator",
+    "MoreauJeanMidpoint", "MoreauJeanTheta", "OneStepIntegrator", "PositionProjection",
     "NewtonImpact",
     "OneStepProblem", "Residuals",
     "ImpactLog", "SolverStats", "Trajectory", "load",

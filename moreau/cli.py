@@ -149,7 +149,8 @@ def _cmd_piston(args) -> int:
         pairs = list(PAPER_CASES)
     else:
         pairs = [(0.0 if args.e is None else args.e, 0.08004 if args.D is None else args.D / 1e3)]
-    cases = [Case(e=e, D=D, h=args.h, cycles=args.cycles, transient=args.transient, solver=args.solver)
+    cases = [Case(e=e, D=D, h=args.h, cycles=args.cycles, transient=args.transient, solver=args.solver,
+                  drift_control=not args.no_drift_control)
              for e, D in pairs]
     print(f"moreau piston: {len(cases)} case(s), {args.transient} transient + {args.cycles} analyzed "
           f"cycles each, h = {args.h:g} (non-dimensional time), solver {args.solver}; output in {args.out}/")
@@ -192,6 +193,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="time step in non-dimensional time τ = ωt (default 1e-4)")
     pi.add_argument("--solver", choices=available_solvers(), default="enum",
                     help="contact solver (default enum, the fastest exact one here)")
+    pi.add_argument("--no-drift-control", action="store_true",
+                    help="do not project positions back onto the cylinder after each step")
     pi.add_argument("--workers", type=_positive_int, default=None, help="parallel processes (default: one per case, up to the cores)")
     pi.add_argument("--out", default="piston-out", help="output directory (default piston-out)")
     pi.add_argument("--no-progress", action="store_true", help="no progress bars")

@@ -25,7 +25,7 @@ from .onestep import kkt_residuals
 from .scene import Scene
 from .solvers import ContactSolver, SolveFailed, make_solver
 
-__all__ = ["OneStepIntegrator", "MoreauJeanMidpoint", "NonFiniteState", "ContactDetails"]
+__all__ = ["OneStepIntegrator", "MoreauJeanMidpoint", "MoreauJeanTheta", "NonFiniteState", "ContactDetails"]
 
 log = logging.getLogger(__name__)
 
@@ -57,6 +57,8 @@ class OneStepIntegrator(ABC):
         Largest accepted scaled KKT residual (see :class:`moreau.onestep.Residuals`).
     penetration_tol : float
         An initial state with a gap below ``-penetration_tol`` is refused.
+    drift_control : PositionProjection or None
+        Applied to q⁺ after every step (see :mod:`moreau.drift`); None: no correction.
 
     Attributes
     ----------
@@ -86,6 +88,7 @@ class OneStepIntegrator(ABC):
         fallback: str | ContactSolver | None = "enum",
         tol: float = 1e-6,
         penetration_tol: float = 1e-12,
+        drift_control=None,
     ) -> None:
         if not isinstance(scene, Scene):
             raise ValueError(f"scene must be a Scene, got {scene!r}")
@@ -97,6 +100,9 @@ class OneStepIntegrator(ABC):
             raise ValueError("fallback must be a different solver object than solver")
         self.tol = as_positive(tol, "tol")
         self.penetration_tol = as_positive(penetration_tol, "penetration_tol", allow_zero=True)
+        if drift_control is not None and not hasattr(drift_control, "project"):
+            raise ValueError(f"drift_control must have a project(integrator, q) method, got {drift_control!r}")
+        self.drift_control = drift_control
         self._initialized = False
 
     # -- state ------------------------------------------------------------------------
@@ -143,7 +149,7 @@ class OneStepIntegrator(ABC):
         self._no_contact.setflags(write=False)
         self.P = np.zeros(m)
         self.contact_step = False
-        self.n_solves = self.n_fallbacks = self.n_contact_steps = 0
+        self.n_solves = self.n_fallbacks = self.n_contact_steps = self.n_projections = 0
         self.worst_residual = 0.0
         self._last = None
         self._initialized = True
@@ -153,9 +159,14 @@ class OneStepIntegrator(ABC):
         """Advance the state by one step h; return True when a contact problem was solved."""
 
     # -- contact solve ------------------------------------------------------------------
-    def _solve_contact(self, M, b, G, c, rows):
-        """Solve the step's QP with the main solver, check it, fall back if needed."""
-        self.n_solves += 1
+    def _solve_contact(self, M, b, G, c, rows, kind: str = "contact"):
+        """Solve the step's QP with the main solver, check it, fall back if needed.
+
+        ``kind`` names the problem in errors (``"contact"``, or ``"projection"`` for drift
+        control, whose solves are not counted in ``n_solves``).
+        """
+        if kind == "contact":
+            self.n_solves += 1
         GA, cA = G[rows], c[rows]
         failures = {}
         try:
@@ -184,7 +195,7 @@ class OneStepIntegrator(ABC):
                 failures[self.fallback.name] = str(exc)
         names = [self.scene.row_names[i] for i in rows]
         raise SolverError(
-            f"contact solve failed at step {self.k} (t = {self.t:.9g}), active rows {names}: {failures}",
+            f"{kind} solve failed at step {self.k} (t = {self.t:.9g}), active rows {names}: {failures}",
             step=self.k, t=self.t, rows=names, residuals=failures,
         )
 
@@ -260,24 +271,31 @@ class MoreauJeanMidpoint(OneStepIntegrator):
     velocity-dependent forces (damping, the Coriolis/centrifugal terms of a
     configuration-dependent M). For a constant mass matrix and position-only forces the
     smooth phases are integrated to order 2 (the scheme is then Störmer–Verlet).
+    :class:`MoreauJeanTheta` restores order 2 with velocity-dependent forces.
 
     The velocity condition is imposed with the Jacobian at the midpoint, so a pressed
-    contact on a curved barrier drifts into it by about h²/2 · vᵀ∇²g v per step.
+    contact on a curved barrier drifts into it by about h²/2 · vᵀ∇²g v per step; a
+    :class:`~moreau.drift.PositionProjection` given as ``drift_control`` removes it.
     """
 
     def step(self) -> bool:
         h = self.h
         v = self.v
         qm = self.q + (0.5 * h) * v
+        M = self._M if self._constant_mass else self.scene.system.mass_matrix(qm)
+        f = self.scene.force(self.t + 0.5 * h, qm, v)
+        v_new, contact = self._velocity_update(qm, M, f, v)
+        return self._finish(qm, v_new, contact)
+
+    # -- shared by the midpoint family ----------------------------------------------------
+    def _velocity_update(self, qm, M, f, v):
+        """v⁺ from ``M (v⁺ − v) = h f + Gᵀ P`` with the contacts closed at ``qm``."""
+        h = self.h
         scene = self.scene
-        M = self._M if self._constant_mass else scene.system.mass_matrix(qm)
-        f = scene.force(self.t + 0.5 * h, qm, v)
-        contact = False
         if scene.gaps is not None:
             g = scene.gaps(qm)
             active = g <= 0.0
             if active.any():
-                contact = True
                 rows = np.flatnonzero(active)
                 G = scene.jacobian(qm)
                 c = -self._e * (G @ v)
@@ -287,19 +305,58 @@ class MoreauJeanMidpoint(OneStepIntegrator):
                 P[rows] = PA
                 self.active, self.P = active, P
                 self._last = (M, G, v, v_new, P)
-                self.n_contact_steps += 1
-        if not contact:
-            if self._constant_mass:
-                v_new = v + h * (self._Minv @ f)
-            else:
-                v_new = v + h * np.linalg.solve(M, f)
-            if self.contact_step:
-                self.active = self._no_contact
-                self.P = np.zeros(scene.nrows)
+                return v_new, True
+        if self._constant_mass:
+            return v + h * (self._Minv @ f), False
+        return v + h * np.linalg.solve(M, f), False
+
+    def _finish(self, qm, v_new, contact: bool) -> bool:
+        """Check v⁺, move to q⁺ = q_m + h/2 v⁺ (then drift control), advance time."""
         self._check_finite(v_new)
+        if contact:
+            self.n_contact_steps += 1
+        elif self.contact_step:
+            self.active = self._no_contact
+            self.P = np.zeros(self.scene.nrows)
         self.contact_step = contact
-        self.q = qm + (0.5 * h) * v_new
+        q_new = qm + (0.5 * self.h) * v_new
+        if self.drift_control is not None and self.scene.nrows:
+            q_new = self.drift_control.project(self, q_new)
+        self.q = q_new
         self.v = v_new
         self.k += 1
-        self.t = self.t0 + self.k * h
+        self.t = self.t0 + self.k * self.h
         return contact
+
+
+class MoreauJeanTheta(MoreauJeanMidpoint):
+    """Moreau–Jean midpoint with a θ = ½ treatment of the velocity-dependent forces.
+
+    The forces are evaluated at the mean of the start and end velocities instead of at
+    v_k, by one predictor–corrector pass:
+
+    .. code-block:: text
+
+        q_m = q_k + h/2 · v_k,   M = M(q_m)
+        v*  = midpoint velocity update with f(t_m, q_m, v_k)       (contacts included)
+        v⁺  = velocity update with f(t_m, q_m, (v_k + v*)/2)        (contacts included)
+        q⁺  = q_m + h/2 · v⁺
+
+    Order 2 in smooth phases also with damping and Coriolis/centrifugal terms; order 1
+    across impacts, like every time-stepper with Newton's law. A scene whose forces do
+    not depend on v takes the plain midpoint step (the corrector would change nothing).
+    Contact steps cost two contact solves.
+    """
+
+    def step(self) -> bool:
+        if not self.scene.velocity_dependent:
+            return super().step()
+        h = self.h
+        v = self.v
+        qm = self.q + (0.5 * h) * v
+        tm = self.t + 0.5 * h
+        M = self._M if self._constant_mass else self.scene.system.mass_matrix(qm)
+        force = self.scene.force
+        v_pred, _ = self._velocity_update(qm, M, force(tm, qm, v), v)
+        v_new, contact = self._velocity_update(qm, M, force(tm, qm, 0.5 * (v + v_pred)), v)
+        return self._finish(qm, v_new, contact)

@@ -86,6 +86,8 @@ class SolverStats:
         Contact problems solved (= contact_steps).
     fallbacks : int
         Solves the main backend failed (wrong answer or error) and the fallback did.
+    projections : int
+        Steps whose end position drift control corrected.
     worst_residual : float
         Largest accepted scaled KKT residual.
     wall_time : float
@@ -98,6 +100,7 @@ class SolverStats:
     contact_steps: int = 0
     solves: int = 0
     fallbacks: int = 0
+    projections: int = 0
     worst_residual: float = 0.0
     wall_time: float = 0.0
 

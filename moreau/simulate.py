@@ -37,6 +37,7 @@ def simulate(
     progress: bool | dict | None = None,
     energy: bool = True,
     tol: float = 1e-6,
+    drift_control=None,
 ) -> Trajectory:
     """Integrate a scene with a fixed step from ``t_span[0]`` to ``t_span[1]``.
 
@@ -69,6 +70,8 @@ def simulate(
         Compute the mechanical energy at the records.
     tol : float
         Largest accepted scaled KKT residual of a contact solve.
+    drift_control : PositionProjection or None
+        Position correction after each step (see :mod:`moreau.drift`); default none.
 
     Returns
     -------
@@ -104,7 +107,7 @@ def simulate(
         raise ValueError(f"integrator must be a OneStepIntegrator subclass, got {integrator!r}")
 
     n_steps = max(1, math.ceil((t1 - t0) / h - 1e-9))
-    integ = integrator(scene, h, solver=solver, fallback=fallback, tol=tol)
+    integ = integrator(scene, h, solver=solver, fallback=fallback, tol=tol, drift_control=drift_control)
     integ.init(t0, q0, v0)
 
     n, m = scene.ndof, scene.nrows
@@ -238,6 +241,7 @@ def _assemble(scene, integ, h, stride, T, Q, V, PS, ACT, impacts, wall, status, 
         contact_steps=integ.n_contact_steps,
         solves=integ.n_solves,
         fallbacks=integ.n_fallbacks,
+        projections=integ.n_projections,
         worst_residual=integ.worst_residual,
         wall_time=wall,
     )

@@ -42,6 +42,10 @@ class Case:
         Engine cycles simulated first and discarded.
     solver : str
         Contact solver backend.
+    drift_control : bool
+        Project positions back onto the cylinder after each step
+        (:class:`moreau.PositionProjection`); without it the midpoint drift leaves the
+        piston ≈ 10 % of the clearance inside the wall at h = 1e-4.
     """
 
     e: float
@@ -50,6 +54,7 @@ class Case:
     cycles: int = 3
     transient: int = 1
     solver: str = "enum"
+    drift_control: bool = True
 
     @property
     def label(self) -> str:
@@ -79,7 +84,8 @@ def run_case(case: Case, out: str, progress: bool | dict = False) -> dict:
     wall0 = time.perf_counter()
     try:
         traj = model.simulate(case.transient + case.cycles, case.h, solver=case.solver,
-                              record_every=record_every, progress=progress, energy=False)
+                              record_every=record_every, progress=progress, energy=False,
+                              drift_control=mo.PositionProjection() if case.drift_control else None)
     except (mo.SolverError, mo.SimulationError) as exc:
         traj = exc.trajectory
         log.error("case %s failed: %s", case.label, exc)
@@ -101,6 +107,7 @@ def run_case(case: Case, out: str, progress: bool | dict = False) -> dict:
         "max_penetration_over_clearance": max_penetration_ratio(traj, params),
         "energy_lost_per_cycle_J": float(np.mean([c.energy_lost for c in figs])) if figs else float("nan"),
         "max_slap_impulse_Ns": max((c.max_impulse for c in figs), default=float("nan")),
+        "drift_control": case.drift_control,
         "fallbacks": traj.stats.fallbacks,
         "wall_time_s": round(wall, 2),
         "us_per_step": round(traj.stats.us_per_step, 1),
