@@ -169,30 +169,23 @@ class OneStepIntegrator(ABC):
             self.n_solves += 1
         GA, cA = G[rows], c[rows]
         failures = {}
-        try:
-            v, P = self.solver.solve(M, b, G, c, rows)
-            res = kkt_residuals(M, b, GA, cA, v, P)
-            if res.worst <= self.tol:
-                if res.worst > self.worst_residual:
-                    self.worst_residual = res.worst
-                return v, P
-            failures[self.solver.name] = res.as_dict()
-        except (SolveFailed, np.linalg.LinAlgError, ValueError) as exc:
-            failures[self.solver.name] = str(exc)
-        if self.fallback is not None:
-            self.n_fallbacks += 1
-            log.debug("step %d: %s failed (%s), falling back to %s", self.k, self.solver.name,
-                      failures[self.solver.name], self.fallback.name)
+        for solver in (self.solver, self.fallback):
+            if solver is None:
+                break
+            if failures:  # the main solver failed: this is the fallback
+                self.n_fallbacks += 1
+                log.debug("step %d: %s failed (%s), falling back to %s", self.k, self.solver.name,
+                          failures[self.solver.name], solver.name)
             try:
-                v, P = self.fallback.solve(M, b, G, c, rows)
+                v, P = solver.solve(M, b, G, c, rows)
                 res = kkt_residuals(M, b, GA, cA, v, P)
                 if res.worst <= self.tol:
                     if res.worst > self.worst_residual:
                         self.worst_residual = res.worst
                     return v, P
-                failures[self.fallback.name] = res.as_dict()
+                failures[solver.name] = res.as_dict()
             except (SolveFailed, np.linalg.LinAlgError, ValueError) as exc:
-                failures[self.fallback.name] = str(exc)
+                failures[solver.name] = str(exc)
         names = [self.scene.row_names[i] for i in rows]
         raise SolverError(
             f"{kind} solve failed at step {self.k} (t = {self.t:.9g}), active rows {names}: {failures}",
