@@ -28,7 +28,7 @@ from moreau.chain import (
 )
 
 from .params import PistonParameters
-from .pressure import FourierPressure, calibrated_pressure
+from .pressure import EngineGeometry, FourierPressure, calibrate
 
 __all__ = ["EFFECTS", "CORNERS", "PistonModel", "piston_model"]
 
@@ -120,7 +120,10 @@ def piston_model(
         fx.append(JointDamping(chain, np.array([1.0, p.c21, p.c31]) * p.c1 / u.damping, name="damping"))
     if "gas" in effects:
         if pressure is None:
-            pressure = calibrated_pressure(omega=p.omega, M0=p.M0, c1=p.c1, p_max=p.p_max)
+            pressure = calibrate(
+                omega=p.omega, M0=p.M0, c1=p.c1, c2=p.c21 * p.c1, c3=p.c31 * p.c1, p_max=p.p_max,
+                geometry=EngineGeometry(bore=p.d, crank_radius=p.l1, rod_length=p.l2),
+            ).pressure
         k = p.area / u.force  # Pa → non-dimensional force on the pin
         fx.append(PointForce(chain, 2, (0.0, 0.0), _GasForce(pressure, k),
                              velocity_dependent=False, time_dependent=False, name="gas"))
