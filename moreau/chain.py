@@ -181,7 +181,10 @@ class PendulumChain(MechanicalSystem):
         pivot=(0.0, 0.0),
         orientation: str | tuple = "hanging",
     ) -> None:
-        links = list(links)
+        try:
+            links = list(links)
+        except TypeError:
+            raise ValueError(f"PendulumChain: links must be a sequence of Link objects, got {links!r}") from None
         if not links:
             raise ValueError("PendulumChain needs at least one link, got zero links")
         checked = []

@@ -2,6 +2,7 @@
 
     moreau piston [--e E] [--D MM] [--cycles N] [--transient N] [--h H] [--solver S] [--out DIR]
     moreau ball [--e E] [--h H] [--t-end T] [--solver S] [--out DIR]
+    moreau sweep piston --param e=0:1:21 [--param D=80.04] [--cycles N] [--out FILE] [--dask ADDRESS]
 
 Each subcommand writes its figures (PNG), a summary (CSV, also printed) and the
 trajectory (``.npz``) into ``--out``. Errors in the options end the command with exit
@@ -162,13 +163,94 @@ def _cmd_piston(args) -> int:
     return 1 if bad else 0
 
 
+# -- sweep --------------------------------------------------------------------------------
+_SWEEP_PARAMS = {"e": ("e", 0.0, 1.0, False), "D": ("D_mm", 80.0, 100.0, True)}
+
+
+def _param_spec(text: str) -> tuple[str, list[float]]:
+    """``NAME=start:stop:num`` (numpy.linspace), ``NAME=a,b,c`` or ``NAME=value``."""
+    name, sep, spec = text.partition("=")
+    name = name.strip()
+    if not sep or not spec.strip():
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUES, got {text!r}")
+    if name not in _SWEEP_PARAMS:
+        raise argparse.ArgumentTypeError(f"unknown parameter {name!r}; choose from {', '.join(_SWEEP_PARAMS)}")
+    try:
+        if ":" in spec:
+            parts = spec.split(":")
+            if len(parts) != 3:
+                raise ValueError
+            a, b, n = float(parts[0]), float(parts[1]), int(parts[2])
+            if n < 1:
+                raise ValueError
+            import numpy as np
+
+            values = [float(x) for x in np.linspace(a, b, n)]
+        else:
+            values = [float(x) for x in spec.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{name}={spec}: give start:stop:num (num >= 1 points), "
+                                         "a comma list or one number") from None
+    _, lo, hi, lo_open = _SWEEP_PARAMS[name]
+    for x in values:
+        if x != x or x < lo or (lo_open and x == lo) or x > hi:
+            interval = f"{'(' if lo_open else '['}{lo:g}, {hi:g}]"
+            raise argparse.ArgumentTypeError(f"{name}={spec}: {x:g} is outside {interval}")
+    return name, values
+
+
+def _cmd_sweep(args) -> int:
+    import pandas as pd
+
+    from moreau.sweeps import sweep
+    from problems.piston.study import piston_point
+
+    given: dict[str, list[float]] = {}
+    for name, values in args.param or []:
+        if name in given:
+            raise ValueError(f"--param {name} given twice")
+        given[name] = values
+    if args.dask is not None and ":" not in args.dask:
+        raise ValueError(f"--dask {args.dask!r} is not a scheduler address such as tcp://host:8786")
+    grid = {_SWEEP_PARAMS[n][0]: v for n, v in given.items()}
+    grid.setdefault("e", [0.0])
+    grid.setdefault("D_mm", [80.04])
+    grid.update(cycles=args.cycles, transient=args.transient, h=args.h, solver=args.solver,
+                drift_control=not args.no_drift_control)
+    n = len(grid["e"]) * len(grid["D_mm"])
+    where = f"Dask scheduler {args.dask}" if args.dask else f"{args.workers or os.cpu_count()} processes"
+    print(f"moreau sweep piston: {n} point(s), {args.transient} transient + {args.cycles} analyzed cycles "
+          f"each, h = {args.h:g}, on {where}; table {args.out} (finished points kept in {args.out}.parts/)")
+    try:
+        df = sweep(piston_point, grid, executor=args.dask or "processes", workers=args.workers,
+                   out=args.out, progress=not args.no_progress)
+    except ImportError as exc:
+        raise CLIError(str(exc)) from None
+    cols = ["e", "D_mm", "side_changes_mean", "slaps_mean", "impacts_mean", "energy_lost_J_mean", "rpm",
+            "max_penetration_ratio", "error"]
+    with pd.option_context("display.width", 200, "display.max_rows", 500):
+        print(df[[c for c in cols if c in df.columns]].to_string(index=False, float_format=lambda x: f"{x:.6g}"))
+    print(f"table written to {args.out}")
+    bad = int(df["error"].notna().sum())
+    if bad:
+        print(f"{bad} point(s) failed: see the error column", file=sys.stderr)
+    return 1 if bad else 0
+
+
 # -- entry point --------------------------------------------------------------------------
+class _Parser(argparse.ArgumentParser):
+    """argparse with errors on one line (``moreau piston: error: ...``), exit code 2."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     from moreau.solvers import available_solvers
 
-    p = argparse.ArgumentParser(prog="moreau", description="Non-smooth mechanics with the Moreau-Jean midpoint scheme.")
+    p = _Parser(prog="moreau", description="Non-smooth mechanics with the Moreau-Jean midpoint scheme.")
     p.add_argument("-v", "--verbose", action="store_true", help="log progress details")
-    sub = p.add_subparsers(dest="command", required=True)
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     b = sub.add_parser("ball", help="bouncing ball against its analytic solution")
     b.add_argument("--e", type=_float_in(0.0, 1.0), default=0.5, help="restitution in [0, 1] (default 0.5)")
@@ -199,6 +281,29 @@ def build_parser() -> argparse.ArgumentParser:
     pi.add_argument("--out", default="piston-out", help="output directory (default piston-out)")
     pi.add_argument("--no-progress", action="store_true", help="no progress bars")
     pi.set_defaults(func=_cmd_piston)
+
+    sw = sub.add_parser("sweep", help="a parameter sweep of the piston engine (parallel, resumable)",
+                        description="Run the piston engine over a grid of restitutions e and cylinder "
+                                    "diameters D (cartesian product) on a local process pool or a Dask "
+                                    "cluster; one row per point in --out. An interrupted sweep resumes: "
+                                    "run the same command again.")
+    sw.add_argument("problem", choices=["piston"], help="the system to sweep")
+    sw.add_argument("--param", type=_param_spec, action="append", metavar="NAME=VALUES",
+                    help="e=start:stop:num (numpy.linspace), e=0,0.5,0.9 or e=0.9; names: e, D (mm); "
+                         "defaults e=0, D=80.04")
+    sw.add_argument("--cycles", type=_positive_int, default=5, help="engine cycles analyzed (default 5)")
+    sw.add_argument("--transient", type=_int_at_least(0), default=1, help="cycles discarded first (default 1)")
+    sw.add_argument("--h", type=_float_in(0.0, 0.05, lo_open=True), default=3e-4,
+                    help="time step in non-dimensional time (default 3e-4)")
+    sw.add_argument("--solver", choices=available_solvers(), default="enum", help="contact solver (default enum)")
+    sw.add_argument("--no-drift-control", action="store_true",
+                    help="do not project positions back onto the cylinder after each step")
+    sw.add_argument("--out", default="sweep-out/piston_sweep.parquet", help="table, .parquet or .csv "
+                    "(default sweep-out/piston_sweep.parquet)")
+    sw.add_argument("--dask", metavar="ADDRESS", default=None, help="run on this Dask scheduler (tcp://host:8786)")
+    sw.add_argument("--workers", type=_positive_int, default=None, help="local processes (default: the cores)")
+    sw.add_argument("--no-progress", action="store_true", help="no progress bar")
+    sw.set_defaults(func=_cmd_sweep)
     return p
 
 

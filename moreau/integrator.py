@@ -192,11 +192,12 @@ class OneStepIntegrator(ABC):
             step=self.k, t=self.t, rows=names, residuals=failures,
         )
 
-    def _check_finite(self, v_new) -> None:
-        s = float(v_new.sum())
+    def _check_finite(self, q_new, v_new) -> None:
+        s = float(v_new.sum()) + float(q_new.sum())
         if s - s != 0.0:  # NaN or inf
             raise NonFiniteState(
-                f"state became non-finite at step {self.k} (t = {self.t:.9g}): v = {v_new.tolist()}",
+                f"state became non-finite at step {self.k} (t = {self.t:.9g}): "
+                f"q = {q_new.tolist()}, v = {v_new.tolist()}",
                 self.k, self.t,
             )
 
@@ -211,13 +212,13 @@ class OneStepIntegrator(ABC):
         act = self.active
         dv = np.linalg.solve(M, G[act].T @ P_all[act])  # M⁻¹ Gᵀ P
         Gr = G[rows]
+        U_before = Gr @ v_old
         U_after = Gr @ v_new
-        U_free = Gr @ (v_new - dv)
         return ContactDetails(
-            U_before=Gr @ v_old,
+            U_before=U_before,
             U_after=U_after,
-            U_free=U_free,
-            energy_lost=-0.5 * P_all[rows] * (U_after + U_free),
+            U_free=Gr @ (v_new - dv),
+            energy_lost=-0.5 * P_all[rows] * (U_after + U_before),
         )
 
 
@@ -232,9 +233,10 @@ class ContactDetails(NamedTuple):
         ``G v_free``, the normal velocity the step would have had without contact
         (``U_free − U_before = h a_n``, the smooth forces' normal velocity change).
     energy_lost : ndarray
-        Per row ``−½ P_i (U⁺_i + U_free_i)`` (J): the rows sum to
-        ``½ v_freeᵀ M v_free − ½ v⁺ᵀ M v⁺``; for one row ½ m_eff (U_free² − U⁺²), i.e.
-        ½ m_eff U²(1 − e²) for an isolated impact.
+        Per row ``−½ P_i (U⁻_i + U⁺_i)`` (J), the contact's share of the step's exact
+        kinetic energy balance ``½v⁺ᵀMv⁺ − ½v_kᵀMv_k = h fᵀ(v_k + v⁺)/2 + ½ Pᵀ(U⁻ + U⁺)``.
+        With Newton's law (U⁺ = −e U⁻ where P > 0) it is ½ P |U⁻| (1 − e) >= 0: never a
+        gain for e <= 1, zero for e = 1, and ½ m_eff U²(1 − e²) for an isolated impact.
     """
 
     U_before: np.ndarray
@@ -287,6 +289,11 @@ class MoreauJeanMidpoint(OneStepIntegrator):
         scene = self.scene
         if scene.gaps is not None:
             g = scene.gaps(qm)
+            gs = float(g.sum())
+            if gs - gs != 0.0:  # NaN or inf: a NaN gap would otherwise count as open
+                raise NonFiniteState(
+                    f"gaps became non-finite at step {self.k} (t = {self.t:.9g}): g = {g.tolist()}",
+                    self.k, self.t)
             active = g <= 0.0
             if active.any():
                 rows = np.flatnonzero(active)
@@ -304,15 +311,15 @@ class MoreauJeanMidpoint(OneStepIntegrator):
         return v + h * np.linalg.solve(M, f), False
 
     def _finish(self, qm, v_new, contact: bool) -> bool:
-        """Check v⁺, move to q⁺ = q_m + h/2 v⁺ (then drift control), advance time."""
-        self._check_finite(v_new)
+        """Move to q⁺ = q_m + h/2 v⁺ (then drift control), check, advance time."""
+        q_new = qm + (0.5 * self.h) * v_new
+        self._check_finite(q_new, v_new)
         if contact:
             self.n_contact_steps += 1
         elif self.contact_step:
             self.active = self._no_contact
             self.P = np.zeros(self.scene.nrows)
         self.contact_step = contact
-        q_new = qm + (0.5 * self.h) * v_new
         if self.drift_control is not None and self.scene.nrows:
             q_new = self.drift_control.project(self, q_new)
         self.q = q_new

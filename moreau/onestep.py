@@ -91,19 +91,27 @@ _TINY = 1e-300
 def kkt_residuals(M, b, G, c, v, P) -> Residuals:
     """Scaled residuals of the KKT conditions of the one-step QP (see module docstring).
 
-    Scales: normal velocities are measured against ``|G| (|v| + |b| / diag M)`` and
-    ``|c|`` (so a contact at rest, v ≈ 0 and c ≈ 0, is still measured against the
-    velocity the step's forces would give), momenta against ``|b|`` and ``|Gᵀ P|``,
-    impulses against ``max |P|``.
+    Scales: normal velocities are measured against the largest of ``|c|``, ``|G v|`` and
+    the normal velocity change the impulses make, ``|G| (|Gᵀ P| / diag M)``, with a floor
+    of 1e-9 ``|G| |v|`` for round-off (a sliding contact whose normal velocity is a
+    millionth of the other velocities is measured against its own scale, not theirs);
+    momenta against ``|b|`` and ``|Gᵀ P|``; impulses against ``max |P|``.
     """
     # few numpy calls, reductions on Python floats: this runs after every contact solve
-    slack = (G @ v - c).tolist()
+    Gv = G @ v
+    slack = (Gv - c).tolist()
     GtP = P @ G
     stat = np.abs(M @ v - b - GtP).tolist()
-    vel = (np.abs(G) @ (np.abs(v) + np.abs(b) / M.diagonal())).tolist()
-    Pl = P.tolist()
+    absG = np.abs(G)
     cl = c.tolist()
-    vel_scale = max(_TINY, max(vel), max(cl), -min(cl))
+    Pl = P.tolist()
+    vel_scale = max(
+        _TINY,
+        max(cl), -min(cl),
+        float(np.abs(Gv).max()),
+        float((absG @ (np.abs(GtP) / M.diagonal())).max()),
+        1e-9 * float((absG @ np.abs(v)).max()),
+    )
     mom_scale = max(_TINY, float(np.abs(b).max()), float(np.abs(GtP).max()))
     p_scale = max(_TINY, max(Pl), -min(Pl))
     return Residuals(

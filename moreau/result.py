@@ -232,11 +232,12 @@ class Trajectory:
             raise ValueError(f"no trajectory file at {path!r}") from None
         except Exception as exc:  # zipfile, json, numpy format errors
             raise ValueError(f"cannot read trajectory file {path!r}: {exc}") from None
-        if not isinstance(meta, dict) or meta.get("format") != _FORMAT:
-            raise ValueError(f"{path!r} is not a moreau trajectory (format {meta.get('format')!r})")
+        fmt = meta.get("format") if isinstance(meta, dict) else None
+        if fmt != _FORMAT:
+            raise ValueError(f"{path!r} is not a moreau trajectory (format {fmt!r})")
         try:
             impacts = ImpactLog(**{f.name: data.pop("impacts_" + f.name) for f in fields(ImpactLog)})
-            return cls(
+            traj = cls(
                 t=data["t"], q=data["q"], v=data["v"], gaps=data["gaps"],
                 impulses=data["impulses"], active=data["active"], impacts=impacts,
                 stats=SolverStats(**meta["stats"]), h=meta["h"], record_every=meta["record_every"],
@@ -247,6 +248,12 @@ class Trajectory:
             )
         except (KeyError, TypeError) as exc:
             raise ValueError(f"trajectory file {path!r} is incomplete: missing {exc}") from None
+        N = traj.t.shape[0]
+        for name in ("q", "v", "gaps", "impulses", "active"):
+            if getattr(traj, name).shape[0] != N:
+                raise ValueError(f"trajectory file {path!r} is inconsistent: {name} has "
+                                 f"{getattr(traj, name).shape[0]} records, t has {N}")
+        return traj
 
 
 def load(path: str | os.PathLike) -> Trajectory:

@@ -105,16 +105,11 @@ class Scene:
             raise ValueError(f"Scene: system must be a MechanicalSystem, got {system!r}")
         self.system = system
         self.ndof = system.ndof
-        self.effects = tuple(effects)
-        self.contacts = tuple(contacts)
+        self.effects = _as_tuple(effects, Effect, "effects")
+        self.contacts = _as_tuple(contacts, Contact, "contacts")
         self.name = name
-        for eff in self.effects:
-            if not isinstance(eff, Effect):
-                raise ValueError(f"Scene: effects must be Effect objects, got {eff!r}")
         names = [c.name for c in self.contacts]
         for c in self.contacts:
-            if not isinstance(c, Contact):
-                raise ValueError(f"Scene: contacts must be Contact objects, got {c!r}")
             if c.barrier.ndof is not None and c.barrier.ndof != self.ndof:
                 raise ValueError(
                     f"Scene: contact {c.name!r} expects {c.barrier.ndof} coordinates, "
@@ -242,6 +237,17 @@ class Scene:
         eff = ", ".join(e.name for e in self.effects) or "none"
         con = ", ".join(c.name for c in self.contacts) or "none"
         return f"Scene({self.name!r}, ndof={self.ndof}, effects=[{eff}], contacts=[{con}])"
+
+
+def _as_tuple(items, kind: type, what: str) -> tuple:
+    try:
+        out = tuple(items)
+    except TypeError:
+        raise ValueError(f"Scene: {what} must be a sequence of {kind.__name__} objects, got {items!r}") from None
+    for x in out:
+        if not isinstance(x, kind):
+            raise ValueError(f"Scene: {what} must be {kind.__name__} objects, got {x!r}")
+    return out
 
 
 def _check_vec(x, n: int, what: str) -> None:

@@ -21,6 +21,8 @@ __all__ = ["simulate"]
 log = logging.getLogger(__name__)
 
 _PROGRESS_MIN_STEPS = 20_000
+_MAX_STEPS = 1e11  # a guard against a mistyped h, far beyond any run that finishes
+_MAX_RECORD_BYTES = 8 * 2**30
 
 
 def simulate(
@@ -106,13 +108,21 @@ def simulate(
     if not (isinstance(integrator, type) and issubclass(integrator, OneStepIntegrator)):
         raise ValueError(f"integrator must be a OneStepIntegrator subclass, got {integrator!r}")
 
-    n_steps = max(1, math.ceil((t1 - t0) / h - 1e-9))
+    ratio = (t1 - t0) / h
+    if not ratio < _MAX_STEPS:
+        raise ValueError(f"step size h = {h!r} gives {ratio:.3g} steps over t_span = ({t0!r}, {t1!r}); "
+                         f"at most {_MAX_STEPS:.0e} steps are allowed")
+    n_steps = max(1, math.ceil(ratio - 1e-9))
     integ = integrator(scene, h, solver=solver, fallback=fallback, tol=tol, drift_control=drift_control)
     integ.init(t0, q0, v0)
 
     n, m = scene.ndof, scene.nrows
     stride = int(record_every)
     n_rec = n_steps // stride + 1 + (1 if n_steps % stride else 0)
+    record_bytes = n_rec * (8 * (1 + 2 * n + m) + m)
+    if record_bytes > _MAX_RECORD_BYTES:
+        raise ValueError(f"recording {n_rec} states (h = {h!r}, record_every = {stride}) needs "
+                         f"{record_bytes / 2**30:.1f} GiB; raise record_every")
     T = np.empty(n_rec)
     Q = np.empty((n_rec, n))
     V = np.empty((n_rec, n))

@@ -215,7 +215,7 @@ class EnumerationSolver(ContactSolver):
     exact = True
     name = "enum"
 
-    def __init__(self, max_rows: int = 12, tol: float = 1e-12) -> None:
+    def __init__(self, max_rows: int = 12, tol: float = 1e-15) -> None:
         self.max_rows = int(max_rows)
         self.tol = float(tol)
 

@@ -122,10 +122,6 @@ def run_case(case: Case, out: str, progress: bool | dict = False) -> dict:
     return row
 
 
-def _run_case_star(args):
-    return run_case(*args)
-
-
 def run_cases(cases: Sequence[Case], out: str, progress: bool = True, workers: int | None = None) -> list[dict]:
     """Run cases in parallel processes (one per core by default); rows in input order."""
     os.makedirs(out, exist_ok=True)
@@ -134,4 +130,13 @@ def run_cases(cases: Sequence[Case], out: str, progress: bool = True, workers: i
     if workers == 1 or len(cases) == 1:
         return [run_case(*j) for j in jobs]
     with ProcessPoolExecutor(max_workers=workers) as pool:
-        return list(pool.map(_run_case_star, jobs))
+        futures = [pool.submit(run_case, *j) for j in jobs]
+        try:
+            return [f.result() for f in futures]
+        except KeyboardInterrupt:
+            # the running cases got the interrupt too and save what they computed; the
+            # queued ones are not started
+            pool.shutdown(wait=True, cancel_futures=True)
+            rows = [f.result() for f in futures if f.done() and not f.cancelled() and f.exception() is None]
+            log.warning("interrupted: %d of %d cases returned a (partial) result", len(rows), len(cases))
+            return rows

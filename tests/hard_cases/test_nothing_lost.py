@@ -1,0 +1,121 @@
+"""Nothing lost: a run interrupted (Ctrl-C) keeps what it computed, and the ``moreau``
+command saves it as ``*.partial.npz`` before exiting.
+
+The command is run as a real subprocess in its own process group and sent SIGINT, as a
+terminal's Ctrl-C does, once its progress bar shows that it is stepping.
+"""
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import moreau as mo
+from problems.bouncing_ball import bouncing_ball
+
+
+class InterruptingSolver(mo.EnumerationSolver):
+    """The exact solver, with a Ctrl-C arriving during contact solve number ``at``."""
+
+    name = "interrupting"
+
+    def __init__(self, at):
+        super().__init__()
+        self.at, self.calls = at, 0
+
+    def solve(self, *args):
+        self.calls += 1
+        if self.calls == self.at:
+            raise KeyboardInterrupt
+        return super().solve(*args)
+
+
+def test_interrupt_inside_a_contact_solve_keeps_the_run(tmp_path):
+    exact = mo.simulate(bouncing_ball(0.5), (0.0, 1.5), [1.0], [0.0], 1e-3, solver="enum")
+    traj = mo.simulate(bouncing_ball(0.5), (0.0, 1.5), [1.0], [0.0], 1e-3, solver=InterruptingSolver(at=30))
+    assert traj.status == "interrupted" and "interrupted by the user at step" in traj.message
+    n = len(traj)
+    assert 0 < n < len(exact)
+    np.testing.assert_array_equal(traj.q, exact.q[:n])  # every record kept is exact
+    back = mo.load(traj.save(tmp_path / "run.partial.npz"))
+    assert back.status == "interrupted" and back.message == traj.message
+    np.testing.assert_array_equal(back.q, traj.q)
+
+
+def interrupt_command(args, cwd, after_progress=1.0, timeout=180):
+    """Run ``python -m moreau *args`` and send SIGINT to its process group ``after_progress``
+    seconds after its progress bar first shows steps; return (returncode, stderr, seconds
+    from the interrupt to the exit)."""
+    env = dict(os.environ, MPLBACKEND="Agg")
+    proc = subprocess.Popen([sys.executable, "-m", "moreau", *args], cwd=cwd, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+    err = []
+    reader = threading.Thread(target=lambda: err.extend(iter(lambda: proc.stderr.read(1), b"")), daemon=True)
+    reader.start()
+    t0 = time.monotonic()
+    try:
+        while b"step/s]" not in b"".join(err):  # tqdm prints the rate once it is stepping
+            if proc.poll() is not None or time.monotonic() - t0 > timeout:
+                raise AssertionError(f"no progress seen: {b''.join(err).decode(errors='replace')[-500:]}")
+            time.sleep(0.05)
+        time.sleep(after_progress)
+        os.killpg(proc.pid, signal.SIGINT)
+        t_int = time.monotonic()
+        proc.stdout.read()
+        proc.wait(timeout=timeout)
+        t_exit = time.monotonic() - t_int
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    reader.join(5)
+    return proc.returncode, b"".join(err).decode(errors="replace"), t_exit
+
+
+def last_line(stderr):
+    return stderr.replace("\r", "\n").strip().splitlines()[-1]
+
+
+def test_ball_command_interrupted_saves_a_partial_trajectory(tmp_path):
+    rc, err, _ = interrupt_command(["ball", "--t-end", "100", "--h", "1e-5", "--out", "out"], tmp_path)
+    assert rc == 1 and "Traceback" not in err
+    line = last_line(err)
+    assert line.startswith("moreau ball: error: interrupted by the user at step")
+    assert line.endswith("are saved in out/ball.partial.npz")
+    traj = mo.load(tmp_path / "out" / "ball.partial.npz")
+    assert traj.status == "interrupted" and 1000 < len(traj) < 10_000_001
+    assert np.all(np.isfinite(traj.q)) and traj.t[-1] < 100
+    assert not (tmp_path / "out" / "ball.npz").exists()
+
+
+@pytest.mark.slow
+def test_piston_command_interrupted_saves_a_partial_trajectory(tmp_path):
+    rc, err, _ = interrupt_command(["piston", "--e", "0", "--D", "80.04", "--cycles", "50", "--transient", "0",
+                                    "--h", "1e-3", "--out", "out"], tmp_path)
+    assert rc == 1 and "Traceback" not in err
+    assert "partial trajectory saved" in err
+    traj = mo.load(tmp_path / "out" / "piston_e0_D80.04mm.partial.npz")
+    assert traj.status == "interrupted" and len(traj) > 10
+    assert traj.extra["case"]["e"] == 0.0
+    assert "interrupted" in (tmp_path / "out" / "summary.csv").read_text()
+
+
+@pytest.mark.slow
+def test_piston_command_with_workers_stops_promptly_on_interrupt(tmp_path):
+    # three cases on two workers: the third is queued when Ctrl-C arrives
+    rc, err, t_exit = interrupt_command(["piston", "--cycles", "20", "--transient", "0", "--h", "1e-3",
+                                         "--workers", "2", "--out", "out"], tmp_path)
+    out = tmp_path / "out"
+    partial = sorted(p.name for p in out.glob("*.partial.npz"))
+    assert len(partial) >= 2  # the running cases saved what they computed
+    for name in partial:
+        assert mo.load(out / name).status == "interrupted"
+    # nothing starts after the interrupt: no case runs on to completion, and the command
+    # exits within seconds (a 20-cycle case takes 15–30 s)
+    assert not list(out.glob("piston_*mm.npz"))
+    assert t_exit < 10.0
+    assert rc in (1, 130) and "Traceback" not in err
