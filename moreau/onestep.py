@@ -60,9 +60,10 @@ class Residuals:
     primal : float
         Largest violation of ``G v >= c``, relative to the normal-velocity scale.
     dual : float
-        Largest negative impulse, relative to the impulse scale.
+        Largest negative impulse, as the normal velocity it makes, relative to the
+        velocity scale.
     complementarity : float
-        Largest ``|P_i (G v − c)_i|``, relative to the product of both scales.
+        Largest ``|P_i w_i (G v − c)_i|``, relative to the velocity scale squared.
     stationarity : float
         ``|M v − b − Gᵀ P|_∞`` relative to the momentum scale.
     """
@@ -91,11 +92,14 @@ _TINY = 1e-300
 def kkt_residuals(M, b, G, c, v, P) -> Residuals:
     """Scaled residuals of the KKT conditions of the one-step QP (see module docstring).
 
-    Scales: normal velocities are measured against the largest of ``|c|``, ``|G v|`` and
-    the normal velocity change the impulses make, ``|G| (|Gᵀ P| / diag M)``, with a floor
-    of 1e-9 ``|G| |v|`` for round-off (a sliding contact whose normal velocity is a
-    millionth of the other velocities is measured against its own scale, not theirs);
-    momenta against ``|b|`` and ``|Gᵀ P|``; impulses against ``max |P|``.
+    Everything is measured as a normal velocity, against the contact's own velocity
+    scale: the largest of ``|c|``, ``|G v|`` and the normal velocity change the impulses
+    make, ``|G| (|Gᵀ P| / diag M)``, with a floor of 1e-9 ``|G| |v|`` for round-off (a
+    sliding contact whose normal velocity is a millionth of the other velocities is
+    measured against its own scale, not theirs). An impulse P_i counts through the
+    velocity it makes, ``P_i w_i`` with ``w_i = Σ_j G_ij² / M_jj`` (≈ W_ii): a negative
+    impulse of round-off size passes, a wrong-sign impulse that moves the contact does
+    not. Momenta (stationarity) are measured against ``|b|`` and ``|Gᵀ P|``.
     """
     # few numpy calls, reductions on Python floats: this runs after every contact solve
     Gv = G @ v
@@ -103,20 +107,20 @@ def kkt_residuals(M, b, G, c, v, P) -> Residuals:
     GtP = P @ G
     stat = np.abs(M @ v - b - GtP).tolist()
     absG = np.abs(G)
+    inv_diag = 1.0 / M.diagonal()
     cl = c.tolist()
-    Pl = P.tolist()
+    Pw = (P * ((absG * absG) @ inv_diag)).tolist()  # velocity each impulse makes
     vel_scale = max(
         _TINY,
         max(cl), -min(cl),
         float(np.abs(Gv).max()),
-        float((absG @ (np.abs(GtP) / M.diagonal())).max()),
+        float((absG @ (np.abs(GtP) * inv_diag)).max()),
         1e-9 * float((absG @ np.abs(v)).max()),
     )
     mom_scale = max(_TINY, float(np.abs(b).max()), float(np.abs(GtP).max()))
-    p_scale = max(_TINY, max(Pl), -min(Pl))
     return Residuals(
         primal=max(0.0, -min(slack)) / vel_scale,
-        dual=max(0.0, -min(Pl)) / p_scale,
-        complementarity=max(abs(p * s) for p, s in zip(Pl, slack)) / (p_scale * vel_scale),
+        dual=max(0.0, -min(Pw)) / vel_scale,
+        complementarity=max(abs(p * s) for p, s in zip(Pw, slack)) / (vel_scale * vel_scale),
         stationarity=max(stat) / mom_scale,
     )

@@ -65,3 +65,15 @@ def test_theta_with_damping_and_impacts_loses_no_energy_at_impacts():
     assert len(traj.impacts) >= 2  # the pendulum swings back to the wall once in 3 s
     assert traj.impacts.energy_lost.min() > 0
     np.testing.assert_allclose(traj.impacts.U_after, -0.8 * traj.impacts.U_before, rtol=0.02)
+
+
+def test_projection_leaves_bouncing_rows_alone_so_they_come_to_rest():
+    # projecting an e > 0 contact without touching its velocity kept it bouncing at ~h g
+    ball = bouncing_ball(0.8)
+    plain = mo.simulate(ball, (0.0, 6.0), [1.0], [0.0], 1e-3, solver="enum")
+    proj = mo.simulate(ball, (0.0, 6.0), [1.0], [0.0], 1e-3, solver="enum", drift_control=mo.PositionProjection())
+    assert len(proj.impacts) == len(plain.impacts)
+    assert np.abs(proj.v[-500:, 0]).max() < 1e-9  # at rest at the end
+    every = mo.simulate(ball, (0.0, 6.0), [1.0], [0.0], 1e-3, solver="enum",
+                        drift_control=mo.PositionProjection(max_restitution=1.0))
+    assert len(every.impacts) > 5 * len(plain.impacts)  # the behaviour the default avoids

@@ -51,9 +51,9 @@ def test_coarse_step_does_not_blow_up(e, drift):
     # their walls give sin φ3 <= (D − d + 2 pen) / s
     p = model.params
     assert np.abs(np.sin(traj.q[:, 2])).max() <= (p.clearance * (1 + 2 * pen)) / p.s
-    if drift is projection:
+    if drift is projection and e == 0.0:
         # the projection removes the drift; what is left is the second-order remainder of
-        # its linearization (measured 3e-13 for e = 0, 3e-3 for e = 0.9)
+        # its linearization (measured 3e-13). It leaves bouncing rows (e > 0) alone.
         assert pen < 0.01
     else:
         # the midpoint drift of a pressed contact: penetration ≈ h·l1 (measured 0.96–1.04 h·l1
