@@ -1,0 +1,407 @@
+"""Study functions of the piston engine for parameter sweeps and notebooks.
+
+Module-level, picklable, pure functions of their arguments (same arguments, same
+numbers, except the measured ``wall_time_s``): :func:`piston_point` (per-cycle figures
+of one engine, for ``moreau.sweeps.sweep``) and :func:`bifurcation_samples` (the pin's
+lateral position and the piston tilt sampled once per cycle at fixed crank angles — a
+Poincaré section φ1 = const mod 720° of the self-excited engine).
+
+Like the main job (:func:`problems.piston.job.run_case`), the runs project the positions
+back onto the cylinder after each step (``drift_control=True``,
+:class:`moreau.PositionProjection`): without it the midpoint drift of a sliding contact
+leaves the corners O(h) inside the wall (≈ 30 % of the 40 µm clearance at h = 3e-4).
+
+Units: ``D_mm`` in millimetres, ``h`` in non-dimensional time τ = ω t (one engine cycle
+is 4π), energies in J, impulses in N s, angles of the crank in degrees from firing TDC,
+x_O3 in half-clearances (D − d)/2 (±1: an untilted piston touching the right/left wall),
+the tilt φ3 in mrad.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+
+import numpy as np
+
+import moreau as mo
+
+from .analysis import (
+    FOUR_PI,
+    contact_side,
+    crank_angle,
+    cycle_figures,
+    cycle_index,
+    lateral_position,
+    sliding_phases,
+    steady_speed_rpm,
+    tilt,
+)
+from .model import piston_model
+from .params import PistonParameters
+
+__all__ = [
+    "piston_point", "bifurcation_samples", "DEFAULT_ANGLES_DEG", "SLAP_FRACTION", "record_every_for",
+    "step_for_clearance", "section_long",
+    "plot_sweep", "plot_section", "plot_side_change_angles",
+]
+
+DEFAULT_ANGLES_DEG = (60.0, 420.0)
+SLAP_FRACTION = 0.01
+"""An impact is a *slap* when its impulse is at least this fraction of the largest one
+of its cycle. The count of all logged impacts includes a swarm of micro-impacts whose
+number depends on the numerics (drift control multiplies it at e = 0.5); the count of
+slaps does not (85 with and 81 without drift control at e = 0.5, h = 3e-4)."""
+
+
+def record_every_for(h: float) -> int:
+    """Steps between records for a step ``h``: about 0.1° of crank angle per record."""
+    return max(1, int(round(2e-3 / h)))
+
+
+def step_for_clearance(D_mm: float, h: float = 3e-4, margin: float = 0.5, d_mm: float = 80.0,
+                       l1_mm: float = 40.0) -> float:
+    """A step size resolving the clearance: ``min(h, margin · (D − d) / l1)``.
+
+    In one step the crank pin moves h·l1 (non-dimensional speed 1), the velocity scale of
+    the piston's lateral motion; the piston model warns when that exceeds the clearance
+    D − d (:meth:`problems.piston.model.PistonModel.simulate`). This keeps it to
+    ``margin`` of the clearance: with the defaults h = 1.25e-4 at 10 µm, 2.5e-4 at 20 µm
+    and 3e-4 from 24 µm up. Rounded to 3 significant digits.
+
+    Parameters
+    ----------
+    D_mm, d_mm : float
+        Cylinder and piston diameters (mm).
+    h : float
+        Step size for large clearances (non-dimensional time τ = ω t).
+    margin : float
+        Largest fraction of the clearance the pin may travel in one step.
+    l1_mm : float
+        Crank radius (mm), the length unit.
+    """
+    clearance = float(D_mm) - float(d_mm)
+    if clearance <= 0:
+        raise ValueError(f"D_mm = {D_mm!r} must exceed the piston diameter {d_mm!r} mm")
+    return float(f"{min(float(h), margin * clearance / l1_mm):.3g}")
+
+
+def _run(e: float, D_mm: float, total_cycles: float, h: float, solver: str,
+         drift_control: bool) -> tuple[mo.Trajectory, PistonParameters]:
+    """Simulate the engine; a Ctrl-C re-raises KeyboardInterrupt (so a sweep records
+    nothing for the point), a failed run raises its SolverError / SimulationError."""
+    params = PistonParameters(e=float(e), D=float(D_mm) / 1e3)
+    model = piston_model(params)
+    traj = model.simulate(total_cycles, h, solver=solver, record_every=record_every_for(h),
+                          progress=False, energy=False,
+                          drift_control=mo.PositionProjection() if drift_control else None)
+    if traj.status == "interrupted":
+        raise KeyboardInterrupt(traj.message)
+    return traj, params
+
+
+def _section(traj: mo.Trajectory, params: PistonParameters, transient: int, cycles: int,
+             angles: np.ndarray) -> dict:
+    """x_O3 and φ3 at crank angle 720° k + angle for the analyzed cycles k (long format)."""
+    phi = crank_angle(traj)
+    ks = np.arange(transient, transient + cycles)
+    where = (FOUR_PI * ks[:, None] + np.radians(angles)[None, :]).ravel()
+    if where[-1] > phi[-1]:
+        raise RuntimeError(f"the run ends at crank angle {np.degrees(phi[-1]):.1f}°, before the last sample")
+    return {
+        "cycle": np.repeat(ks, angles.size).tolist(),
+        "angle_deg": np.tile(angles, cycles).tolist(),
+        "x_O3": np.interp(where, phi, lateral_position(traj, params)).tolist(),
+        "phi3_mrad": (1e3 * np.interp(where, phi, tilt(traj))).tolist(),
+    }
+
+
+def _angles(angle_deg) -> np.ndarray:
+    angles = np.atleast_1d(np.asarray(angle_deg, dtype=float))
+    if angles.ndim != 1 or angles.size == 0 or not np.all((angles >= 0) & (angles < 720)):
+        raise ValueError(f"angle_deg must be in [0, 720), got {angle_deg!r}")
+    return angles
+
+
+def piston_point(e: float, D_mm: float = 80.04, cycles: int = 5, transient: int = 1, h: float = 3e-4,
+                 solver: str = "enum", drift_control: bool = True,
+                 section_deg: float | Sequence[float] | None = None) -> dict:
+    """Run the engine for ``transient + cycles`` cycles and return per-cycle figures of
+    the ``cycles`` analyzed ones.
+
+    Parameters
+    ----------
+    e : float
+        Restitution at the piston corners, in [0, 1].
+    D_mm : float
+        Cylinder diameter (mm), > 80 (the piston's diameter).
+    cycles : int
+        Engine cycles analyzed (720° of crank angle each).
+    transient : int
+        Cycles simulated first and discarded.
+    h : float
+        Step size in non-dimensional time τ = ω t (1e-4: reference; 3e-4: sweeps;
+        1e-3: quick looks, with a penetration near the clearance at D = 80.04 mm).
+    solver : str
+        Contact backend of :func:`moreau.simulate`.
+    drift_control : bool
+        Project the positions back onto the cylinder after each step.
+    section_deg : float or sequence of float, optional
+        Also sample the state once per analyzed cycle at these crank angles (degrees in
+        [0, 720)), as :func:`bifurcation_samples` does, from the same run.
+
+    Returns
+    -------
+    dict
+        ``clearance_um`` (D − d, µm); per analyzed cycle (lists) and their means:
+        ``side_changes``, ``impacts`` (all four corners), ``energy_lost_J`` (kinetic
+        energy dissipated at the impacts, J), ``slaps`` (impacts carrying at least
+        ``SLAP_FRACTION`` = 1 % of the cycle's largest impulse: the robust count),
+        ``flight_deg`` (crank angle with no corner
+        in contact, degrees), ``sliding_phases`` (one wall alone carrying the piston for
+        at least 1° of crank angle); ``side_change_angles_deg`` (last cycle),
+        ``rpm`` (mean crank speed over the analyzed cycles, rev/min),
+        ``max_penetration_ratio`` (largest penetration over the analyzed cycles / (D − d)),
+        ``max_impulse_Ns`` (largest single impact), ``fallbacks`` (contact solves
+        the main backend failed) and ``wall_time_s`` (the only non-reproducible value);
+        with ``section_deg``, also ``cycle``, ``angle_deg``, ``x_O3``, ``phi3_mrad``
+        (see :func:`bifurcation_samples`).
+
+    Raises
+    ------
+    ValueError
+        Bad parameters (e outside [0, 1], D_mm <= 80, cycles < 1, ...).
+    moreau.SolverError, moreau.SimulationError
+        The run failed.
+    """
+    cycles, transient = int(cycles), int(transient)
+    if cycles < 1 or transient < 0:
+        raise ValueError(f"need cycles >= 1 and transient >= 0, got cycles={cycles}, transient={transient}")
+    angles = None if section_deg is None else _angles(section_deg)
+    wall0 = time.perf_counter()
+    traj, params = _run(e, D_mm, transient + cycles, h, solver, drift_control)
+    figs = [c for c in cycle_figures(traj, params) if c.cycle >= transient]
+    if len(figs) != cycles:
+        raise RuntimeError(f"expected {cycles} analyzed cycles, the run holds {len(figs)}")
+
+    phi = crank_angle(traj)
+    cyc = cycle_index(traj)
+    side = contact_side(traj)
+    dphi = np.diff(phi, prepend=phi[0])  # record i covers (phi[i-1], phi[i]]
+    imp = traj.impacts
+    imp_cycle = np.floor(np.interp(imp.t, traj.t, phi) / FOUR_PI).astype(int) if len(imp) else np.zeros(0, int)
+    slaps = []
+    for c in figs:
+        P = imp.impulse[imp_cycle == c.cycle]
+        slaps.append(int((P >= SLAP_FRACTION * P.max()).sum()) if P.size else 0)
+    flight = [float(np.degrees(dphi[(cyc == c.cycle) & (side == 0)].sum())) for c in figs]
+    phases = sliding_phases(traj, min_deg=1.0)
+    phase_cycle = np.array([cyc[s.start] for s in phases], dtype=int)
+    n_phases = [int((phase_cycle == c.cycle).sum()) for c in figs]
+
+    def mean(xs):
+        return float(np.mean(xs))
+
+    section = {} if angles is None else _section(traj, params, transient, cycles, angles)
+    return {
+        "clearance_um": round(1e6 * params.clearance, 6),
+        "side_changes_mean": mean([c.side_changes for c in figs]),
+        "impacts_mean": mean([c.impacts for c in figs]),
+        "slaps_mean": mean(slaps),
+        "energy_lost_J_mean": mean([c.energy_lost for c in figs]),
+        "flight_deg_mean": mean(flight),
+        "sliding_phases_mean": mean(n_phases),
+        "rpm": steady_speed_rpm(traj, params, skip_cycles=transient),
+        "max_penetration_ratio": max(c.max_penetration for c in figs),
+        "max_impulse_Ns": max(c.max_impulse for c in figs),
+        "side_changes": [c.side_changes for c in figs],
+        "impacts": [c.impacts for c in figs],
+        "slaps": slaps,
+        "energy_lost_J": [c.energy_lost for c in figs],
+        "flight_deg": flight,
+        "sliding_phases": n_phases,
+        "side_change_angles_deg": [round(a, 3) for a in figs[-1].change_angles_deg],
+        "fallbacks": int(traj.stats.fallbacks),
+        **section,
+        "wall_time_s": round(time.perf_counter() - wall0, 3),
+    }
+
+
+def bifurcation_samples(e: float, D_mm: float = 80.04, cycles: int = 30, h: float = 3e-4,
+                        angle_deg: float | Sequence[float] = DEFAULT_ANGLES_DEG, transient: int = 1,
+                        solver: str = "enum", drift_control: bool = True) -> dict:
+    """The pin's lateral position x_O3 and the tilt φ3 once per cycle at fixed crank angles.
+
+    Runs ``transient + cycles`` cycles and samples, in each analyzed cycle k, the state
+    at crank angle φ1 = 720° k + angle (linear interpolation between records ~0.1° apart)
+    — a Poincaré section of the self-excited engine. A periodic motion gives one point per
+    angle, whatever the number of cycles; a scatter means the motion does not repeat.
+
+    Parameters
+    ----------
+    e, D_mm, h, transient, solver, drift_control
+        As for :func:`piston_point`.
+    cycles : int
+        Analyzed cycles: samples per angle.
+    angle_deg : float or sequence of float
+        Crank angle(s) of the section in [0, 720) degrees from firing TDC.
+
+    Returns
+    -------
+    dict
+        Long-format samples, one entry per (cycle, angle): ``cycle``, ``angle_deg``,
+        ``x_O3`` (half-clearances), ``phi3_mrad``; and ``side_changes`` and ``impacts``
+        per analyzed cycle (lists of length ``cycles``).
+    """
+    cycles, transient = int(cycles), int(transient)
+    angles = _angles(angle_deg)
+    if cycles < 1 or transient < 0:
+        raise ValueError(f"need cycles >= 1 and transient >= 0, got cycles={cycles}, transient={transient}")
+    traj, params = _run(e, D_mm, transient + cycles, h, solver, drift_control)
+    figs = [c for c in cycle_figures(traj, params) if c.cycle >= transient]
+    return {
+        **_section(traj, params, transient, cycles, angles),
+        "side_changes": [c.side_changes for c in figs],
+        "impacts": [c.impacts for c in figs],
+    }
+
+
+# -- tables and figures of sweeps ----------------------------------------------------------
+def section_long(df, by: str | Sequence[str] = "e"):
+    """Explode a table of :func:`bifurcation_samples` rows into one row per sample.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        Rows of ``sweep(bifurcation_samples, ...)``.
+    by : str or sequence of str
+        Parameter column(s) to keep with each sample.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``by`` + ``cycle``, ``angle_deg``, ``x_O3``, ``phi3_mrad``.
+    """
+    import pandas as pd
+
+    by = [by] if isinstance(by, str) else list(by)
+    ok = df[df["error"].isna()] if "error" in df else df
+    frames = []
+    for _, row in ok.iterrows():
+        f = pd.DataFrame({k: list(row[k]) for k in ("cycle", "angle_deg", "x_O3", "phi3_mrad")})
+        for b in by:
+            f.insert(0, b, row[b])
+        frames.append(f)
+    cols = by + ["cycle", "angle_deg", "x_O3", "phi3_mrad"]
+    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=cols)
+
+
+def _per_cycle(ax, df, x: str, col: str, label: str, color: str) -> None:
+    """Each analyzed cycle as a dot, the mean as a line, against parameter ``x``."""
+    xs = np.concatenate([[r[x]] * len(r[col]) for _, r in df.iterrows()]) if len(df) else []
+    ys = np.concatenate([list(r[col]) for _, r in df.iterrows()]) if len(df) else []
+    ax.plot(xs, ys, "o", ms=3, alpha=0.35, color=color, label="one cycle")
+    ax.plot(df[x], [np.mean(v) for v in df[col]], "-", color=color, lw=1.4, label="mean")
+    ax.set_ylabel(label)
+    ax.grid(alpha=0.3)
+
+
+def plot_sweep(df, x: str = "e", xlabel: str = "restitution e", title: str | None = None, log_x: bool = False):
+    """Four panels of a :func:`piston_point` sweep against one parameter: side changes,
+    impacts and energy dissipated at the impacts per cycle (every cycle a dot, the mean
+    a line), and the steady speed with the largest penetration / clearance.
+
+    Returns the matplotlib Figure (never shown).
+    """
+    import matplotlib.pyplot as plt
+
+    ok = df[df["error"].isna()].sort_values(x)
+    fig, axes = plt.subplots(4, 1, figsize=(7.5, 9.5), sharex=True)
+    _per_cycle(axes[0], ok, x, "side_changes", "side changes / cycle", "C0")
+    axes[0].axhline(6, color="k", lw=0.6, ls="--", label="the paper's six")
+    axes[0].legend(fontsize="small", loc="upper left")
+    if len(ok) and max(max(v) for v in ok["side_changes"]) > 20:  # a rattling piston: hundreds
+        axes[0].set_yscale("log")
+    _per_cycle(axes[1], ok, x, "slaps", "slaps / cycle\n(impulse ≥ 1 % of max)", "C1")
+    axes[1].plot(ok[x], ok["impacts_mean"], "--", color="0.5", lw=1, label="all logged impacts (mean)")
+    axes[1].legend(fontsize="small", loc="upper left")
+    counts = [x for v in ok["impacts"] for x in v if x > 0] if len(ok) else []
+    if counts and max(counts) > 10 * min(counts):  # the micro-impacts swarm: spans decades
+        axes[1].set_yscale("log")
+    _per_cycle(axes[2], ok, x, "energy_lost_J", "energy lost at\nimpacts / cycle (J)", "C3")
+    axes[3].plot(ok[x], ok["rpm"], "o-", ms=3, color="C2")
+    axes[3].set_ylabel("steady speed (rpm)", color="C2")
+    axes[3].ticklabel_format(axis="y", useOffset=False, style="plain")
+    axes[3].grid(alpha=0.3)
+    tw = axes[3].twinx()
+    tw.plot(ok[x], ok["max_penetration_ratio"], "s:", ms=3, color="C7")
+    tw.set_ylabel("max penetration\n/ clearance", color="C7")
+    tw.set_ylim(bottom=0)
+    axes[3].set_xlabel(xlabel)
+    if log_x:
+        axes[3].set_xscale("log")
+    if title:
+        axes[0].set_title(title)
+    fig.align_ylabels(axes)
+    fig.tight_layout()
+    return fig
+
+
+def plot_section(long, x: str = "e", xlabel: str = "restitution e", title: str | None = None,
+                 log_x: bool = False):
+    """Bifurcation-like diagram: x_O3 and φ3 sampled once per cycle (rows of
+    :func:`section_long`) against a parameter, one colour per crank angle.
+
+    Returns the matplotlib Figure (never shown).
+    """
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(2, 1, figsize=(7.5, 6.5), sharex=True)
+    for j, (angle, g) in enumerate(long.groupby("angle_deg", sort=True)):
+        kw = {"s": 5, "alpha": 0.6, "color": f"C{j}", "lw": 0, "label": f"φ1 = {angle:g}° (mod 720°)"}
+        axes[0].scatter(g[x], g["x_O3"], **kw)
+        axes[1].scatter(g[x], g["phi3_mrad"], **kw)
+    for v in (-1.0, 1.0):
+        axes[0].axhline(v, color="k", lw=0.5, ls="--")
+    axes[0].set_ylabel("x_O3 / ((D−d)/2)")
+    axes[1].set_ylabel("tilt φ3 (mrad)")
+    axes[1].set_xlabel(xlabel)
+    axes[0].legend(fontsize="small", markerscale=2)
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    if log_x:
+        axes[1].set_xscale("log")
+    if title:
+        axes[0].set_title(title)
+    fig.tight_layout()
+    return fig
+
+
+def plot_side_change_angles(df, x: str = "e", xlabel: str = "restitution e", title: str | None = None,
+                            log_x: bool = False):
+    """Crank angles (0–720°) of the side changes of the last analyzed cycle against a
+    parameter, over the strokes; with the crank angle spent in flight per cycle.
+
+    Returns the matplotlib Figure (never shown).
+    """
+    import matplotlib.pyplot as plt
+
+    ok = df[df["error"].isna()].sort_values(x)
+    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(7.5, 7), sharex=True, gridspec_kw={"height_ratios": [3, 1.3]})
+    for _, r in ok.iterrows():
+        ax.plot([r[x]] * len(r["side_change_angles_deg"]), r["side_change_angles_deg"], "o", ms=3.5, color="C0")
+    for a, name in ((0, "expansion"), (180, "exhaust"), (360, "intake"), (540, "compression")):
+        ax.axhspan(a, a + 180, color="0.5", alpha=0.08 if a % 360 == 0 else 0.0)
+        ax.text(1.01, (a + 90) / 720, name, transform=ax.transAxes, rotation=90, va="center", fontsize="small")
+    ax.set_ylim(0, 720)
+    ax.set_yticks(np.arange(0, 721, 90))
+    ax.set_ylabel("crank angle of a side change\n(deg from firing TDC)")
+    ax.grid(alpha=0.3)
+    _per_cycle(ax2, ok, x, "flight_deg", "in flight\n(deg / cycle)", "C4")
+    ax2.set_xlabel(xlabel)
+    if log_x:
+        ax2.set_xscale("log")
+    if title:
+        ax.set_title(title)
+    fig.tight_layout()
+    return fig

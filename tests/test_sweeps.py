@@ -1,0 +1,267 @@
+"""Parameter sweeps (issue 7): grid order, process pool = Dask, resume after an interrupt,
+failing points recorded, the ``moreau sweep`` command, the piston study functions."""
+
+from __future__ import annotations
+
+import functools
+import math
+import os
+import subprocess
+import sys
+import uuid
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from moreau.cli import main
+from moreau.sweeps import grid_points, point_key, read_table, sweep
+
+
+# -- cheap pure functions (module level: picklable by reference) ---------------------------
+def cheap(a: float, b: int, tag: str = "x") -> dict:
+    """A pure function with a float, an int, a string and a list among its results."""
+    return {"s": a + b, "p": math.sin(a * b) * math.exp(-a), "label": f"{tag}{b}",
+            "seq": [a, b, a * b], "big": np.float64(a) ** 2}
+
+
+def flaky(a: float, b: int, fail: bool = True) -> dict:
+    """Raises for one point (when ``fail``)."""
+    if fail and a == 0.5 and b == 2:
+        raise ValueError(f"no result at a={a}, b={b}")
+    return cheap(a, b)
+
+
+def counted(a: float, b: int, calls_dir: str, interrupt_at: tuple | None = None) -> dict:
+    """``cheap`` that leaves one file per call in ``calls_dir/<a>_<b>/`` (counts calls across
+    processes) and raises KeyboardInterrupt at the point ``interrupt_at``."""
+    d = os.path.join(calls_dir, f"{a}_{b}")
+    os.makedirs(d, exist_ok=True)
+    open(os.path.join(d, uuid.uuid4().hex), "w").close()
+    if interrupt_at is not None and (a, b) == tuple(interrupt_at):
+        raise KeyboardInterrupt
+    return cheap(a, b)
+
+
+def _with_tuple(a: int, t: tuple) -> dict:
+    return {"n": a * len(t)}
+
+
+def calls(calls_dir) -> dict:
+    return {p.name: len(list(p.iterdir())) for p in calls_dir.iterdir()} if calls_dir.exists() else {}
+
+
+GRID = {"a": np.linspace(0.0, 1.0, 5), "b": [1, 2, 3]}
+
+
+# -- grids --------------------------------------------------------------------------------
+def test_grid_is_cartesian_in_key_order_and_points_are_identified_by_value():
+    pts = grid_points({"a": [1.0, 2.0], "b": 7, "c": ["u", "v"]})
+    assert pts == [{"a": 1.0, "b": 7, "c": "u"}, {"a": 1.0, "b": 7, "c": "v"},
+                   {"a": 2.0, "b": 7, "c": "u"}, {"a": 2.0, "b": 7, "c": "v"}]
+    assert type(grid_points({"a": np.linspace(0, 1, 3)})[1]["a"]) is float
+    assert point_key({"a": 0.1, "b": 1}) == point_key({"b": 1.0, "a": np.float64(0.1) + 1e-17})
+    assert point_key({"a": 0.1}) != point_key({"a": 0.1001})
+    with pytest.raises(ValueError, match="same point"):
+        grid_points([{"a": 1}, {"a": 1.0}])
+    with pytest.raises(ValueError, match="no points"):
+        grid_points({"a": []})
+    with pytest.raises(ValueError, match="grid values"):
+        grid_points([{"a": [1, 2]}])
+    # a tuple is one value (e.g. a set of angles), part of the point's identity
+    pts = grid_points({"a": [1, 2], "t": (60.0, np.float64(420.0))})
+    assert pts == [{"a": 1, "t": (60.0, 420.0)}, {"a": 2, "t": (60.0, 420.0)}]
+    assert point_key(pts[0]) != point_key({"a": 1, "t": (60.0, 421.0)})
+    assert sweep(_with_tuple, pts, executor="serial", progress=False)["t"].tolist() == [[60.0, 420.0]] * 2
+
+
+def test_rows_follow_the_grid_with_params_results_and_error_columns():
+    df = sweep(cheap, GRID, executor="serial", progress=False)
+    assert list(df.columns) == ["a", "b", "s", "p", "label", "seq", "big", "error"]
+    assert len(df) == 15 and df["error"].isna().all()
+    assert df[["a", "b"]].values.tolist() == [[a, b] for a in GRID["a"] for b in GRID["b"]]
+    assert df["seq"].iloc[4] == [0.25, 2, 0.5]
+    assert type(df["big"].iloc[0]) in (float, np.float64)
+
+
+def test_failing_point_records_its_error_and_the_sweep_completes(tmp_path):
+    out = tmp_path / "flaky.csv"
+    df = sweep(flaky, GRID, workers=2, out=out, progress=False)
+    bad = df[df["error"].notna()]
+    assert len(df) == 15 and len(bad) == 1
+    assert bad[["a", "b"]].values.tolist() == [[0.5, 2]]
+    assert bad["error"].iloc[0] == "ValueError: no result at a=0.5, b=2"
+    assert math.isnan(bad["s"].iloc[0])
+    good = df[df["error"].isna()].reset_index(drop=True)
+    ref = sweep(cheap, GRID, executor="serial", progress=False)
+    ref = ref[~((ref.a == 0.5) & (ref.b == 2))].reset_index(drop=True)
+    pd.testing.assert_frame_equal(good, ref)
+    # the table on disk holds the same rows, the list column JSON-decoded
+    back = read_table(out)
+    assert back["error"].notna().sum() == 1 and back["seq"].iloc[0] == df["seq"].iloc[0]
+    # a failed point is a finished one (not recomputed); retry_errors recomputes it
+    fixed = functools.partial(flaky, fail=False)
+    assert sweep(fixed, GRID, executor="serial", out=out, progress=False)["error"].notna().sum() == 1
+    df2 = sweep(fixed, GRID, executor="serial", out=out, progress=False, retry_errors=True)
+    pd.testing.assert_frame_equal(df2, sweep(cheap, GRID, executor="serial", progress=False))
+
+
+def test_process_pool_and_dask_give_identical_rows(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    ref = sweep(flaky, GRID, executor="serial", progress=False)
+    pool = sweep(flaky, GRID, executor="processes", workers=2, progress=False)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster, distributed.Client(cluster) as client:
+        on_dask = sweep(flaky, GRID, executor=client, out=tmp_path / "dask.parquet", progress=False)
+        by_address = sweep(flaky, GRID, executor=cluster.scheduler_address, progress=False)
+        # the command, on the same cluster
+        assert main(["sweep", "piston", "--param", "e=0,0.9", "--cycles", "1", "--transient", "0", "--h", "1e-3",
+                     "--out", str(tmp_path / "cli.csv"), "--dask", cluster.scheduler_address, "--no-progress"]) == 0
+    assert read_table(tmp_path / "cli.csv")["error"].isna().all()
+    pd.testing.assert_frame_equal(pool, ref)
+    pd.testing.assert_frame_equal(on_dask, ref)
+    pd.testing.assert_frame_equal(by_address, ref)
+    back = read_table(tmp_path / "dask.parquet")
+    pd.testing.assert_frame_equal(back, ref)
+
+
+@pytest.mark.parametrize("executor", ["serial", "processes"])
+def test_interrupted_sweep_resumes_without_recomputing_finished_points(tmp_path, executor):
+    calls_dir = tmp_path / "calls"
+    out = tmp_path / "sweep.parquet"
+    fun = functools.partial(counted, calls_dir=str(calls_dir))
+    full = sweep(functools.partial(counted, calls_dir=str(tmp_path / "ref_calls")), GRID, executor="serial",
+                 progress=False)
+    with pytest.raises(KeyboardInterrupt):
+        sweep(functools.partial(counted, calls_dir=str(calls_dir), interrupt_at=(0.5, 2)), GRID,
+              executor=executor, workers=2, out=out, progress=False)
+    parts = [p for p in (tmp_path / "sweep.parquet.parts").iterdir() if p.name != "sweep.json"]
+    before = calls(calls_dir)
+    assert 7 <= len(parts) < 15  # the 7 points before (0.5, 2) at least; not all
+    # the finished points so far are in the table already
+    assert len(read_table(out)) == len(parts)
+
+    resumed = sweep(fun, GRID, executor=executor, workers=2, out=out, progress=False)
+    after = calls(calls_dir)
+    recomputed = {k for k in after if after[k] > before.get(k, 0)}
+    assert len(recomputed) == 15 - len(parts)           # only the unfinished points ran again
+    assert all(after[k] == before[k] for k in before if k not in recomputed)
+    pd.testing.assert_frame_equal(resumed, full)
+    pd.testing.assert_frame_equal(read_table(out), full)
+    # a third run computes nothing
+    sweep(fun, GRID, executor=executor, workers=2, out=out, progress=False)
+    assert calls(calls_dir) == after
+
+
+def test_missing_dask_is_a_clear_error(monkeypatch):
+    monkeypatch.setitem(sys.modules, "distributed", None)
+    with pytest.raises(ImportError, match=r"pip install 'moreau\[dask\]'"):
+        sweep(cheap, GRID, executor="tcp://127.0.0.1:1", progress=False)
+    with pytest.raises(ValueError, match="executor must be"):
+        sweep(cheap, GRID, executor="threads", progress=False)
+
+
+def test_out_of_another_function_is_refused_a_changed_one_warned(tmp_path, caplog):
+    out = tmp_path / "t.csv"
+    sweep(cheap, {"a": [1.0], "b": [1]}, executor="serial", out=out, progress=False)
+    with pytest.raises(ValueError, match="computed by .*cheap"):
+        sweep(flaky, {"a": [1.0], "b": [1]}, executor="serial", out=out, progress=False)
+    manifest = tmp_path / "t.csv.parts" / "sweep.json"
+    manifest.write_text(manifest.read_text().replace('"source": "', '"source": "0'))
+    sweep(cheap, {"a": [1.0], "b": [1]}, executor="serial", out=out, progress=False)
+    assert "has changed" in caplog.text
+    with pytest.raises(ValueError, match=".parquet or .csv"):
+        sweep(cheap, {"a": [1.0], "b": [1]}, executor="serial", out=tmp_path / "t.txt", progress=False)
+
+
+def test_bad_return_values_are_errors_not_crashes():
+    df = sweep(_returns_bad, {"k": [0, 1, 2, 3]}, executor="serial", progress=False)
+    assert df["error"].tolist() == [
+        None,
+        "TypeError: the sweep function must return a dict, got list",
+        "ValueError: the result's keys ['k'] clash with the parameters or the error column",
+        "TypeError: returned a value of type object (<object object at" + df["error"][3].split("at", 1)[1],
+    ]
+
+
+def _ragged(k: int) -> dict:
+    return {"v": [k, k + 1] if k % 2 else float(k), "w": k}
+
+
+@pytest.mark.parametrize("suffix", ["parquet", "csv"])
+def test_ragged_columns_round_trip_through_the_table(tmp_path, suffix):
+    out = tmp_path / f"r.{suffix}"
+    df = sweep(_ragged, {"k": [0, 1, 2, 3]}, executor="serial", out=out, progress=False)
+    assert df["v"].tolist() == [0.0, [1, 2], 2.0, [3, 4]]
+    back = read_table(out)
+    assert back["v"].tolist() == [0.0, [1, 2], 2.0, [3, 4]] and back["w"].tolist() == [0, 1, 2, 3]
+
+
+def _returns_bad(k: int):
+    return [{"v": 1}, [1], {"k": 3}, {"v": object()}][k] if k else {"v": 1}
+
+
+# -- the piston study functions ------------------------------------------------------------
+def test_piston_point_and_bifurcation_samples_at_coarse_step():
+    from problems.piston.study import bifurcation_samples, piston_point
+
+    r = piston_point(0.0, 80.04, cycles=1, transient=1, h=1e-3, section_deg=(60.0, 420.0))
+    assert r["clearance_um"] == pytest.approx(40.0)
+    assert r["side_changes"] == [6]  # the paper's six stages, even at this coarse step
+    assert r["impacts_mean"] >= r["slaps_mean"] >= r["side_changes_mean"] and r["energy_lost_J_mean"] > 0
+    assert r["rpm"] == pytest.approx(2000, rel=0.02)
+    assert 0 <= r["flight_deg_mean"] < 720 and r["max_penetration_ratio"] < 0.01  # drift control
+    assert r["cycle"] == [1, 1] and r["angle_deg"] == [60.0, 420.0] and abs(r["x_O3"][0]) == pytest.approx(1, abs=0.05)
+    b = bifurcation_samples(0.0, 80.04, cycles=1, transient=0, h=1e-3, angle_deg=[30.0, 400.0])
+    assert b["cycle"] == [0, 0] and b["angle_deg"] == [30.0, 400.0]
+    assert np.all(np.abs(b["x_O3"]) < 1.5) and len(b["side_changes"]) == 1
+    with pytest.raises(ValueError, match="angle_deg"):
+        bifurcation_samples(0.0, angle_deg=720.0, cycles=1, h=1e-3)
+
+
+def test_piston_sweep_rows_are_deterministic_across_executors():
+    from problems.piston.study import piston_point
+
+    grid = {"e": [0.0, 0.9], "D_mm": 80.04, "cycles": 1, "transient": 0, "h": 1e-3}
+    a = sweep(piston_point, grid, executor="serial", progress=False).drop(columns="wall_time_s")
+    b = sweep(piston_point, grid, workers=2, progress=False).drop(columns="wall_time_s")
+    pd.testing.assert_frame_equal(a, b)
+    assert a["error"].isna().all()
+
+
+# -- the command ---------------------------------------------------------------------------
+def test_sweep_command_writes_the_table_and_resumes(tmp_path, capsys):
+    out = tmp_path / "s.csv"
+    argv = ["sweep", "piston", "--param", "e=0:0.9:2", "--param", "D=80.04", "--cycles", "1",
+            "--transient", "0", "--h", "1e-3", "--out", str(out), "--no-progress", "--workers", "2"]
+    assert main(argv) == 0
+    df = read_table(out)
+    assert df["e"].tolist() == [0.0, 0.9] and df["D_mm"].tolist() == [80.04, 80.04]
+    assert df["error"].isna().all() and "table written" in capsys.readouterr().out
+    mtimes = {p.name: p.stat().st_mtime_ns for p in (tmp_path / "s.csv.parts").iterdir()}
+    assert main(argv) == 0  # resumed: nothing recomputed
+    assert {p.name: p.stat().st_mtime_ns for p in (tmp_path / "s.csv.parts").iterdir()} == mtimes
+
+
+@pytest.mark.parametrize("param, message", [
+    ("e=0:1", "e=0:1: give start:stop:num"),
+    ("e=0:1:x", "give start:stop:num"),
+    ("e=1.5", "1.5 is outside [0, 1]"),
+    ("D=79", "79 is outside (80, 100]"),
+    ("q=1", "unknown parameter 'q'; choose from e, D"),
+    ("e", "expected NAME=VALUES"),
+])
+def test_sweep_bad_param_is_one_line_exit_2(tmp_path, param, message):
+    r = subprocess.run([sys.executable, "-m", "moreau", "sweep", "piston", "--param", param,
+                        "--out", str(tmp_path / "x.csv")], capture_output=True, text=True)
+    assert r.returncode == 2, r.stderr
+    assert "Traceback" not in r.stderr
+    last = r.stderr.strip().splitlines()[-1]  # argparse: the usage, then the message in one line
+    assert last.startswith("moreau sweep: error: argument --param: ") and message in last
+
+
+def test_sweep_param_given_twice_or_bad_address_is_exit_2(tmp_path, capsys):
+    assert main(["sweep", "piston", "--param", "e=0", "--param", "e=1", "--out", str(tmp_path / "x.csv")]) == 2
+    assert "--param e given twice" in capsys.readouterr().err
+    assert main(["sweep", "piston", "--dask", "nowhere", "--out", str(tmp_path / "x.csv")]) == 2
+    assert "not a scheduler address" in capsys.readouterr().err
