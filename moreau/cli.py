@@ -245,6 +245,21 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
+def _engine_run_args(parser: argparse.ArgumentParser, cycles: int, h: float) -> None:
+    """The options of a piston run shared by ``piston`` and ``sweep``."""
+    from moreau.solvers import available_solvers
+
+    parser.add_argument("--cycles", type=_positive_int, default=cycles,
+                        help=f"engine cycles analyzed (default {cycles})")
+    parser.add_argument("--transient", type=_int_at_least(0), default=1, help="cycles discarded first (default 1)")
+    parser.add_argument("--h", type=_float_in(0.0, 0.05, lo_open=True), default=h,
+                        help=f"time step in non-dimensional time τ = ωt (default {h:g})")
+    parser.add_argument("--solver", choices=available_solvers(), default="enum",
+                        help="contact solver (default enum, the fastest exact one here)")
+    parser.add_argument("--no-drift-control", action="store_true",
+                        help="do not project positions back onto the cylinder after each step")
+
+
 def build_parser() -> argparse.ArgumentParser:
     from moreau.solvers import available_solvers
 
@@ -269,14 +284,7 @@ def build_parser() -> argparse.ArgumentParser:
     pi.add_argument("--e", type=_float_in(0.0, 1.0), default=None, help="restitution in [0, 1]")
     pi.add_argument("--D", type=_float_in(80.0, 100.0, lo_open=True), default=None,
                     help="cylinder diameter in mm, > 80 (the piston's); paper: 80.04 and 80.2")
-    pi.add_argument("--cycles", type=_positive_int, default=3, help="engine cycles analyzed (default 3)")
-    pi.add_argument("--transient", type=_int_at_least(0), default=1, help="cycles discarded first (default 1)")
-    pi.add_argument("--h", type=_float_in(0.0, 0.05, lo_open=True), default=1e-4,
-                    help="time step in non-dimensional time τ = ωt (default 1e-4)")
-    pi.add_argument("--solver", choices=available_solvers(), default="enum",
-                    help="contact solver (default enum, the fastest exact one here)")
-    pi.add_argument("--no-drift-control", action="store_true",
-                    help="do not project positions back onto the cylinder after each step")
+    _engine_run_args(pi, cycles=3, h=1e-4)
     pi.add_argument("--workers", type=_positive_int, default=None, help="parallel processes (default: one per case, up to the cores)")
     pi.add_argument("--out", default="piston-out", help="output directory (default piston-out)")
     pi.add_argument("--no-progress", action="store_true", help="no progress bars")
@@ -291,13 +299,7 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--param", type=_param_spec, action="append", metavar="NAME=VALUES",
                     help="e=start:stop:num (numpy.linspace), e=0,0.5,0.9 or e=0.9; names: e, D (mm); "
                          "defaults e=0, D=80.04")
-    sw.add_argument("--cycles", type=_positive_int, default=5, help="engine cycles analyzed (default 5)")
-    sw.add_argument("--transient", type=_int_at_least(0), default=1, help="cycles discarded first (default 1)")
-    sw.add_argument("--h", type=_float_in(0.0, 0.05, lo_open=True), default=3e-4,
-                    help="time step in non-dimensional time (default 3e-4)")
-    sw.add_argument("--solver", choices=available_solvers(), default="enum", help="contact solver (default enum)")
-    sw.add_argument("--no-drift-control", action="store_true",
-                    help="do not project positions back onto the cylinder after each step")
+    _engine_run_args(sw, cycles=5, h=3e-4)
     sw.add_argument("--out", default="sweep-out/piston_sweep.parquet", help="table, .parquet or .csv "
                     "(default sweep-out/piston_sweep.parquet)")
     sw.add_argument("--dask", metavar="ADDRESS", default=None, help="run on this Dask scheduler (tcp://host:8786)")

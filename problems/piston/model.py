@@ -9,6 +9,7 @@ in the paper's non-dimensional units (length l1, time 1/ω, M_11 = 1; see
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
@@ -89,8 +90,6 @@ class PistonModel:
         happens (the scheme stays stable); the warning says its contact results are not
         resolved.
         """
-        import warnings  # local: only this method of the module is ours to change
-
         p = self.params
         limit = p.clearance / p.l1  # non-dimensional time for the pin to cross the clearance
         if float(h) > limit * (1.0 + 1e-9):  # 1e-9: the round-off of D − d, not a margin
