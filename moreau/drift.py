@@ -21,7 +21,7 @@ class PositionProjection:
         minimize ½ Δqᵀ M(q⁺) Δq   subject to   g(q⁺) + G(q⁺) Δq >= 0
 
     (the one-step QP with b = 0 and c = −g, so the same solver, checks and fallback) and
-    set q⁺ ← q⁺ + Δq; repeat while a row still penetrates, up to ``max_iter`` times (the
+    set q⁺ ← q⁺ + Δq, after every step; repeat while a row still penetrates, up to ``max_iter`` times (the
     linearization leaves O(|Δq|²) behind, far below the drift it removes). Velocities are
     not changed. One more small solve per step in which something penetrates.
 
@@ -53,11 +53,16 @@ class PositionProjection:
         self.max_iter = int(max_iter)
         self.tol = float(tol)
         self.max_restitution = float(max_restitution)
+        self._scene = self._eligible = None
 
     def project(self, integ, q: np.ndarray) -> np.ndarray:
         """The projected q⁺ for the integrator ``integ`` (its scene, solver and last step)."""
         scene = integ.scene
-        eligible = scene.restitution <= self.max_restitution  # (m,), cheap
+        if self._scene is not scene:  # rows this projection may move, once per scene
+            self._scene, self._eligible = scene, scene.restitution <= self.max_restitution
+        eligible = self._eligible
+        if not eligible.any():
+            return q
         g = scene.gaps(q)
         if not (eligible & (g < -self.tol)).any():
             return q
