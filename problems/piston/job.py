@@ -8,7 +8,7 @@ import logging
 import os
 import time
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -129,14 +129,27 @@ def run_cases(cases: Sequence[Case], out: str, progress: bool = True, workers: i
     jobs = [(c, out, {"position": i, "desc": c.label} if progress else False) for i, c in enumerate(cases)]
     if workers == 1 or len(cases) == 1:
         return [run_case(*j) for j in jobs]
+    rows: list = [None] * len(jobs)
+    queue = list(enumerate(jobs))
     with ProcessPoolExecutor(max_workers=workers) as pool:
-        futures = [pool.submit(run_case, *j) for j in jobs]
+        running: dict = {}
         try:
-            return [f.result() for f in futures]
+            # submit a case only when a worker is free, so that an interrupt leaves no case
+            # queued in the pool (its queue would start it after the interrupt)
+            while queue or running:
+                while queue and len(running) < workers:
+                    i, job = queue.pop(0)
+                    running[pool.submit(run_case, *job)] = i
+                done, _ = wait(running, return_when=FIRST_COMPLETED)
+                for f in done:
+                    rows[running.pop(f)] = f.result()
         except KeyboardInterrupt:
-            # the running cases got the interrupt too and save what they computed; the
-            # queued ones are not started
-            pool.shutdown(wait=True, cancel_futures=True)
-            rows = [f.result() for f in futures if f.done() and not f.cancelled() and f.exception() is None]
-            log.warning("interrupted: %d of %d cases returned a (partial) result", len(rows), len(cases))
-            return rows
+            # the running cases got the interrupt too and save what they computed
+            for f, i in running.items():
+                try:
+                    rows[i] = f.result()
+                except Exception as exc:  # noqa: BLE001 - reported, the others kept
+                    log.warning("case %s: %s", jobs[i][0].label, exc)
+            log.warning("interrupted: %d of %d cases returned a (partial) result",
+                        sum(r is not None for r in rows), len(cases))
+    return [r for r in rows if r is not None]
