@@ -113,13 +113,13 @@ per_fig
 #   (1999), that the piston loses contact while crossing. The steady speed is 2005.8 rpm,
 #   the paper's 2000 rpm.
 # * **Fig. 3 (e = 0.9, D = 80.04 mm).** Every sliding phase is preceded by a train of
-#   impacts on the same wall (47 to 104 in the last cycle), and there are ten side
+#   impacts on the same wall (about 80 in the last cycle), and there are ten side
 #   changes per cycle instead of six: the six stages plus two quick round trips across
-#   the clearance around the exhaust–intake TDC (334–371°), where the piston "rapidly
+#   the clearance around the exhaust–intake TDC (334–369°), where the piston "rapidly
 #   leaves the contact and transits into the other side" before it stabilizes.
-# * **Fig. 4 (e = 0.9, D = 80.2 mm).** The six crossings are there (6 side changes in
-#   the last cycles, 8 in the first), each followed by a long bounce train of large
-#   lateral excursions.
+# * **Fig. 4 (e = 0.9, D = 80.2 mm).** The six crossings are there (six side changes in
+#   every cycle, at 15°, 206°, 333°, 356°, 433° and 565°), each followed by a long bounce
+#   train of large lateral excursions.
 
 # ## What differs, and why
 #

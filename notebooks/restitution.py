@@ -37,9 +37,11 @@
 # The numbers come from `problems.piston.study.piston_point`, run over the grid by
 # `moreau.sweeps.sweep` on all cores; every finished point is kept in `data/*.parts/`, so
 # re-running this notebook only computes what is missing. As in the main job
-# (`moreau piston`), the positions are projected back onto the cylinder after each step
-# (drift control), so the corners do not sink into the wall. `MOREAU_NOTEBOOK_SCALE=small`
-# runs a reduced version (3 values of e, 2 cycles, h = 1e-3) for the test suite.
+# (`moreau piston`), drift control is on: the positions are projected back onto the
+# cylinder after each step — for the plastic piston (e = 0) only, since projecting a
+# bouncing contact keeps it bouncing at tiny speeds (`moreau.PositionProjection`).
+# `MOREAU_NOTEBOOK_SCALE=small` runs a reduced version (3 values of e, 2 cycles,
+# h = 1e-3) for the test suite.
 
 # %%
 import os
@@ -84,8 +86,9 @@ print(f"{len(E)} values of e; per point {RUN['transient']} + {RUN['cycles']} cyc
 #
 # One row per value of e; the per-cycle lists (`side_changes`, `impacts`, `energy_lost_J`,
 # ...) hold one entry per analyzed cycle. `max_penetration_ratio` is the numerical
-# penetration of the corners into the wall divided by the clearance (a check: ≈ 0 with
-# drift control).
+# penetration of the corners into the wall divided by the clearance: ≈ 0 at e = 0 (drift
+# control), up to 0.27 at e = 0.05, where the piston, after a few small bounces, slides
+# along the wall without projection, and down to 0.01 at e = 0.9, where it bounces.
 
 # %%
 t0 = time.perf_counter()
@@ -107,29 +110,27 @@ plt.show()
 # * **Side changes.** For e = 0 the engine reproduces the paper's Fig. 2: exactly six
 #   side changes in every cycle, at the same crank angles from cycle to cycle. The six
 #   stages survive up to e = 0.85 — every analyzed cycle of every e in [0, 0.85] has
-#   exactly six. From e = 0.9 quick transits appear (8–10 side changes per cycle): a
+#   exactly six. At e = 0.9 quick transits appear (8 side changes in every cycle): a
 #   bouncing piston leaves the new wall, touches the old one and comes back, the paper's
 #   "before the piston stabilizes its motion at one cylinder side, it rapidly leaves the
-#   contact and transits into the other side". At e = 0.95 there are 12–16, and at e = 1
-#   (no dissipation at the wall) the piston never settles: 65 to 225 side changes per
-#   cycle, different in every cycle.
-# * **Impacts.** The slaps (impacts carrying at least 1 % of the cycle's largest impulse)
-#   grow with e, from ≈ 18 per cycle at e = 0 (one or two per crossing plus the
-#   tilt settling) to ≈ 140 at e = 0.7, ≈ 250 at 0.85 and ≈ 900 at 0.9: each crossing ends
-#   in a longer train of bounces. The count of *all* logged impacts (dashed) adds
-#   thousands of micro-impacts from e ≈ 0.4 on, with an erratic dependence on e: a
-#   numerical swarm of a piston settling on the wall (the position projection that keeps
-#   the corners out of the wall feeds it), not a physical figure.
+#   contact and transits into the other side". At e = 0.95 there are 14–18, and at e = 1
+#   (no dissipation at the wall) the piston never settles: from 8 to 55 side changes, a
+#   different number in every cycle.
+# * **Impacts.** The slaps (impacts carrying at least 1 % of the cycle's largest impulse;
+#   all logged impacts, dashed, are 10–20 % more) grow steadily with e, from 18 per cycle
+#   at e = 0 (one per crossing plus the tilt settling) to 83 at e = 0.5, 132 at 0.7, 244
+#   at 0.85 and 350 at 0.9: each crossing ends in a longer train of bounces.
 # * **Energy.** The kinetic energy dissipated at the impacts hardly depends on e: 0.043 J
-#   per cycle at e = 0, rising slowly to 0.051 J at e = 0.85 (+18 %) and still 0.048 J at
-#   e = 0.95; only at e = 1 does it vanish (exactly, as it must). The reason: whenever the
-#   piston comes to rest against the wall, the whole normal kinetic energy it arrived
-#   with is gone — in one plastic slap at e = 0, or over a bounce train at larger e,
-#   Σₖ (1 − e²) e²ᵏ = 1 — and the side force that keeps pushing the piston towards the
-#   wall between bounces adds a little more. The largest single impulse, in contrast,
-#   grows like (1 + e): 0.115 N s at e = 0, 0.237 N s at 0.9, 0.32 N s at 1.
-# * **Speed.** 2005.79 rpm for every e, to within 0.01 rpm: the slap energy is ~3·10⁻⁴ of
-#   the ≈ 123 J of brake work per cycle (9.807 N m × 4π).
+#   per cycle at e = 0 and 0.048–0.054 J for every e in (0, 0.95]; only at e = 1 does it
+#   vanish (exactly, as it must). Whenever the piston comes to rest against the wall, the
+#   whole normal kinetic energy it arrived with is gone — in one plastic slap at e = 0,
+#   or over a bounce train at larger e, Σₖ (1 − e²) e²ᵏ = 1. (The step from 0.043 J at
+#   e = 0 to 0.054 J at e = 0.05 is numerical: without projection the sliding piston sinks
+#   up to 27 % of the clearance into the wall at this step size.) The largest single
+#   impulse, in contrast, grows like (1 + e): 0.115 N s at e = 0, 0.173 N s at 0.5,
+#   0.238 N s at 0.9.
+# * **Speed.** 2005.79 rpm for every e, to within 0.01 rpm: the slap energy is a few 10⁻⁴
+#   of the ≈ 123 J of brake work per cycle (9.807 N m × 4π).
 
 # %%
 fig = plot_side_change_angles(runs, "e", "restitution e", title="Where the piston changes sides")
@@ -140,13 +141,15 @@ plt.show()
 # The six crossings sit at fixed crank angles — 9° (just after firing TDC: the gas force
 # tilts the rod and throws the piston across), 195° (start of the exhaust stroke), 326°
 # and 377° (a quick pair around the exhaust–intake TDC), 428° (intake) and 555° (start of
-# compression) — and they barely move with e up to 0.85: they are where the side force of
-# the rod on the pin changes sign, a property of the crank mechanism and the pressure
-# curve, not of the wall. At 0.9–0.95 the extra points are the quick transits around the
-# exhaust–intake TDC, where the side force is weakest; at e = 1 the crossings are
-# everywhere. The lower panel is the crank angle per cycle during which no corner
-# touches the wall: from ≈ 90° at e = 0 it grows steadily — a bouncing piston spends its
-# time between impacts — to ≈ 340° at 0.9 and almost the whole cycle at e = 1.
+# compression) — and move by less than 2° with e up to 0.7 (by up to 10° for the pair
+# around the exhaust–intake TDC at 0.75–0.85): they are where the side force of the rod
+# on the pin changes sign, a property of the crank mechanism and the pressure curve, not
+# of the wall. At 0.9–0.95 the extra points are the quick transits, around the
+# exhaust–intake TDC where the side force is weakest (and at 0.95 also after the other
+# crossings); at e = 1 they are anywhere. The lower panel is the crank angle per cycle
+# during which no corner touches the wall: from 92° at e = 0 it grows steadily — a
+# bouncing piston spends its time between impacts — to 340° at 0.9 and almost the whole
+# cycle at e = 1.
 
 # %% [markdown]
 # ## A bifurcation-like diagram
@@ -172,20 +175,20 @@ fig.savefig(os.path.join(FIG_DIR, "restitution_bifurcation.png"), dpi=110)
 plt.show()
 
 # %% [markdown]
-# **What is seen.** At 60° the piston is pinned against the thrust wall (x_O3 = −1, no
-# tilt) by the gas force for every e up to 0.9: a single point. At 420° the sample is a
-# single point as well up to e = 0.9 (the spread over the cycles is below 0.04
-# half-clearances): the motion is period-1, repeating every engine cycle. The point moves
-# continuously as e grows past 0.65 — from x_O3 ≈ 0.83 (the piston about to land on the
-# right wall) to ≈ −0.17 at e = 0.9 — because the bounce trains delay the crossing. At
-# e = 0.95 the dots spread over half the clearance at 420° and even at 60°, and at e = 1
-# they fill the clearance: the motion no longer repeats. In the language of impact
-# oscillators, growing restitution takes the period-1 "six-stage" motion, through a
-# narrow window between e = 0.9 and 0.95, into irregular (chattering, likely chaotic)
-# rattling; the paper shows only e = 0 and 0.9 and does not analyse the transition.
-# Five cycles per e are enough to tell a repeating motion from a non-repeating one; a
-# finer picture of the window needs more cycles and values of e
-# (`study.bifurcation_samples`).
+# **What is seen.** At 60° the piston is pinned against the thrust wall by the gas force
+# for every e up to 0.9 (x_O3 = −1, or slightly beyond where the unprojected corners sink
+# into the wall at small e): a single point. At 420° the sample is a single point as well
+# up to e = 0.85 (spread over the cycles below 0.06 half-clearances): the motion is
+# period-1, repeating every engine cycle, and the point moves as the bounce trains
+# lengthen past e = 0.7 and delay the crossing. At e = 0.9 the dots spread over 0.7
+# half-clearances at 420° although every cycle still has 8 side changes; at e = 0.95 the
+# spread reaches the 60° section too, and at e = 1 the dots fill the clearance: the motion
+# no longer repeats. In the language of impact oscillators, growing restitution takes
+# the period-1 "six-stage" motion, between e = 0.85 and 0.9, into non-repeating
+# (chattering, likely chaotic) motion, which becomes irregular rattling at e = 1; the
+# paper shows only e = 0 and 0.9 and does not analyse the transition. Five cycles per e
+# tell a repeating motion from a non-repeating one; a finer picture of the transition
+# needs more cycles and values of e (`study.bifurcation_samples`).
 
 # %% [markdown]
 # ## What it means for an engine designer

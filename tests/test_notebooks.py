@@ -2,7 +2,7 @@
 reduced size (MOREAU_NOTEBOOK_SCALE=small) and saves its figures as PNG.
 
 The full-size restitution notebook (21 values of e × (1 transient + 5) cycles at
-h = 3e-4 with drift control) took 694 s on the 2 shared cores; it is measured, not
+h = 3e-4 with drift control) took 321 s on the 2 shared cores; it is measured, not
 asserted, by the slow test below when MOREAU_FULL_NOTEBOOKS=1 (``MOREAU_FULL_NOTEBOOKS=1
 python -m pytest -m slow tests/test_notebooks.py -s``), into a temporary folder.
 """
