@@ -316,7 +316,8 @@ class MoreauJeanMidpoint(OneStepIntegrator):
         self._check_finite(q_new, v_new)
         if contact:
             self.n_contact_steps += 1
-        elif self.contact_step:
+        elif self.active is not self._no_contact:
+            # no contact in this step (also when only a θ predictor closed one): clear
             self.active = self._no_contact
             self.P = np.zeros(self.scene.nrows)
         self.contact_step = contact
