@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import kernels as _k
 from ._validation import as_matrix, as_vector
 
 __all__ = [
@@ -62,6 +63,12 @@ class Barrier(ABC):
     def describe(self) -> dict:
         return {"type": type(self).__name__, "nrows": self.nrows}
 
+    def kernel(self):
+        """``(kind, params)`` of the compiled gap and Jacobian kernels (see
+        :mod:`moreau.kernels`), ``("user", (gap, jacobian))`` for numba-compiled user
+        callables, or None (the scene then runs on the Python path)."""
+        return None
+
 
 class LinearBarrier(Barrier):
     """Gaps affine in q: ``g(q) = A q + b`` (constant Jacobian A).
@@ -92,10 +99,15 @@ class LinearBarrier(Barrier):
         self.A.setflags(write=False)
 
     def gap(self, q):
-        return self.A @ q + self.b
+        out = np.empty(self.nrows)
+        _k.gaps_linear(self.A, self.b, q, out)
+        return out
 
     def jacobian(self, q):
         return self.A
+
+    def kernel(self):
+        return _k.BAR_LINEAR, (self.A, self.b)
 
     def describe(self):
         return {**super().describe(), "A": self.A.tolist(), "b": self.b.tolist()}
@@ -137,6 +149,13 @@ class FunctionBarrier(Barrier):
 
     def jacobian(self, q):  # pragma: no cover - replaced per instance
         raise NotImplementedError
+
+    def kernel(self):
+        from .forces import _is_compiled
+
+        if _is_compiled(self.gap) and _is_compiled(self.jacobian):
+            return "user", (self.gap, self.jacobian)
+        return None
 
 
 def finite_difference_jacobian(fun: Callable[[np.ndarray], np.ndarray], q: np.ndarray, eps: float = 1e-6) -> np.ndarray:

@@ -40,9 +40,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import kernels as _k
 from ._validation import as_vector
 from .barriers import Barrier
-from .forces import Effect
+from .forces import Effect, FourierLoad, _is_compiled
 from .system import MechanicalSystem
 
 __all__ = [
@@ -257,20 +258,20 @@ class PendulumChain(MechanicalSystem):
 
         ``q`` must be a float ndarray of shape (N,) (hot path: no conversion).
         """
-        d = q[:, None] - q[None, :]
-        if self._lateral:
-            return self._nu_c * np.cos(d) + self._nu_s * np.sin(d)
-        return self._nu_c * np.cos(d)
+        out = np.empty((self.ndof, self.ndof))
+        _k.chain_mass(self._nu_c, self._nu_s, q, out)
+        return out
 
     def bias_force(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Centrifugal terms −N(q) φ̇², shape (N,) (N m), on the right-hand side.
 
         ``q`` and ``v`` must be float ndarrays of shape (N,) (hot path: no conversion).
         """
-        d = q[:, None] - q[None, :]
-        if self._lateral:
-            return (self._nu_s * np.cos(d) - self._nu_c * np.sin(d)) @ (v * v)
-        return (self._neg_nu_c * np.sin(d)) @ (v * v)
+        return _k.force_of(_k.add_chain_bias, self.ndof, self._nu_c, self._nu_s, q, v)
+
+    def mass_kernel(self):
+        """``(kind, params)`` of the compiled mass matrix and bias (see :mod:`moreau.kernels`)."""
+        return _k.MASS_CHAIN, (self._nu_c, self._nu_s)
 
     def kinetic_energy(self, q, v) -> float:
         """Kinetic energy ½ vᵀ M(q) v (J) = Σ_k ½ m_k |v_Ck|² + ½ J_k φ̇_k²."""
@@ -579,7 +580,10 @@ class ChainGravity(Effect):
         self.name = name
 
     def force(self, t, q, v):
-        return self._B * np.cos(q) - self._A * np.sin(q)
+        return _k.force_of(_k.add_trig, q.shape[0], self._A, self._B, q)
+
+    def kernel(self):
+        return _k.TRIG, (self._A, self._B)
 
     def potential(self, q):
         return self._V0 - float(self._A @ np.cos(q) + self._B @ np.sin(q))
@@ -616,7 +620,10 @@ class JointDamping(Effect):
         self.name = name
 
     def force(self, t, q, v):
-        return self._negC @ v
+        return _k.force_of(_k.add_linear_v, q.shape[0], self.C, v)
+
+    def kernel(self):
+        return _k.LINEAR_V, (self.C,)
 
     def describe(self):
         return {**super().describe(), "c": self.c.tolist()}
@@ -650,7 +657,10 @@ class JointSprings(Effect):
         self.name = name
 
     def force(self, t, q, v):
-        return self._negK @ q + self._b
+        return _k.force_of(_k.add_affine_q, q.shape[0], self.K, self._b, q)
+
+    def kernel(self):
+        return _k.AFFINE_Q, (self.K, self._b)
 
     def potential(self, q):
         th = self._D @ q - self.rest
@@ -694,6 +704,11 @@ class LinkTorque(Effect):
 
     def force(self, t, q, v):
         return self.tau
+
+    def kernel(self):
+        if self.tau is not None:
+            return _k.CONST, (self.tau,)
+        return ("user", self.force) if _is_compiled(self.force) else None
 
     def potential(self, q):
         if self.tau is None:
@@ -750,7 +765,16 @@ class PointForce(Effect):
             self._V0 = -float(self.F @ chain.pivot)
 
     def force(self, t, q, v):
-        return self._B * np.cos(q) - self._A * np.sin(q)
+        return _k.force_of(_k.add_trig, q.shape[0], self._A, self._B, q)
+
+    def kernel(self):
+        if self.F is not None:
+            return _k.TRIG, (self._A, self._B)
+        load = self._fun
+        if isinstance(load, FourierLoad):
+            return _k.FOURIER_PT, (self._X, self._Y, load.direction, load.a0, load.a, load.b,
+                                   load.omega, load.coordinate)
+        return None
 
     def _force_callable(self, t, q, v):
         F = self._fun(t, q, v)
@@ -849,10 +873,17 @@ class PointLineBarrier(Barrier):
         self.normals.setflags(write=False)
 
     def gap(self, q):
-        return self._g0 + self._A @ np.cos(q) + self._B @ np.sin(q)
+        out = np.empty(self.nrows)
+        _k.gaps_trig(self._g0, self._A, self._B, q, out)
+        return out
 
     def jacobian(self, q):
-        return self._B * np.cos(q) - self._A * np.sin(q)
+        out = np.empty((self.nrows, self.ndof))
+        _k.jacobian_trig(self._A, self._B, q, out)
+        return out
+
+    def kernel(self):
+        return _k.BAR_TRIG, (self._g0, self._A, self._B)
 
     def row_names(self, prefix):
         if self.nrows == 1 and self.rows[0].name is None:
@@ -922,10 +953,15 @@ class JointStop(Barrier):
         self.nrows, self.ndof = self.G.shape
 
     def gap(self, q):
-        return self.G @ q + self._b
+        out = np.empty(self.nrows)
+        _k.gaps_linear(self.G, self._b, q, out)
+        return out
 
     def jacobian(self, q):
         return self.G
+
+    def kernel(self):
+        return _k.BAR_LINEAR, (self.G, self._b)
 
     def row_names(self, prefix):
         if self.nrows == 1:

@@ -20,6 +20,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from . import kernels as _k
 from ._validation import as_matrix, as_vector
 
 __all__ = ["Effect", "ConstantForce", "LinearDamping", "LinearSpring", "FunctionForce"]
@@ -62,6 +63,13 @@ class Effect(ABC):
         """Parameters as JSON-serializable data."""
         return {"type": type(self).__name__, "name": self.name}
 
+    def kernel(self):
+        """``(kind, params)`` of the compiled kernel that evaluates this effect (see
+        :mod:`moreau.kernels`), ``("user", fun)`` for a numba-compiled user callable, or
+        None when the effect has no compiled form (the scene then runs on the Python
+        path)."""
+        return None
+
 
 class ConstantForce(Effect):
     """A constant generalized force f (n,), e.g. uniform gravity on point masses.
@@ -85,6 +93,9 @@ class ConstantForce(Effect):
 
     def force(self, t, q, v):
         return self.f
+
+    def kernel(self):
+        return _k.CONST, (self.f,)
 
     def potential(self, q):
         return -float(self.f @ q)
@@ -118,7 +129,10 @@ class LinearDamping(Effect):
         self.name = name
 
     def force(self, t, q, v):
-        return -(self.C @ v)
+        return _k.force_of(_k.add_linear_v, v.shape[0], self.C, v)
+
+    def kernel(self):
+        return _k.LINEAR_V, (self.C,)
 
     def describe(self):
         return {**super().describe(), "C": self.C.tolist()}
@@ -143,10 +157,14 @@ class LinearSpring(Effect):
         if self.K.shape != (n, n) or np.max(np.abs(self.K - self.K.T)) > 1e-12 * max(1.0, np.abs(self.K).max()):
             raise ValueError(f"LinearSpring.K must be square and symmetric, got {self.K.tolist()}")
         self.q_ref = np.zeros(n) if q_ref is None else as_vector(q_ref, "LinearSpring.q_ref", n)
+        self._b = self.K @ self.q_ref
         self.name = name
 
     def force(self, t, q, v):
-        return -(self.K @ (q - self.q_ref))
+        return _k.force_of(_k.add_affine_q, q.shape[0], self.K, self._b, q)
+
+    def kernel(self):
+        return _k.AFFINE_Q, (self.K, self._b)
 
     def potential(self, q):
         dq = q - self.q_ref
@@ -191,7 +209,59 @@ class FunctionForce(Effect):
     def force(self, t, q, v):  # pragma: no cover - replaced per instance
         raise NotImplementedError
 
+    def kernel(self):
+        return ("user", self.force) if _is_compiled(self.force) else None
+
     def potential(self, q):
         if self._potential is None:
             return super().potential(q)
         return float(self._potential(q))
+
+
+def _is_compiled(fun) -> bool:
+    """True for a numba ``@njit`` dispatcher (it can be called from compiled code)."""
+    from numba.core.registry import CPUDispatcher
+
+    return isinstance(fun, CPUDispatcher)
+
+
+class FourierLoad:
+    """A planar force whose magnitude is a Fourier series of one coordinate,
+    ``F(q) = d · s(q_j)`` with ``s(x) = a0 + Σ_k a_k cos(k ω x) + b_k sin(k ω x)``.
+
+    Given as the ``force`` of a :class:`moreau.chain.PointForce` it runs compiled: the
+    periodic loads of rotating machinery (the gas force of an engine over its cycle in
+    the crank angle, a cam's reaction) are of this form.
+
+    Parameters
+    ----------
+    direction : array_like, shape (2,)
+        The force per unit of s (N per unit of s).
+    a0 : float
+        Mean of the series.
+    a, b : array_like, shape (K,)
+        Cosine and sine coefficients for k = 1..K.
+    omega : float
+        Fundamental frequency in the coordinate (rad⁻¹ for an angle; 0.5 for a series in
+        φ/2, i.e. period 4π).
+    coordinate : int
+        Index j of the coordinate the series is a function of.
+    """
+
+    def __init__(self, direction, a0: float, a, b, omega: float, coordinate: int) -> None:
+        self.direction = as_vector(direction, "FourierLoad.direction", 2)
+        self.a0 = float(as_vector(a0, "FourierLoad.a0", 1)[0])
+        self.a = as_vector(a, "FourierLoad.a")
+        self.b = as_vector(b, "FourierLoad.b", self.a.shape[0])
+        self.omega = float(as_vector(omega, "FourierLoad.omega", 1)[0])
+        if isinstance(coordinate, bool) or not isinstance(coordinate, (int, np.integer)) or coordinate < 0:
+            raise ValueError(f"FourierLoad.coordinate must be a non-negative integer, got {coordinate!r}")
+        self.coordinate = int(coordinate)
+
+    def series(self, x: float) -> float:
+        """s(x)."""
+        return float(_k.fourier_series(self.a0, self.a, self.b, self.omega, float(x)))
+
+    def __call__(self, t, q, v) -> np.ndarray:
+        """F(q), shape (2,)."""
+        return self.direction * self.series(q[self.coordinate])

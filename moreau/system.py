@@ -64,6 +64,11 @@ class MechanicalSystem(ABC):
         """Parameters of the system as plain JSON-serializable data (for saved results)."""
         return {"type": type(self).__name__, "ndof": self.ndof}
 
+    def mass_kernel(self):
+        """``(kind, params)`` of the compiled mass matrix (see :mod:`moreau.kernels`),
+        ``("user", (mass, bias))`` for numba-compiled callables, or None (Python path)."""
+        return None
+
 
 class FunctionSystem(MechanicalSystem):
     """A system given by plain callables, no subclassing needed.
@@ -130,6 +135,17 @@ class FunctionSystem(MechanicalSystem):
         if self._bias is None:
             return np.zeros(self.ndof)
         return self._bias(q, v)
+
+    def mass_kernel(self):
+        from . import kernels as _k
+        from .forces import _is_compiled
+
+        if self._mass is not None and self._bias is None:
+            return _k.MASS_CONST, (self._mass,)
+        fns = (self._mass_fun, self._bias)
+        if all(f is None or _is_compiled(f) for f in fns):
+            return "user", fns
+        return None
 
     def describe(self) -> dict:
         d = super().describe()
