@@ -20,7 +20,7 @@ except PackageNotFoundError:  # running from a source tree that is not installed
 
 from .barriers import Barrier, FunctionBarrier, LinearBarrier, check_jacobian
 from .errors import SimulationError, SolverError
-from .forces import ConstantForce, Effect, FunctionForce, LinearDamping, LinearSpring
+from .forces import ConstantForce, Effect, FourierLoad, FunctionForce, LinearDamping, LinearSpring
 from .drift import PositionProjection
 from .integrator import MoreauJeanMidpoint, MoreauJeanTheta, OneStepIntegrator
 from .laws import NewtonImpact
@@ -29,20 +29,20 @@ from .result import ImpactLog, SolverStats, Trajectory, load
 from .scene import Contact, Scene
 from .simulate import simulate
 from . import diagnostics
-from .solvers import ContactSolver, EnumerationSolver, OSQPSolver, QpsolversSolver, make_solver
+from .solvers import ContactSolver, EnumerationSolver, ExactSolver, OSQPSolver, QpsolversSolver, make_solver
 from .system import FunctionSystem, MechanicalSystem
 
 __all__ = [
     "__version__",
     "Barrier", "FunctionBarrier", "LinearBarrier", "check_jacobian",
     "SimulationError", "SolverError",
-    "ConstantForce", "Effect", "FunctionForce", "LinearDamping", "LinearSpring",
+    "ConstantForce", "Effect", "FourierLoad", "FunctionForce", "LinearDamping", "LinearSpring",
     "MoreauJeanMidpoint", "MoreauJeanTheta", "OneStepIntegrator", "PositionProjection",
     "NewtonImpact",
     "OneStepProblem", "Residuals",
     "ImpactLog", "SolverStats", "Trajectory", "load",
     "Contact", "Scene",
     "simulate",
-    "ContactSolver", "EnumerationSolver", "OSQPSolver", "QpsolversSolver", "make_solver",
+    "ContactSolver", "EnumerationSolver", "ExactSolver", "OSQPSolver", "QpsolversSolver", "make_solver",
     "FunctionSystem", "MechanicalSystem",
 ]

@@ -231,6 +231,7 @@ class PendulumChain(MechanicalSystem):
         self._nu_c = np.array(nu)
         self._nu_s = np.array(nu_s)
         self._neg_nu_c = -np.array(nu)
+        self._pm = _k.flat(nu, nu_s)  # layout of kernels.chain_mass
         self.has_bias = n > 1
 
     @classmethod
@@ -259,7 +260,7 @@ class PendulumChain(MechanicalSystem):
         ``q`` must be a float ndarray of shape (N,) (hot path: no conversion).
         """
         out = np.empty((self.ndof, self.ndof))
-        _k.chain_mass(self._nu_c, self._nu_s, q, out)
+        _k.chain_mass(self._pm, 0, *_k.cos_sin(q), out)
         return out
 
     def bias_force(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -267,11 +268,11 @@ class PendulumChain(MechanicalSystem):
 
         ``q`` and ``v`` must be float ndarrays of shape (N,) (hot path: no conversion).
         """
-        return _k.force_of(_k.add_chain_bias, self.ndof, self._nu_c, self._nu_s, q, v)
+        return _k.force_of(_k.add_chain_bias, self.ndof, self._pm, 0, *_k.cos_sin(q), v)
 
     def mass_kernel(self):
         """``(kind, params)`` of the compiled mass matrix and bias (see :mod:`moreau.kernels`)."""
-        return _k.MASS_CHAIN, (self._nu_c, self._nu_s)
+        return _k.MASS_CHAIN, (self._pm,)
 
     def kinetic_energy(self, q, v) -> float:
         """Kinetic energy ½ vᵀ M(q) v (J) = Σ_k ½ m_k |v_Ck|² + ½ J_k φ̇_k²."""
@@ -576,14 +577,15 @@ class ChainGravity(Effect):
         A, B = chain._projection(self.direction, m @ LC, m @ LS)
         self._A = self.g * A
         self._B = self.g * B
+        self._p = _k.flat(self._A, self._B)
         self._V0 = -self.g * float(m.sum()) * float(self.direction @ chain.pivot)
         self.name = name
 
     def force(self, t, q, v):
-        return _k.force_of(_k.add_trig, q.shape[0], self._A, self._B, q)
+        return _k.force_of(_k.add_trig, q.shape[0], self._p, 0, *_k.cos_sin(q))
 
     def kernel(self):
-        return _k.TRIG, (self._A, self._B)
+        return _k.TRIG, (self._p,)
 
     def potential(self, q):
         return self._V0 - float(self._A @ np.cos(q) + self._B @ np.sin(q))
@@ -616,14 +618,14 @@ class JointDamping(Effect):
         D = _relative_matrix(n)
         self.C = D.T @ (self.c[:, None] * D)
         self.C.setflags(write=False)
-        self._negC = -self.C
+        self._p = _k.flat(self.C)
         self.name = name
 
     def force(self, t, q, v):
-        return _k.force_of(_k.add_linear_v, q.shape[0], self.C, v)
+        return _k.force_of(_k.add_linear_v, q.shape[0], self._p, 0, v)
 
     def kernel(self):
-        return _k.LINEAR_V, (self.C,)
+        return _k.LINEAR_V, (self._p,)
 
     def describe(self):
         return {**super().describe(), "c": self.c.tolist()}
@@ -654,13 +656,14 @@ class JointSprings(Effect):
         self.K.setflags(write=False)
         self._negK = -self.K
         self._b = self._D.T @ (self.k * self.rest)
+        self._p = _k.flat(self.K, self._b)
         self.name = name
 
     def force(self, t, q, v):
-        return _k.force_of(_k.add_affine_q, q.shape[0], self.K, self._b, q)
+        return _k.force_of(_k.add_affine_q, q.shape[0], self._p, 0, q)
 
     def kernel(self):
-        return _k.AFFINE_Q, (self.K, self._b)
+        return _k.AFFINE_Q, (self._p,)
 
     def potential(self, q):
         th = self._D @ q - self.rest
@@ -750,6 +753,7 @@ class PointForce(Effect):
         self._X = np.outer(C, w) - np.outer(S, u)
         self._Y = -np.outer(C, u) - np.outer(S, w)
         self.name = name
+        self._pf = None
         if callable(force):
             self.F = None
             self._fun = force
@@ -757,26 +761,30 @@ class PointForce(Effect):
             self.time_dependent = bool(time_dependent)
             self.has_potential = False
             self.force = self._force_callable
+            if isinstance(force, FourierLoad):  # layout of kernels.add_point_fourier
+                self._pf = _k.flat(self._X, self._Y, force.direction,
+                                   [force.a0, force.omega, force.coordinate, force.a.shape[0]], force.a, force.b)
         else:
             self.F = as_vector(force, "PointForce.force", 2)
             self.velocity_dependent = self.time_dependent = False
             self.has_potential = True
             self._A, self._B = chain._projection(self.F, C, S)
+            self._p = _k.flat(self._A, self._B)
             self._V0 = -float(self.F @ chain.pivot)
 
     def force(self, t, q, v):
-        return _k.force_of(_k.add_trig, q.shape[0], self._A, self._B, q)
+        return _k.force_of(_k.add_trig, q.shape[0], self._p, 0, *_k.cos_sin(q))
 
     def kernel(self):
         if self.F is not None:
-            return _k.TRIG, (self._A, self._B)
-        load = self._fun
-        if isinstance(load, FourierLoad):
-            return _k.FOURIER_PT, (self._X, self._Y, load.direction, load.a0, load.a, load.b,
-                                   load.omega, load.coordinate)
+            return _k.TRIG, (self._p,)
+        if self._pf is not None:
+            return _k.FOURIER_PT, (self._pf,)
         return None
 
     def _force_callable(self, t, q, v):
+        if self._pf is not None:  # the compiled kernel, also here
+            return _k.force_of(_k.add_point_fourier, q.shape[0], self._pf, 0, q, *_k.cos_sin(q))
         F = self._fun(t, q, v)
         return np.cos(q) * (self._X @ F) + np.sin(q) * (self._Y @ F)
 
@@ -870,20 +878,21 @@ class PointLineBarrier(Barrier):
             self.normals[r] = nrm
         self.nrows, self.ndof = m, n
         self._A, self._B, self._g0 = A, B, g0
+        self._p = _k.flat(g0, A, B)  # layout of kernels.gaps_trig
         self.normals.setflags(write=False)
 
     def gap(self, q):
         out = np.empty(self.nrows)
-        _k.gaps_trig(self._g0, self._A, self._B, q, out)
+        _k.gaps_trig(self._p, 0, self.nrows, *_k.cos_sin(q), out, 0)
         return out
 
     def jacobian(self, q):
         out = np.empty((self.nrows, self.ndof))
-        _k.jacobian_trig(self._A, self._B, q, out)
+        _k.jacobian_trig(self._p, 0, self.nrows, *_k.cos_sin(q), out, 0)
         return out
 
     def kernel(self):
-        return _k.BAR_TRIG, (self._g0, self._A, self._B)
+        return _k.BAR_TRIG, (self._p,)
 
     def row_names(self, prefix):
         if self.nrows == 1 and self.rows[0].name is None:
@@ -951,17 +960,18 @@ class JointStop(Barrier):
         self.G.setflags(write=False)
         self._b = np.array(b)
         self.nrows, self.ndof = self.G.shape
+        self._p = _k.flat(self.G, self._b)
 
     def gap(self, q):
         out = np.empty(self.nrows)
-        _k.gaps_linear(self.G, self._b, q, out)
+        _k.gaps_linear(self._p, 0, self.nrows, q, out, 0)
         return out
 
     def jacobian(self, q):
         return self.G
 
     def kernel(self):
-        return _k.BAR_LINEAR, (self.G, self._b)
+        return _k.BAR_LINEAR, (self._p,)
 
     def row_names(self, prefix):
         if self.nrows == 1:

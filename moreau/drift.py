@@ -55,11 +55,15 @@ class PositionProjection:
         self.max_restitution = float(max_restitution)
         self._scene = self._eligible = None
 
+    def eligible_rows(self, scene) -> np.ndarray:
+        """Rows this projection may move, shape (m,) of bool."""
+        return scene.restitution <= self.max_restitution
+
     def project(self, integ, q: np.ndarray) -> np.ndarray:
         """The projected q⁺ for the integrator ``integ`` (its scene, solver and last step)."""
         scene = integ.scene
         if self._scene is not scene:  # rows this projection may move, once per scene
-            self._scene, self._eligible = scene, scene.restitution <= self.max_restitution
+            self._scene, self._eligible = scene, self.eligible_rows(scene)
         eligible = self._eligible
         if not eligible.any():
             return q

@@ -126,13 +126,14 @@ class LinearDamping(Effect):
             raise ValueError(f"LinearDamping.C must be square, got shape {self.C.shape}")
         if np.linalg.eigvalsh(0.5 * (self.C + self.C.T))[0] < -1e-12 * max(1.0, np.abs(self.C).max()):
             raise ValueError(f"LinearDamping.C must be positive semi-definite, got {self.C.tolist()}")
+        self._p = _k.flat(self.C)
         self.name = name
 
     def force(self, t, q, v):
-        return _k.force_of(_k.add_linear_v, v.shape[0], self.C, v)
+        return _k.force_of(_k.add_linear_v, v.shape[0], self._p, 0, v)
 
     def kernel(self):
-        return _k.LINEAR_V, (self.C,)
+        return _k.LINEAR_V, (self._p,)
 
     def describe(self):
         return {**super().describe(), "C": self.C.tolist()}
@@ -157,14 +158,14 @@ class LinearSpring(Effect):
         if self.K.shape != (n, n) or np.max(np.abs(self.K - self.K.T)) > 1e-12 * max(1.0, np.abs(self.K).max()):
             raise ValueError(f"LinearSpring.K must be square and symmetric, got {self.K.tolist()}")
         self.q_ref = np.zeros(n) if q_ref is None else as_vector(q_ref, "LinearSpring.q_ref", n)
-        self._b = self.K @ self.q_ref
+        self._p = _k.flat(self.K, self.K @ self.q_ref)
         self.name = name
 
     def force(self, t, q, v):
-        return _k.force_of(_k.add_affine_q, q.shape[0], self.K, self._b, q)
+        return _k.force_of(_k.add_affine_q, q.shape[0], self._p, 0, q)
 
     def kernel(self):
-        return _k.AFFINE_Q, (self.K, self._b)
+        return _k.AFFINE_Q, (self._p,)
 
     def potential(self, q):
         dq = q - self.q_ref
@@ -257,10 +258,12 @@ class FourierLoad:
         if isinstance(coordinate, bool) or not isinstance(coordinate, (int, np.integer)) or coordinate < 0:
             raise ValueError(f"FourierLoad.coordinate must be a non-negative integer, got {coordinate!r}")
         self.coordinate = int(coordinate)
+        self._p = _k.flat(self.a, self.b)
 
     def series(self, x: float) -> float:
         """s(x)."""
-        return float(_k.fourier_series(self.a0, self.a, self.b, self.omega, float(x)))
+        K = self.a.shape[0]
+        return float(_k.fourier_series(self.a0, self._p, 0, K, K, self.omega, float(x)))
 
     def __call__(self, t, q, v) -> np.ndarray:
         """F(q), shape (2,)."""

@@ -25,7 +25,8 @@ from .onestep import kkt_residuals
 from .scene import Scene
 from .solvers import ContactSolver, SolveFailed, make_solver
 
-__all__ = ["OneStepIntegrator", "MoreauJeanMidpoint", "MoreauJeanTheta", "NonFiniteState", "ContactDetails"]
+__all__ = ["OneStepIntegrator", "MoreauJeanMidpoint", "MoreauJeanTheta", "NonFiniteState", "ContactDetails",
+           "check_initial_state"]
 
 log = logging.getLogger(__name__)
 
@@ -116,21 +117,7 @@ class OneStepIntegrator(ABC):
         """
         scene = self.scene
         n, m = scene.ndof, scene.nrows
-        t0 = float(t0)
-        if not np.isfinite(t0):
-            raise ValueError(f"t0 must be finite, got {t0!r}")
-        q0 = as_vector(q0, "q0", n)
-        v0 = as_vector(v0, "v0", n)
-        scene.check_state(t0, q0, v0, where=" at the initial state")
-        if m:
-            g0 = np.asarray(scene.gaps(q0), dtype=float)
-            bad = np.flatnonzero(g0 < -self.penetration_tol)
-            if bad.size:
-                names = ", ".join(f"{scene.row_names[i]}: g = {g0[i]:.6g}" for i in bad)
-                raise ValueError(
-                    f"initial state penetrates a barrier ({names}); moreau refuses a penetrating "
-                    "start: move q0 onto the admissible side (g >= 0)"
-                )
+        t0, q0, v0 = check_initial_state(scene, t0, q0, v0, self.penetration_tol)
         sysm = scene.system
         self._constant_mass = sysm.constant_mass
         if self._constant_mass:
@@ -151,6 +138,7 @@ class OneStepIntegrator(ABC):
         self.contact_step = False
         self.n_solves = self.n_fallbacks = self.n_contact_steps = self.n_projections = 0
         self.worst_residual = 0.0
+        self.work_forces = self.work_contacts = 0.0
         self._last = None
         self._initialized = True
 
@@ -222,6 +210,33 @@ class OneStepIntegrator(ABC):
         )
 
 
+def check_initial_state(scene: Scene, t0, q0, v0, penetration_tol: float = 1e-12):
+    """Validate an initial state for ``scene``; return ``(t0, q0, v0)`` as floats/arrays.
+
+    Raises ``ValueError`` for non-finite or wrongly shaped q0/v0, a mass matrix that is
+    not symmetric positive definite at q0, malformed forces/gaps/Jacobians, and a state
+    that penetrates a barrier (gap < ``-penetration_tol``): moreau refuses it rather than
+    projecting silently. Shared by both paths of :func:`moreau.simulate`.
+    """
+    n, m = scene.ndof, scene.nrows
+    t0 = float(t0)
+    if not np.isfinite(t0):
+        raise ValueError(f"t0 must be finite, got {t0!r}")
+    q0 = as_vector(q0, "q0", n)
+    v0 = as_vector(v0, "v0", n)
+    scene.check_state(t0, q0, v0, where=" at the initial state")
+    if m:
+        g0 = np.asarray(scene.gaps(q0), dtype=float)
+        bad = np.flatnonzero(g0 < -penetration_tol)
+        if bad.size:
+            names = ", ".join(f"{scene.row_names[i]}: g = {g0[i]:.6g}" for i in bad)
+            raise ValueError(
+                f"initial state penetrates a barrier ({names}); moreau refuses a penetrating "
+                "start: move q0 onto the admissible side (g >= 0)"
+            )
+    return t0, q0, v0
+
+
 class ContactDetails(NamedTuple):
     """What the last step did at some contact rows; each field has shape (len(rows),).
 
@@ -280,7 +295,7 @@ class MoreauJeanMidpoint(OneStepIntegrator):
         M = self._M if self._constant_mass else self.scene.system.mass_matrix(qm)
         f = self.scene.force(self.t + 0.5 * h, qm, v)
         v_new, contact = self._velocity_update(qm, M, f, v)
-        return self._finish(qm, v_new, contact)
+        return self._finish(qm, v_new, contact, f)
 
     # -- shared by the midpoint family ----------------------------------------------------
     def _velocity_update(self, qm, M, f, v):
@@ -310,12 +325,17 @@ class MoreauJeanMidpoint(OneStepIntegrator):
             return v + h * (self._Minv @ f), False
         return v + h * np.linalg.solve(M, f), False
 
-    def _finish(self, qm, v_new, contact: bool) -> bool:
-        """Move to q⁺ = q_m + h/2 v⁺ (then drift control), check, advance time."""
+    def _finish(self, qm, v_new, contact: bool, f) -> bool:
+        """Move to q⁺ = q_m + h/2 v⁺ (then drift control), check, advance time; add the
+        step's energy-ledger terms (smooth-force and contact work)."""
         q_new = qm + (0.5 * self.h) * v_new
         self._check_finite(q_new, v_new)
+        self.work_forces += 0.5 * self.h * float(f @ (self.v + v_new))
         if contact:
             self.n_contact_steps += 1
+            _, G, v_old, _, P = self._last
+            act = self.active
+            self.work_contacts += 0.5 * float(P[act] @ (G[act] @ (v_old + v_new)))
         elif self.active is not self._no_contact:
             # no contact in this step (also when only a θ predictor closed one): clear
             self.active = self._no_contact
@@ -359,5 +379,6 @@ class MoreauJeanTheta(MoreauJeanMidpoint):
         M = self._M if self._constant_mass else self.scene.system.mass_matrix(qm)
         force = self.scene.force
         v_pred, _ = self._velocity_update(qm, M, force(tm, qm, v), v)
-        v_new, contact = self._velocity_update(qm, M, force(tm, qm, 0.5 * (v + v_pred)), v)
-        return self._finish(qm, v_new, contact)
+        f = force(tm, qm, 0.5 * (v + v_pred))
+        v_new, contact = self._velocity_update(qm, M, f, v)
+        return self._finish(qm, v_new, contact, f)

@@ -6,6 +6,9 @@ Python path calls the very same functions through the objects of :mod:`moreau.fo
 :mod:`moreau.chain` and :mod:`moreau.barriers` (so the physics is written once). Kernels
 that *add* into ``out`` accumulate a sum of effects without temporaries.
 
+Parameters are read from one flat float array at an offset (the layout is stated per
+kernel): a scene's parameters live in one pool, and the hot loop creates no array views.
+
 Kinds (the codes a scene is lowered to, :mod:`moreau.lowering`):
 
 ========== ===================================================== ========================
@@ -31,6 +34,10 @@ import math
 import numpy as np
 from numba import njit
 
+from ._jitcache import ensure_fresh
+
+ensure_fresh()  # before any cached machine code of moreau is loaded
+
 __all__ = [
     "CONST", "LINEAR_V", "AFFINE_Q", "TRIG", "HARMONIC", "FOURIER_PT", "USER",
     "BAR_LINEAR", "BAR_TRIG", "BAR_USER", "MASS_CONST", "MASS_CHAIN", "MASS_USER",
@@ -44,185 +51,232 @@ BAR_LINEAR, BAR_TRIG, BAR_USER = 0, 1, 99
 MASS_CONST, MASS_CHAIN, MASS_USER = 0, 1, 99
 
 _jit = njit(cache=True, nogil=True)
+# small helpers called in inner loops: inlined where called (no call boundary, whose
+# reference counting of array arguments would cost more than the arithmetic)
+_inline = njit(cache=True, nogil=True, inline="always")
 
 
 # -- forces ------------------------------------------------------------------------------
+# Parameters come as one flat float array ``p`` read from offset ``o`` (no array views in
+# the hot loop: each would cost a reference count); the layout is given per kernel.
 @_jit
-def add_constant(c, out):
-    """out += c."""
+def add_constant(p, o, out):
+    """out += c; p[o:] = c (n)."""
     for i in range(out.shape[0]):
-        out[i] += c[i]
+        out[i] += p[o + i]
 
 
 @_jit
-def add_linear_v(C, v, out):
-    """out += −C v (damping)."""
+def add_linear_v(p, o, v, out):
+    """out += −C v (damping); p[o:] = C (n x n, row-major)."""
     n = out.shape[0]
     for i in range(n):
-        s = 0.0
+        t = 0.0
         for j in range(n):
-            s += C[i, j] * v[j]
-        out[i] -= s
+            t += p[o + i * n + j] * v[j]
+        out[i] -= t
 
 
 @_jit
-def add_affine_q(K, b, q, out):
-    """out += −K q + b (springs)."""
+def add_affine_q(p, o, q, out):
+    """out += −K q + b (springs); p[o:] = K (n x n), b (n)."""
+    n = out.shape[0]
+    ob = o + n * n
+    for i in range(n):
+        t = p[ob + i]
+        for j in range(n):
+            t -= p[o + i * n + j] * q[j]
+        out[i] += t
+
+
+@_jit
+def trig(q, c, s):
+    """c = cos q, s = sin q: evaluated once per configuration, shared by every kernel."""
+    for i in range(q.shape[0]):
+        c[i] = math.cos(q[i])
+        s[i] = math.sin(q[i])
+
+
+@_jit
+def add_trig(p, o, c, s, out):
+    """out += B ∘ cos q − A ∘ sin q (gravity on a chain, a constant force at a point);
+    p[o:] = A (n), B (n); ``c, s`` = cos q, sin q."""
     n = out.shape[0]
     for i in range(n):
-        s = b[i]
-        for j in range(n):
-            s -= K[i, j] * q[j]
-        out[i] += s
+        out[i] += p[o + n + i] * c[i] - p[o + i] * s[i]
 
 
 @_jit
-def add_trig(A, B, q, out):
-    """out += B ∘ cos q − A ∘ sin q (gravity on a chain, a constant force at a point)."""
-    for i in range(out.shape[0]):
-        out[i] += B[i] * math.cos(q[i]) - A[i] * math.sin(q[i])
+def add_harmonic(p, o, t, out):
+    """out += a sin(ω t + φ); p[o:] = a (n), ω, φ."""
+    n = out.shape[0]
+    sn = math.sin(p[o + n] * t + p[o + n + 1])
+    for i in range(n):
+        out[i] += p[o + i] * sn
 
 
 @_jit
-def add_harmonic(a, omega, phase, t, out):
-    """out += a sin(ω t + φ)."""
-    s = math.sin(omega * t + phase)
-    for i in range(out.shape[0]):
-        out[i] += a[i] * s
-
-
-@_jit
-def fourier_series(a0, a, b, w, x):
-    """s(x) = a0 + Σ_k a_k cos(k w x) + b_k sin(k w x), k = 1..K (Clenshaw-free
-    recurrence on the rotation e^{i w x}: one sin/cos pair per call)."""
+def fourier_series(a0, p, oa, ob, K, w, x):
+    """σ(x) = a0 + Σ_k a_k cos(k w x) + b_k sin(k w x), k = 1..K, with a = p[oa:oa+K],
+    b = p[ob:ob+K] (one sin/cos pair per call: the harmonics by rotation)."""
     c1 = math.cos(w * x)
     s1 = math.sin(w * x)
     ck, sk = c1, s1
     out = a0
-    for k in range(a.shape[0]):
-        out += a[k] * ck + b[k] * sk
+    for k in range(K):
+        out += p[oa + k] * ck + p[ob + k] * sk
         ck, sk = ck * c1 - sk * s1, sk * c1 + ck * s1
     return out
 
 
 @_jit
-def add_point_fourier(X, Y, d, a0, a, b, w, j, q, out):
-    """A force F = d · s(q_j) (s a Fourier series) at a point of a chain:
-    out += cos q ∘ (X F) + sin q ∘ (Y F)."""
-    s = fourier_series(a0, a, b, w, q[j])
-    F0 = d[0] * s
-    F1 = d[1] * s
-    for i in range(out.shape[0]):
-        out[i] += math.cos(q[i]) * (X[i, 0] * F0 + X[i, 1] * F1) + math.sin(q[i]) * (
-            Y[i, 0] * F0 + Y[i, 1] * F1)
+def add_point_fourier(p, o, q, c, s, out):
+    """A force F = d · σ(q_j) (σ a Fourier series) at a point of a chain:
+    out += cos q ∘ (X F) + sin q ∘ (Y F).
+
+    p[o:] = X (n x 2), Y (n x 2), d (2), a0, ω, j, K, a (K), b (K)."""
+    n = out.shape[0]
+    h = o + 4 * n
+    K = int(p[h + 5])
+    sig = fourier_series(p[h + 2], p, h + 6, h + 6 + K, K, p[h + 3], q[int(p[h + 4])])
+    F0 = p[h] * sig
+    F1 = p[h + 1] * sig
+    oy = o + 2 * n
+    for i in range(n):
+        out[i] += c[i] * (p[o + 2 * i] * F0 + p[o + 2 * i + 1] * F1) + s[i] * (
+            p[oy + 2 * i] * F0 + p[oy + 2 * i + 1] * F1)
 
 
 # -- barriers ----------------------------------------------------------------------------
 @_jit
-def gaps_linear(A, b, q, out):
-    """out = A q + b, shape (m,)."""
-    m, n = A.shape
-    for r in range(m):
-        s = b[r]
+def gaps_linear(p, o, mr, q, g, r0):
+    """g[r0:r0+mr] = A q + b; p[o:] = A (mr x n), b (mr)."""
+    n = q.shape[0]
+    ob = o + mr * n
+    for r in range(mr):
+        t = p[ob + r]
         for j in range(n):
-            s += A[r, j] * q[j]
-        out[r] = s
+            t += p[o + r * n + j] * q[j]
+        g[r0 + r] = t
 
 
 @_jit
-def jacobian_linear(A, out):
-    """out = A, shape (m, n)."""
-    out[:, :] = A
-
-
-@_jit
-def gaps_trig(g0, A, B, q, out):
-    """out = g0 + A cos q + B sin q, shape (m,) (points of a chain against lines)."""
-    m, n = A.shape
-    for r in range(m):
-        s = g0[r]
+def jacobian_linear(p, o, mr, G, r0):
+    """G[r0:r0+mr] = A; p[o:] = A (mr x n), b (mr)."""
+    n = G.shape[1]
+    for r in range(mr):
         for j in range(n):
-            s += A[r, j] * math.cos(q[j]) + B[r, j] * math.sin(q[j])
-        out[r] = s
+            G[r0 + r, j] = p[o + r * n + j]
 
 
 @_jit
-def jacobian_trig(A, B, q, out):
-    """out = B ∘ cos q − A ∘ sin q, shape (m, n)."""
-    m, n = A.shape
-    for j in range(n):
-        c = math.cos(q[j])
-        s = math.sin(q[j])
-        for r in range(m):
-            out[r, j] = B[r, j] * c - A[r, j] * s
+def gaps_trig(p, o, mr, c, s, g, r0):
+    """g[r0:r0+mr] = g0 + A cos q + B sin q (points of a chain against lines);
+    p[o:] = g0 (mr), A (mr x n), B (mr x n); ``c, s`` = cos q, sin q."""
+    n = c.shape[0]
+    oa = o + mr
+    ob = oa + mr * n
+    for r in range(mr):
+        t = p[o + r]
+        for j in range(n):
+            t += p[oa + r * n + j] * c[j] + p[ob + r * n + j] * s[j]
+        g[r0 + r] = t
+
+
+@_jit
+def jacobian_trig(p, o, mr, c, s, G, r0):
+    """G[r0:r0+mr] = B ∘ cos q − A ∘ sin q; layout of :func:`gaps_trig`."""
+    n = c.shape[0]
+    oa = o + mr
+    ob = oa + mr * n
+    for r in range(mr):
+        for j in range(n):
+            G[r0 + r, j] = p[ob + r * n + j] * c[j] - p[oa + r * n + j] * s[j]
 
 
 # -- the pendulum chain's mass matrix and centrifugal terms ------------------------------
 @_jit
-def chain_mass(nu_c, nu_s, q, out):
-    """out = ν ∘ cos(q_i − q_j) + ν^s ∘ sin(q_i − q_j), shape (n, n)."""
-    n = q.shape[0]
+def chain_mass(p, o, c, s, M):
+    """M = ν ∘ cos(q_i − q_j) + ν^s ∘ sin(q_i − q_j) (n x n); p[o:] = ν, ν^s (n x n each);
+    ``c, s`` = cos q, sin q (cos(q_i − q_j) = c_i c_j + s_i s_j, sin = s_i c_j − c_i s_j)."""
+    n = c.shape[0]
+    os_ = o + n * n
     for i in range(n):
-        out[i, i] = nu_c[i, i]
+        M[i, i] = p[o + i * n + i]
         for j in range(i + 1, n):
-            d = q[i] - q[j]
-            c = math.cos(d)
-            s = math.sin(d)
-            out[i, j] = nu_c[i, j] * c + nu_s[i, j] * s
-            out[j, i] = nu_c[j, i] * c - nu_s[j, i] * s
+            cd = c[i] * c[j] + s[i] * s[j]
+            sd = s[i] * c[j] - c[i] * s[j]
+            M[i, j] = p[o + i * n + j] * cd + p[os_ + i * n + j] * sd
+            M[j, i] = p[o + j * n + i] * cd - p[os_ + j * n + i] * sd
 
 
 @_jit
-def add_chain_bias(nu_c, nu_s, q, v, out):
-    """out += Σ_j (ν^s_ij cos d_ij − ν_ij sin d_ij) v_j², d_ij = q_i − q_j (−N(q) φ̇²)."""
-    n = q.shape[0]
+def add_chain_bias(p, o, c, s, v, out):
+    """out += Σ_j (ν^s_ij cos d_ij − ν_ij sin d_ij) v_j², d_ij = q_i − q_j (−N(q) φ̇²);
+    layout of :func:`chain_mass`."""
+    n = c.shape[0]
+    os_ = o + n * n
     for i in range(n):
-        s = 0.0
+        t = 0.0
         for j in range(n):
             if j != i:
-                d = q[i] - q[j]
-                s += (nu_s[i, j] * math.cos(d) - nu_c[i, j] * math.sin(d)) * v[j] * v[j]
-        out[i] += s
+                cd = c[i] * c[j] + s[i] * s[j]
+                sd = s[i] * c[j] - c[i] * s[j]
+                t += (p[os_ + i * n + j] * cd - p[o + i * n + j] * sd) * v[j] * v[j]
+        out[i] += t
 
 
-# -- dense linear algebra for small SPD systems --------------------------------------------
-@_jit
-def cholesky(M, L):
-    """Lower Cholesky factor L of M (n x n) into ``L``; returns the index of the first
-    non-positive pivot, or −1 when M is positive definite (within round-off)."""
-    n = M.shape[0]
-    for j in range(n):
-        s = M[j, j]
-        for k in range(j):
-            s -= L[j, k] * L[j, k]
-        if not s > 0.0:  # also NaN
+# -- dense linear algebra for small SPD systems (leading k x k blocks, no views) -----------
+@_inline
+def cholesky(M, L, k):
+    """Lower Cholesky factor of the leading k x k block of M into L; returns the index of
+    the first non-positive pivot, or −1 when the block is positive definite."""
+    for j in range(k):
+        t = M[j, j]
+        for i in range(j):
+            t -= L[j, i] * L[j, i]
+        if not t > 0.0:  # also NaN
             return j
-        d = math.sqrt(s)
+        d = math.sqrt(t)
         L[j, j] = d
-        for i in range(j + 1, n):
-            t = M[i, j]
-            for k in range(j):
-                t -= L[i, k] * L[j, k]
-            L[i, j] = t / d
+        for i in range(j + 1, k):
+            u = M[i, j]
+            for l in range(j):
+                u -= L[i, l] * L[j, l]
+            L[i, j] = u / d
         for i in range(j):
             L[i, j] = 0.0
     return -1
 
 
-@_jit
-def cho_solve(L, b, out):
-    """out = M⁻¹ b with M = L Lᵀ (b and out of shape (n,); they may be the same array)."""
-    n = L.shape[0]
-    for i in range(n):
-        s = b[i]
-        for k in range(i):
-            s -= L[i, k] * out[k]
-        out[i] = s / L[i, i]
-    for i in range(n - 1, -1, -1):
-        s = out[i]
-        for k in range(i + 1, n):
-            s -= L[k, i] * out[k]
-        out[i] = s / L[i, i]
+@_inline
+def cho_solve(L, b, out, k):
+    """out[:k] = M⁻¹ b[:k] with M = L Lᵀ on the leading k x k block (b, out may alias)."""
+    for i in range(k):
+        t = b[i]
+        for l in range(i):
+            t -= L[i, l] * out[l]
+        out[i] = t / L[i, i]
+    for i in range(k - 1, -1, -1):
+        t = out[i]
+        for l in range(i + 1, k):
+            t -= L[l, i] * out[l]
+        out[i] = t / L[i, i]
+
+
+@_inline
+def cho_solve_row(L, G, r, out, k):
+    """out[:k] = M⁻¹ G[r, :k] (a row of a matrix as right-hand side, no view)."""
+    for i in range(k):
+        t = G[r, i]
+        for l in range(i):
+            t -= L[i, l] * out[l]
+        out[i] = t / L[i, i]
+    for i in range(k - 1, -1, -1):
+        t = out[i]
+        for l in range(i + 1, k):
+            t -= L[l, i] * out[l]
+        out[i] = t / L[i, i]
 
 
 @_jit
@@ -250,3 +304,16 @@ def force_of(kernel, n: int, *args) -> np.ndarray:
     out = np.zeros(n)
     kernel(*args, out)
     return out
+
+
+def flat(*params) -> np.ndarray:
+    """The parameters of one kernel as one flat float array (the kernel's layout)."""
+    return np.ascontiguousarray(np.concatenate([np.ravel(np.asarray(x, dtype=float)) for x in params]))
+
+
+def cos_sin(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(cos q, sin q) through :func:`trig`, for the Python path."""
+    c = np.empty(q.shape[0])
+    s = np.empty(q.shape[0])
+    trig(q, c, s)
+    return c, s

@@ -29,31 +29,41 @@ import math
 import numpy as np
 from numba import njit
 
-from .kernels import cho_solve, cholesky
+from .kernels import cho_solve, cho_solve_row, cholesky
 
-__all__ = ["lcp_dual_active_set", "lcp_enumerate", "kkt_residuals_kernel", "OK", "FAILED"]
+__all__ = ["lcp_dual_active_set", "lcp_enumerate", "kkt_residuals_kernel", "solve_one_step", "workspace",
+           "OK", "FAILED"]
 
 OK, FAILED = 0, 1
 _jit = njit(cache=True, nogil=True)
+_inline = njit(cache=True, nogil=True, inline="always")
 
 
 @_jit
-def _solve_active(W, A, na, rhs, out, L):
+def workspace(n, m):
+    """Work arrays for problems of up to m rows on n coordinates (allocated once per run;
+    every routine below works on leading blocks of them, creating no array views)."""
+    mm = max(m, 1)
+    return (np.empty((mm, n)), np.empty(n), np.empty((mm, mm)), np.empty(mm), np.empty(mm),
+            np.empty(mm, dtype=np.int64), np.zeros(mm, dtype=np.bool_), np.empty(mm), np.empty(mm),
+            np.empty((mm, mm)), np.empty((mm, mm)), np.empty(mm), np.empty(n), np.empty(n),
+            np.empty(n), np.empty(n), np.empty(4))
+
+
+@_inline
+def _solve_active(W, A, na, rhs, out, sub, fac):
     """out[:na] = W[A, A]⁻¹ rhs[:na] by Cholesky; False when W[A, A] is not PD."""
     for i in range(na):
         for j in range(na):
-            L[i, j] = W[A[i], A[j]]
-    sub = L[:na, :na]
-    fac = np.empty((na, na))
-    if cholesky(sub, fac) >= 0:
+            sub[i, j] = W[A[i], A[j]]
+    if cholesky(sub, fac, na) >= 0:
         return False
-    cho_solve(fac, rhs[:na], out[:na])
+    cho_solve(fac, rhs, out, na)
     return True
 
 
-@_jit
-def _slacks(W, w, P, s):
-    k = w.shape[0]
+@_inline
+def _slacks(W, w, P, s, k):
     for i in range(k):
         t = w[i]
         for j in range(k):
@@ -61,35 +71,44 @@ def _slacks(W, w, P, s):
         s[i] = t
 
 
-@_jit
-def lcp_dual_active_set(W, w, P, tol):
-    """Solve ``0 <= P ⟂ w + W P >= 0`` (W PSD) by the Goldfarb–Idnani dual method.
+@_inline
+def lcp_dual_active_set(W, w, P, k, tol, s, A, inA, rhs, r, sub, fac):
+    """Solve ``0 <= P ⟂ w + W P >= 0`` (W PSD, the leading k x k block) by the
+    Goldfarb–Idnani dual method.
 
     Parameters
     ----------
-    W : ndarray, shape (k, k)
-    w : ndarray, shape (k,)
-    P : ndarray, shape (k,)
-        Output: the impulses.
+    W : ndarray, shape (>= k, >= k)
+    w : ndarray, shape (>= k,)
+    P : ndarray, shape (>= k,)
+        Output: the impulses P[:k].
+    k : int
+        Number of rows.
     tol : float
         Accept slacks >= −tol (velocity units).
+    s, A, inA, rhs, r, sub, fac : ndarray
+        Work arrays (from :func:`workspace`).
 
     Returns
     -------
     int
         ``OK`` or ``FAILED`` (infeasible problem, or no convergence in 10 (k + 1) steps).
     """
-    k = w.shape[0]
-    P[:] = 0.0
-    s = np.empty(k)
-    A = np.empty(k, dtype=np.int64)
-    inA = np.zeros(k, dtype=np.bool_)
+    for i in range(k):
+        P[i] = 0.0
+    if k == 1:  # closed form
+        if w[0] >= -tol:
+            return OK
+        if not W[0, 0] > 0.0:
+            return FAILED
+        P[0] = -w[0] / W[0, 0]
+        return OK
+    for i in range(k):
+        inA[i] = False
     na = 0
-    rhs = np.empty(k)
-    r = np.empty(k)
-    Lw = np.empty((k, k))
+    converged = False
     for _ in range(10 * (k + 1)):
-        _slacks(W, w, P, s)
+        _slacks(W, w, P, s, k)
         p = -1
         worst = 0.0
         for i in range(k):
@@ -99,6 +118,7 @@ def lcp_dual_active_set(W, w, P, tol):
                 if score < worst:
                     worst, p = score, i
         if p < 0:
+            converged = True
             break
         added = False
         for _inner in range(k + 1):
@@ -106,7 +126,7 @@ def lcp_dual_active_set(W, w, P, tol):
             if na > 0:
                 for i in range(na):
                     rhs[i] = W[A[i], p]
-                if not _solve_active(W, A, na, rhs, r, Lw):
+                if not _solve_active(W, A, na, rhs, r, sub, fac):
                     return FAILED
             schur = W[p, p]
             for i in range(na):
@@ -145,13 +165,13 @@ def lcp_dual_active_set(W, w, P, tol):
             break
         if not added:
             return FAILED
-    else:
+    if not converged:
         return FAILED
     # refine on the final active set: W_AA P_A = −w_A exactly
     if na > 0:
         for i in range(na):
             rhs[i] = -w[A[i]]
-        if _solve_active(W, A, na, rhs, r, Lw):
+        if _solve_active(W, A, na, rhs, r, sub, fac):
             ok = True
             for i in range(na):
                 if r[i] < 0.0:
@@ -163,23 +183,21 @@ def lcp_dual_active_set(W, w, P, tol):
 
 
 @_jit
-def lcp_enumerate(W, w, P, tol):
+def lcp_enumerate(W, w, P, k, tol, s, A, rhs, x, sub, fac):
     """Solve the same LCP by enumerating active sets, smallest first (k <= 12).
 
     Returns ``OK`` or ``FAILED`` (more than 12 rows, or no active set passes).
     """
-    k = w.shape[0]
-    P[:] = 0.0
+    for i in range(k):
+        P[i] = 0.0
     if k > 12:
         return FAILED
-    s = np.empty(k)
-    _slacks(W, w, P, s)
-    if s.min() >= -tol:
+    _slacks(W, w, P, s, k)
+    smin = math.inf
+    for i in range(k):
+        smin = min(smin, s[i])
+    if smin >= -tol:
         return OK
-    A = np.empty(k, dtype=np.int64)
-    rhs = np.empty(k)
-    x = np.empty(k)
-    Lw = np.empty((k, k))
     for size in range(1, k + 1):
         for mask in range(1, 1 << k):
             na = 0
@@ -191,7 +209,7 @@ def lcp_enumerate(W, w, P, tol):
                 continue
             for i in range(na):
                 rhs[i] = -w[A[i]]
-            if not _solve_active(W, A, na, rhs, x, Lw):
+            if not _solve_active(W, A, na, rhs, x, sub, fac):
                 continue
             good = True
             for i in range(na):
@@ -199,20 +217,25 @@ def lcp_enumerate(W, w, P, tol):
                     good = False
             if not good:
                 continue
-            P[:] = 0.0
+            for i in range(k):
+                P[i] = 0.0
             for i in range(na):
                 P[A[i]] = x[i]
-            _slacks(W, w, P, s)
-            if s.min() >= -tol:
+            _slacks(W, w, P, s, k)
+            smin = math.inf
+            for i in range(k):
+                smin = min(smin, s[i])
+            if smin >= -tol:
                 return OK
-    P[:] = 0.0
+    for i in range(k):
+        P[i] = 0.0
     return FAILED
 
 
-@_jit
-def kkt_residuals_kernel(M, L, b, G, c, v, P, out):
-    """Scaled KKT residuals of ``(v, P)`` for the one-step QP, written to ``out`` (4,):
-    primal, dual, complementarity, stationarity (each dimensionless).
+@_inline
+def kkt_residuals_kernel(M, L, b, G, c, v, P, k, out, Gv, GtP, r, d, x):
+    """Scaled KKT residuals of ``(v, P)`` for the one-step QP on the first k rows of G,
+    written to ``out`` (4,): primal, dual, complementarity, stationarity (dimensionless).
 
     Contact rows are measured as normal velocities against the contact's own velocity
     scale (the largest of |c|, |G v|, the normal velocity the impulses make, and
@@ -221,11 +244,11 @@ def kkt_residuals_kernel(M, L, b, G, c, v, P, out):
     against ``max(|v_i|, |(M⁻¹ b)_i|, 1e-9 (‖v‖_M + ‖M⁻¹b‖_M)/√M_ii)``. Every measure is
     invariant under a rescaling of any single coordinate (a change of units), so a light
     coordinate's velocity error is not hidden behind a heavy one's momentum.
-    ``L`` is the Cholesky factor of M.
+    ``L`` is the Cholesky factor of M; Gv (>= k), GtP, r, d, x (n) are work arrays.
     """
-    k, n = G.shape
-    Gv = np.empty(k)
-    GtP = np.zeros(n)
+    n = M.shape[0]
+    for j in range(n):
+        GtP[j] = 0.0
     for i in range(k):
         t = 0.0
         for j in range(n):
@@ -253,16 +276,13 @@ def kkt_residuals_kernel(M, L, b, G, c, v, P, out):
         primal = max(primal, -slack / vel)
         dual = max(dual, -pw / vel)
         comp = max(comp, abs(pw * slack) / (vel * vel))
-    r = np.empty(n)
     for i in range(n):
         t = -b[i] - GtP[i]
         for j in range(n):
             t += M[i, j] * v[j]
         r[i] = t
-    d = np.empty(n)
-    cho_solve(L, r, d)
-    x = np.empty(n)
-    cho_solve(L, b, x)
+    cho_solve(L, r, d, n)
+    cho_solve(L, b, x, n)
     ev = 0.0
     ex = 0.0
     for i in range(n):
@@ -280,20 +300,22 @@ def kkt_residuals_kernel(M, L, b, G, c, v, P, out):
     out[3] = stat
 
 
-@_jit
-def solve_one_step(M, L, b, G, c, P, v, method, tol):
-    """v, P of the one-step QP on all rows of G (k x n) with the LCP solver ``method``
-    (0: dual active set, 1: enumeration); returns its status. ``L`` = chol(M)."""
-    k, n = G.shape
-    MinvGt = np.empty((n, k))
-    col = np.empty(n)
+@_inline
+def solve_one_step(M, L, b, G, c, P, v, k, method, tol, ws):
+    """v, P of the one-step QP on the first k rows of G with the LCP solver ``method``
+    (0: dual active set, 1: enumeration); returns its status. ``L`` = chol(M), ``ws``
+    from :func:`workspace`."""
+    n = M.shape[0]
+    MinvGt = ws[0]  # row j: M⁻¹ G_jᵀ
+    row = ws[13]
     for j in range(k):
-        cho_solve(L, G[j], col)
-        MinvGt[:, j] = col
-    vfree = np.empty(n)
-    cho_solve(L, b, vfree)
-    W = np.empty((k, k))
-    w = np.empty(k)
+        cho_solve_row(L, G, j, row, n)
+        for i in range(n):
+            MinvGt[j, i] = row[i]
+    vfree = ws[1]
+    cho_solve(L, b, vfree, n)
+    W = ws[2]
+    w = ws[3]
     scale = 1e-300
     for i in range(k):
         t = -c[i]
@@ -301,23 +323,19 @@ def solve_one_step(M, L, b, G, c, P, v, method, tol):
             t += G[i, j] * vfree[j]
         w[i] = t
         scale = max(scale, abs(t), abs(c[i]))
-        for j in range(k):
+        for j in range(i + 1):
             u = 0.0
             for l in range(n):
-                u += G[i, l] * MinvGt[l, j]
+                u += G[i, l] * MinvGt[j, l]
             W[i, j] = u
-    for i in range(k):  # exactly symmetric
-        for j in range(i + 1, k):
-            a = 0.5 * (W[i, j] + W[j, i])
-            W[i, j] = a
-            W[j, i] = a
+            W[j, i] = u  # exactly symmetric
     if method == 0:
-        status = lcp_dual_active_set(W, w, P, tol * scale)
+        status = lcp_dual_active_set(W, w, P, k, tol * scale, ws[4], ws[5], ws[6], ws[7], ws[8], ws[9], ws[10])
     else:
-        status = lcp_enumerate(W, w, P, tol * scale)
+        status = lcp_enumerate(W, w, P, k, tol * scale, ws[4], ws[5], ws[7], ws[8], ws[9], ws[10])
     for i in range(n):
         t = vfree[i]
         for j in range(k):
-            t += MinvGt[i, j] * P[j]
+            t += MinvGt[j, i] * P[j]
         v[i] = t
     return status

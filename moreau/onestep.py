@@ -86,41 +86,34 @@ class Residuals:
         }
 
 
-_TINY = 1e-300
 
 
 def kkt_residuals(M, b, G, c, v, P) -> Residuals:
-    """Scaled residuals of the KKT conditions of the one-step QP (see module docstring).
+    """Scaled KKT residuals of the one-step QP (see module docstring), the same check
+    the compiled loop runs (:func:`moreau.lcp.kkt_residuals_kernel`).
 
-    Everything is measured as a normal velocity, against the contact's own velocity
+    Contact rows are measured as normal velocities against the contact's own velocity
     scale: the largest of ``|c|``, ``|G v|`` and the normal velocity change the impulses
-    make, ``|G| (|Gᵀ P| / diag M)``, with a floor of 1e-9 ``|G| |v|`` for round-off (a
-    sliding contact whose normal velocity is a millionth of the other velocities is
-    measured against its own scale, not theirs). An impulse P_i counts through the
-    velocity it makes, ``P_i w_i`` with ``w_i = Σ_j G_ij² / M_jj`` (≈ W_ii): a negative
-    impulse of round-off size passes, a wrong-sign impulse that moves the contact does
-    not. Momenta (stationarity) are measured against ``|b|`` and ``|Gᵀ P|``.
+    make, ``|G| (|Gᵀ P| / diag M)``, with a floor of 1e-9 ``|G| |v|`` for round-off. An
+    impulse P_i counts through the velocity it makes, ``P_i Σ_j G_ij² / M_jj``: a
+    negative impulse of round-off size passes, a wrong-sign impulse that moves the
+    contact does not. Stationarity is the velocity error ``M⁻¹ (M v − b − Gᵀ P)`` per
+    coordinate, against that coordinate's own velocity scale, so every measure is
+    invariant under rescaling any single coordinate (a change of units): a light
+    coordinate's error is not hidden behind the momenta of heavy ones.
     """
-    # few numpy calls, reductions on Python floats: this runs after every contact solve
-    Gv = G @ v
-    slack = (Gv - c).tolist()
-    GtP = P @ G
-    stat = np.abs(M @ v - b - GtP).tolist()
-    absG = np.abs(G)
-    inv_diag = 1.0 / M.diagonal()
-    cl = c.tolist()
-    Pw = (P * ((absG * absG) @ inv_diag)).tolist()  # velocity each impulse makes
-    vel_scale = max(
-        _TINY,
-        max(cl), -min(cl),
-        float(np.abs(Gv).max()),
-        float((absG @ (np.abs(GtP) * inv_diag)).max()),
-        1e-9 * float((absG @ np.abs(v)).max()),
-    )
-    mom_scale = max(_TINY, float(np.abs(b).max()), float(np.abs(GtP).max()))
-    return Residuals(
-        primal=max(0.0, -min(slack)) / vel_scale,
-        dual=max(0.0, -min(Pw)) / vel_scale,
-        complementarity=max(abs(p * s) for p, s in zip(Pw, slack)) / (vel_scale * vel_scale),
-        stationarity=max(stat) / mom_scale,
-    )
+    from .kernels import cholesky
+    from .lcp import kkt_residuals_kernel
+
+    M = np.ascontiguousarray(M, dtype=float)
+    n = M.shape[0]
+    L = np.empty((n, n))
+    if cholesky(M, L, n) >= 0:
+        inf = float("inf")
+        return Residuals(inf, inf, inf, inf)
+    out = np.empty(4)
+    kkt_residuals_kernel(M, L, np.ascontiguousarray(b, dtype=float), np.ascontiguousarray(G, dtype=float),
+                         np.ascontiguousarray(c, dtype=float), np.ascontiguousarray(v, dtype=float),
+                         np.ascontiguousarray(P, dtype=float), np.shape(G)[0], out,
+                         *(np.empty(max(n, np.shape(G)[0])) for _ in range(5)))
+    return Residuals(*(float(x) for x in out))

@@ -92,6 +92,8 @@ class SolverStats:
         Largest accepted scaled KKT residual.
     wall_time : float
         Seconds spent stepping.
+    backend : str
+        ``"compiled"`` (the whole loop in machine code) or ``"python"``.
     """
 
     solver: str = ""
@@ -103,6 +105,7 @@ class SolverStats:
     projections: int = 0
     worst_residual: float = 0.0
     wall_time: float = 0.0
+    backend: str = "python"
 
     @property
     def us_per_step(self) -> float:
@@ -146,6 +149,14 @@ class Trajectory:
         Why the run stopped early, if it did.
     version : str
         moreau version that computed it.
+    max_penetration : ndarray, shape (m,) or None
+        Largest penetration max(0, −g) of each row over *every* step's end position (not
+        only the records), in the gap's unit.
+    work : dict
+        Energy-ledger terms summed over every step: ``"forces"``, the work of the smooth
+        forces h fᵀ(v_k + v⁺)/2, and ``"contacts"``, the work of the contact impulses
+        ½ Pᵀ(U⁻ + U⁺) (≤ 0 for e ≤ 1), in the scene's energy unit. They close the
+        discrete balance ΔT = forces + contacts exactly for a constant mass matrix.
     """
 
     t: np.ndarray
@@ -167,6 +178,8 @@ class Trajectory:
     message: str = ""
     version: str = ""
     extra: dict = field(default_factory=dict)
+    max_penetration: np.ndarray | None = None
+    work: dict = field(default_factory=dict)
 
     def __len__(self) -> int:
         return int(self.t.shape[0])
@@ -199,12 +212,13 @@ class Trajectory:
             "version": self.version,
             "stats": {f.name: getattr(self.stats, f.name) for f in fields(self.stats)},
             "extra": self.extra,
+            "work": self.work,
         }
         arrays = {
             "t": self.t, "q": self.q, "v": self.v, "gaps": self.gaps,
             "impulses": self.impulses, "active": self.active,
         }
-        for name in ("energy", "kinetic_energy", "potential_energy"):
+        for name in ("energy", "kinetic_energy", "potential_energy", "max_penetration"):
             if getattr(self, name) is not None:
                 arrays[name] = getattr(self, name)
         for f in fields(ImpactLog):
@@ -245,6 +259,7 @@ class Trajectory:
                 energy=data.get("energy"), kinetic_energy=data.get("kinetic_energy"),
                 potential_energy=data.get("potential_energy"), status=meta["status"],
                 message=meta["message"], version=meta["version"], extra=meta.get("extra", {}),
+                max_penetration=data.get("max_penetration"), work=meta.get("work", {}),
             )
         except (KeyError, TypeError) as exc:
             raise ValueError(f"trajectory file {path!r} is incomplete: missing {exc}") from None

@@ -11,7 +11,8 @@ import numpy as np
 
 from ._validation import as_positive
 from .errors import SimulationError, SolverError
-from .integrator import MoreauJeanMidpoint, NonFiniteState, OneStepIntegrator
+from .integrator import (MoreauJeanMidpoint, MoreauJeanTheta, NonFiniteState, OneStepIntegrator,
+                         check_initial_state)
 from .result import ImpactLog, SolverStats, Trajectory
 from .scene import Scene
 from .solvers import ContactSolver
@@ -32,8 +33,9 @@ def simulate(
     v0,
     h: float,
     *,
-    solver: str | ContactSolver = "osqp",
-    fallback: str | ContactSolver | None = "enum",
+    backend: str = "auto",
+    solver: str | ContactSolver | None = None,
+    fallback: str | ContactSolver | None = "auto",
     integrator: type[OneStepIntegrator] = MoreauJeanMidpoint,
     record_every: int = 1,
     progress: bool | dict | None = None,
@@ -56,10 +58,24 @@ def simulate(
         resolved by the first step's impact.
     h : float
         Step size (> 0).
-    solver : str or ContactSolver
-        Contact backend: ``"osqp"`` (default), ``"enum"``, ``"daqp"``, ``"quadprog"``.
+    backend : {"auto", "compiled", "python"}
+        Where the time loop runs. ``"compiled"``: the whole loop in machine code
+        (numba; :mod:`moreau.loop`), for scenes whose every part has a compiled kernel
+        (all built-in systems, effects and barriers, and user callables decorated with
+        ``@numba.njit``), the integrators :class:`MoreauJeanMidpoint` and
+        :class:`MoreauJeanTheta`, drift control :class:`PositionProjection`, and the
+        compiled solvers ``"exact"`` and ``"enum"``; it raises ``ValueError`` naming
+        what does not compile. ``"python"``: the readable reference path, with any
+        solver. ``"auto"`` (default): compiled when everything compiles, else Python
+        (logged). Both paths evaluate the same kernels and return the same fields;
+        ``traj.stats.backend`` says which ran.
+    solver : str or ContactSolver, optional
+        Contact solver: ``"exact"`` (dual active set, exact, any number of rows; the
+        default of the compiled path), ``"enum"`` (enumeration, ≤ 12 rows), ``"osqp"``
+        (the default of the Python path), ``"daqp"``, ``"quadprog"``.
     fallback : str or ContactSolver or None
-        Exact backend for steps the main one fails (default ``"enum"``).
+        Exact solver for steps the main one fails; ``"auto"``: ``"enum"``, or
+        ``"exact"`` when the main solver is ``"enum"``. Never the same as ``solver``.
     integrator : OneStepIntegrator subclass
         The time-stepper (default :class:`MoreauJeanMidpoint`).
     record_every : int
@@ -78,8 +94,7 @@ def simulate(
     Returns
     -------
     Trajectory
-        ``status == "completed"``, or ``"interrupted"`` after a KeyboardInterrupt (the
-        part computed so far; the interrupt is logged, not re-raised).
+        With ``status == "completed"``.
 
     Raises
     ------
@@ -89,8 +104,12 @@ def simulate(
     SolverError
         Every backend failed on a step; ``exc.trajectory`` holds the run up to it.
     SimulationError
-        The state became non-finite, or a user callable raised; ``exc.trajectory``
-        holds the run up to the last good step.
+        The state became non-finite, the mass matrix stopped being SPD, or a user
+        callable raised; ``exc.trajectory`` holds the run up to the last good step.
+    KeyboardInterrupt
+        Re-raised after Ctrl-C with the part computed so far as ``exc.trajectory``
+        (``status == "interrupted"``): nothing computed is lost, and a script that
+        loops over runs stops.
     """
     if not isinstance(scene, Scene):
         raise ValueError(f"scene must be a Scene, got {scene!r}")
@@ -113,16 +132,88 @@ def simulate(
         raise ValueError(f"step size h = {h!r} gives {ratio:.3g} steps over t_span = ({t0!r}, {t1!r}); "
                          f"at most {_MAX_STEPS:.0e} steps are allowed")
     n_steps = max(1, math.ceil(ratio - 1e-9))
-    integ = integrator(scene, h, solver=solver, fallback=fallback, tol=tol, drift_control=drift_control)
-    integ.init(t0, q0, v0)
-
     n, m = scene.ndof, scene.nrows
     stride = int(record_every)
     n_rec = n_steps // stride + 1 + (1 if n_steps % stride else 0)
-    record_bytes = n_rec * (8 * (1 + 2 * n + m) + m)
+    record_bytes = n_rec * (8 * (2 + 2 * n + 2 * m) + m)
     if record_bytes > _MAX_RECORD_BYTES:
         raise ValueError(f"recording {n_rec} states (h = {h!r}, record_every = {stride}) needs "
                          f"{record_bytes / 2**30:.1f} GiB; raise record_every")
+    path, cs, solver, fallback = _choose_backend(backend, scene, integrator, solver, fallback, drift_control)
+    if path == "compiled":
+        from .compiled import run_compiled
+
+        t0, q0, v0 = check_initial_state(scene, t0, q0, v0)
+        bar = _progress_bar(progress, n_steps, scene.name)
+        try:
+            return run_compiled(scene, cs, t0, q0, v0, h, n_steps, theta=integrator is MoreauJeanTheta,
+                                solver=solver, fallback=fallback, stride=stride, bar=bar, energy=energy,
+                                tol=tol, drift_control=drift_control)
+        finally:
+            if bar is not None:
+                bar.close()
+    integ = integrator(scene, h, solver=solver, fallback=fallback, tol=tol, drift_control=drift_control)
+    integ.init(t0, q0, v0)
+    return _run_python(scene, integ, h, n_steps, stride, n_rec, progress, energy)
+
+
+def _choose_backend(backend, scene, integrator, solver, fallback, drift_control):
+    """``(path, compiled scene or None, solver, fallback)`` for :func:`simulate`."""
+    from .compiled import COMPILED_SOLVERS
+    from .drift import PositionProjection
+    from .lowering import NotCompilable, lower
+    from .solvers import ContactSolver
+
+    if backend not in ("auto", "compiled", "python"):
+        raise ValueError(f"backend must be 'auto', 'compiled' or 'python', got {backend!r}")
+    for what, x in (("solver", solver), ("fallback", fallback)):
+        if x is not None and not isinstance(x, (str, ContactSolver)):
+            raise ValueError(f"{what} must be a name or a ContactSolver, got {x!r}")
+    reason = ""
+    if backend != "python":
+        if integrator not in (MoreauJeanMidpoint, MoreauJeanTheta):
+            reason = f"integrator {integrator.__name__} has no compiled form"
+        elif drift_control is not None and type(drift_control) is not PositionProjection:
+            reason = f"drift control {type(drift_control).__name__} has no compiled form"
+        elif solver is not None and solver not in COMPILED_SOLVERS:
+            reason = f"solver {solver!r} does not run in compiled code (compiled: {sorted(COMPILED_SOLVERS)})"
+        elif fallback not in ("auto", None) and fallback not in COMPILED_SOLVERS:
+            reason = f"fallback {fallback!r} does not run in compiled code (compiled: {sorted(COMPILED_SOLVERS)})"
+        else:
+            try:
+                cs = lower(scene)
+            except NotCompilable as exc:
+                reason = str(exc)
+    if backend == "compiled" and reason:
+        raise ValueError(f"backend='compiled': {reason}")
+    path = "python" if (backend == "python" or reason) else "compiled"
+    if backend == "auto" and reason:
+        log.info("running %r on the Python path: %s", scene.name, reason)
+    if solver is None:
+        solver = "exact" if path == "compiled" else "osqp"
+    if fallback == "auto":
+        fallback = "exact" if solver == "enum" else "enum"
+    if isinstance(solver, str) and solver == fallback:
+        raise ValueError(f"fallback must differ from the main solver, got {solver!r} twice")
+    return path, (cs if path == "compiled" else None), solver, fallback
+
+
+def _progress_bar(progress, n_steps: int, desc: str):
+    show = bool(progress) if progress is not None else (n_steps >= _PROGRESS_MIN_STEPS and sys.stderr.isatty())
+    if not show:
+        return None
+    from tqdm.auto import tqdm
+
+    bar_kw = {"unit": "step", "desc": desc, "mininterval": 0.5, "leave": False}
+    if isinstance(progress, dict):
+        bar_kw.update(progress)
+    return tqdm(total=n_steps, **bar_kw)
+
+
+def _run_python(scene, integ, h, n_steps, stride, n_rec, progress, energy) -> Trajectory:
+    """The reference loop: one :meth:`OneStepIntegrator.step` call per step."""
+    n, m = scene.ndof, scene.nrows
+    t0 = integ.t
     T = np.empty(n_rec)
     Q = np.empty((n_rec, n))
     V = np.empty((n_rec, n))
@@ -136,15 +227,8 @@ def simulate(
     in_contact = np.zeros(m, dtype=bool)
     has_contacts = m > 0
 
-    show = bool(progress) if progress is not None else (n_steps >= _PROGRESS_MIN_STEPS and sys.stderr.isatty())
-    bar = None
-    if show:
-        from tqdm.auto import tqdm
-
-        bar_kw = {"unit": "step", "desc": scene.name, "mininterval": 0.5, "leave": False}
-        if isinstance(progress, dict):
-            bar_kw.update(progress)
-        bar = tqdm(total=n_steps, **bar_kw)
+    bar = _progress_bar(progress, n_steps, scene.name)
+    pen = np.zeros(m)
     chunk = max(1, min(10_000, n_steps // 200))
 
     status, message, error = "completed", "", None
@@ -166,6 +250,7 @@ def simulate(
                     in_contact = now
                 elif in_contact.any():
                     in_contact = np.zeros(m, dtype=bool)
+                np.maximum(pen, -scene.gaps(integ.q), out=pen)
             if k % stride == 0 or k == n_steps:
                 T[rec], Q[rec], V[rec] = integ.t, integ.q, integ.v
                 if has_contacts:
@@ -176,9 +261,10 @@ def simulate(
                 rec += 1
             if bar is not None and k % chunk == 0:
                 bar.update(chunk)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         status, message = "interrupted", f"interrupted by the user at step {k} (t = {integ.t:.9g})"
-        log.warning("%s; returning the %d records computed so far", message, rec)
+        log.warning("%s; %d records computed so far are attached to the KeyboardInterrupt", message, rec)
+        error = exc
     except SolverError as exc:
         status, message, error = "failed", str(exc), exc
     except NonFiniteState as exc:
@@ -203,6 +289,7 @@ def simulate(
 
     traj = _assemble(scene, integ, h, stride, T[:rec], Q[:rec], V[:rec], PS[:rec], ACT[:rec],
                      impacts, wall, status, message, energy)
+    traj.max_penetration = pen
     if error is not None:
         error.trajectory = traj
         raise error
@@ -260,5 +347,5 @@ def _assemble(scene, integ, h, stride, T, Q, V, PS, ACT, impacts, wall, status, 
         impacts=ImpactLog.from_rows(impacts), stats=stats, h=h, record_every=stride,
         row_names=list(scene.row_names), scene=scene.describe(), energy=E,
         kinetic_energy=KE, potential_energy=PE, status=status, message=message,
-        version=__version__,
+        version=__version__, work={"forces": integ.work_forces, "contacts": integ.work_contacts},
     )

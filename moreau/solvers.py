@@ -22,7 +22,6 @@ Backends
 from __future__ import annotations
 
 import ctypes
-import itertools
 import os
 import sys
 from abc import ABC, abstractmethod
@@ -33,6 +32,7 @@ __all__ = [
     "ContactSolver",
     "OSQPSolver",
     "EnumerationSolver",
+    "ExactSolver",
     "QpsolversSolver",
     "SolveFailed",
     "make_solver",
@@ -197,107 +197,65 @@ class OSQPSolver(ContactSolver):
         return {"name": self.name, "eps": self.eps, "polish": self.polish}
 
 
-class EnumerationSolver(ContactSolver):
-    """Exact LCP solver by enumeration of active sets, smallest first.
+class _CompiledLCPSolver(ContactSolver):
+    """A compiled LCP method of :mod:`moreau.lcp` called from the Python path."""
 
-    For k active rows it tries at most 2^k sets, each a k x k linear solve; with the
-    one or two active rows of a typical step it is the fastest backend. Singular
-    sub-blocks (redundant rows) are skipped: a solution on independent rows exists.
+    exact = True
+    _method = 0
+
+    def solve(self, M, b, G, c, rows):
+        from .kernels import cholesky
+        from .lcp import solve_one_step, workspace
+
+        k = rows.shape[0]
+        self._check_rows(k)
+        n = M.shape[0]
+        L = np.empty((n, n))
+        if cholesky(M, L, n) >= 0:
+            raise SolveFailed("the mass matrix is not positive definite")
+        P = np.zeros(k)
+        v = np.empty(n)
+        GA = np.ascontiguousarray(G[rows], dtype=float)
+        if solve_one_step(M, L, np.ascontiguousarray(b, dtype=float), GA,
+                          np.ascontiguousarray(c[rows], dtype=float), P, v, k, self._method, 1e-12,
+                          workspace(n, k)) != 0:
+            raise SolveFailed(f"{self.name} found no solution for {k} active rows")
+        return v, P
+
+    def _check_rows(self, k: int) -> None:
+        pass
+
+
+class ExactSolver(_CompiledLCPSolver):
+    """Exact dual active-set solver (Goldfarb–Idnani on the LCP, :mod:`moreau.lcp`):
+    any number of active rows, redundant rows included. The default of the compiled path,
+    and the same code here."""
+
+    name = "exact"
+    _method = 0
+
+
+class EnumerationSolver(_CompiledLCPSolver):
+    """Exact LCP solver by enumeration of active sets, smallest first (:mod:`moreau.lcp`).
+
+    For k active rows it tries at most 2^k sets, each a k x k Cholesky solve; singular
+    sub-blocks (redundant rows) are skipped. The default fallback.
 
     Parameters
     ----------
     max_rows : int
-        Refuse (raise :class:`SolveFailed`) above this many active rows.
-    tol : float
-        Relative feasibility tolerance.
+        Refuse (raise :class:`SolveFailed`) above this many active rows (at most 12).
     """
 
-    exact = True
     name = "enum"
+    _method = 1
 
-    def __init__(self, max_rows: int = 12, tol: float = 1e-15) -> None:
-        self.max_rows = int(max_rows)
-        self.tol = float(tol)
+    def __init__(self, max_rows: int = 12) -> None:
+        self.max_rows = min(int(max_rows), 12)
 
-    def setup(self, ndof, nrows, mass=None):
-        self._Minv = None if mass is None else np.linalg.inv(mass)
-
-    def solve(self, M, b, G, c, rows):
-        k = rows.shape[0]
+    def _check_rows(self, k: int) -> None:
         if k > self.max_rows:
             raise SolveFailed(f"enumeration refuses {k} active rows (max_rows={self.max_rows})")
-        GA = G[rows]
-        cA = c[rows]
-        if self._Minv is not None and M is not None:
-            v_free = self._Minv @ b
-            MinvGt = self._Minv @ GA.T
-        else:
-            sol = np.linalg.solve(M, np.column_stack((b, GA.T)))
-            v_free = sol[:, 0]
-            MinvGt = sol[:, 1:]
-        w = GA @ v_free - cA
-        absGA = np.abs(GA)
-        scale = max(
-            1e-300,
-            float((absGA @ (np.abs(v_free) + np.abs(b) / np.diag(M))).max()),
-            float(np.abs(cA).max()),
-        )
-        tol = self.tol * scale
-        if w.min() >= -tol:
-            return v_free, np.zeros(k)
-        W = GA @ MinvGt
-        if k == 1:
-            P = -w / W[0, 0]
-            return v_free + MinvGt[:, 0] * P[0], P
-        if k == 2:
-            P = _lcp2(W.tolist(), w.tolist(), tol)
-            if P is not None:
-                return v_free + MinvGt @ P, P
-        wmax = float(np.abs(W).max())
-        for size in range(1, k + 1):
-            for S in itertools.combinations(range(k), size):
-                S = list(S)
-                if size == 1:
-                    d = W[S[0], S[0]]
-                    if d <= 1e-14 * wmax:
-                        continue
-                    PS = np.array([-w[S[0]] / d])
-                else:
-                    WSS = W[np.ix_(S, S)]
-                    if np.linalg.cond(WSS) > 1e12:
-                        continue
-                    PS = np.linalg.solve(WSS, -w[S])
-                # impulses must be non-negative (round-off aside)
-                if PS.min() < -1e-10 * float(np.abs(PS).max()):
-                    continue
-                PS = np.maximum(PS, 0.0)
-                if (w + W[:, S] @ PS).min() >= -tol:
-                    P = np.zeros(k)
-                    P[S] = PS
-                    return v_free + MinvGt @ P, P
-        raise SolveFailed(f"enumeration found no solution among the active sets of {k} rows")
-
-
-def _lcp2(W, w, tol):
-    """The 2 x 2 LCP ``0 <= P ⟂ w + W P >= 0`` in plain floats (W symmetric PSD, w has a
-    negative entry); None when no active set passes (the caller enumerates generally)."""
-    (a, b), (_, d) = W
-    w0, w1 = w
-    if a > 0.0:  # row 0 alone
-        p0 = -w0 / a
-        if p0 >= 0.0 and w1 + b * p0 >= -tol:
-            return np.array([p0, 0.0])
-    if d > 0.0:  # row 1 alone
-        p1 = -w1 / d
-        if p1 >= 0.0 and w0 + b * p1 >= -tol:
-            return np.array([0.0, p1])
-    det = a * d - b * b
-    if det > 1e-12 * a * d:  # both rows, when independent
-        p0 = (-w0 * d + w1 * b) / det
-        p1 = (-w1 * a + w0 * b) / det
-        if p0 >= 0.0 and p1 >= 0.0:
-            return np.array([p0, p1])
-    return None
 
 
 class QpsolversSolver(ContactSolver):
@@ -347,6 +305,7 @@ class QpsolversSolver(ContactSolver):
 _SIMPLE = {
     "osqp": lambda: OSQPSolver(),
     "enum": lambda: EnumerationSolver(),
+    "exact": lambda: ExactSolver(),
 }
 
 

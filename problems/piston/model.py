@@ -151,7 +151,9 @@ def piston_model(
                 geometry=EngineGeometry(bore=p.d, crank_radius=p.l1, rod_length=p.l2),
             ).pressure
         k = p.area / u.force  # Pa → non-dimensional force on the pin
-        fx.append(PointForce(chain, 2, (0.0, 0.0), _GasForce(pressure, k),
+        # F = (0, −p̄(φ1) A) on the pin, along the cylinder axis towards the crank
+        load = mo.FourierLoad((0.0, -k), pressure.a0, pressure.a, pressure.b, omega=0.5, coordinate=0)
+        fx.append(PointForce(chain, 2, (0.0, 0.0), load,
                              velocity_dependent=False, time_dependent=False, name="gas"))
     else:
         pressure = None
@@ -171,14 +173,3 @@ def piston_model(
     contact = mo.Contact(PointLineBarrier(chain, rows), law, name="cylinder")
     scene = mo.Scene(chain, fx, [contact], name="piston")
     return PistonModel(params=p, pressure=pressure, chain=chain, units=u, scene=scene, effects=effects)
-
-
-class _GasForce:
-    """F(φ1) = (0, −p̄(φ1) A) on the pin, along the cylinder axis towards the crank."""
-
-    def __init__(self, pressure: FourierPressure, scale: float) -> None:
-        self.pressure = pressure
-        self.scale = scale
-
-    def __call__(self, t, q, v):
-        return np.array([0.0, -self.scale * self.pressure(float(q[0]))])

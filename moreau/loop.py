@@ -1,0 +1,337 @@
+"""The compiled time loop: Moreau–Jean midpoint steps, contact solves, drift control,
+recording, impact log and run statistics, all in machine code.
+
+:func:`run_chunk` advances a run from step ``k`` to ``k_end`` (or until the impact
+buffer is full, a solve fails or the state breaks) and returns a status code; the
+Python driver (:mod:`moreau.compiled`) calls it chunk after chunk, advancing the
+progress bar and honouring Ctrl-C between chunks, and turns the codes into the
+documented exceptions. The step is the one of :class:`moreau.MoreauJeanMidpoint` (and,
+with ``THETA``, of :class:`moreau.MoreauJeanTheta`), evaluated with the same kernels.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from . import evaluate as ev
+from . import kernels as _k
+from .lcp import kkt_residuals_kernel, solve_one_step, workspace
+
+# status codes
+DONE, IMPACTS_FULL, SOLVER_FAILED, NONFINITE, NOT_SPD, NONFINITE_GAP = 0, 1, 2, 3, 4, 5
+# settings (int array)
+S_THETA, S_DRIFT, S_DRIFT_ITER, S_STRIDE, S_NSTEPS, S_METHOD, S_FALLBACK, S_ENERGY = range(8)
+# settings (float array)
+F_H, F_T0, F_TOL, F_DRIFT_TOL, F_PE0 = range(5)
+# counters (int array)
+C_REC, C_NIMP, C_SOLVES, C_FALLBACKS, C_CONTACT, C_PROJ, C_K, C_FAILKIND = range(8)
+# accumulators (float array)
+A_WORST, A_WORK_F, A_WORK_C = range(3)
+
+_jit = njit(cache=True, nogil=True)
+# the step's parts are inlined into the loop: a call boundary would reference-count every
+# array of the tuples passed (workspace, model), which costs more than a small step
+_inline = njit(cache=True, nogil=True, inline="always")
+
+
+@_inline
+def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail, ws):
+    """Main LCP method, KKT check, fallback; False when both fail (residuals in ``fail``)."""
+    res = ws[16]
+    tol = fset[F_TOL]
+    for attempt in range(2):
+        method = iset[S_METHOD] if attempt == 0 else iset[S_FALLBACK]
+        if method < 0:
+            break
+        if attempt == 1:
+            cnt[C_FALLBACKS] += 1
+        st = solve_one_step(M, L, b, GA, cA, P_out, v_out, na, method, 1e-12, ws)
+        if st == 0:
+            kkt_residuals_kernel(M, L, b, GA, cA, v_out, P_out, na, res, ws[11], ws[12], ws[13], ws[14], ws[15])
+            worst = max(res[0], res[1], res[2], res[3])
+            if worst <= tol:
+                if worst > acc[A_WORST]:
+                    acc[A_WORST] = worst
+                return True
+            for i in range(4):
+                fail[attempt, i] = res[i]
+        else:
+            for i in range(4):
+                fail[attempt, i] = math.inf
+    return False
+
+
+@_inline
+def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, f, v, gm, v_new, P, active,
+                     GA_all, cnt, acc, fail, ws, lw):
+    """v⁺ with the contacts closed at qm (gaps ``gm``); returns 1 (contact), 0 (free) or
+    −1 (solve failed). ``P`` (m,) and ``active`` (m,) are set for the step."""
+    ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e = model
+    n, m = ints[0], ints[1]
+    h = fset[F_H]
+    na = 0
+    for r in range(m):
+        active[r] = gm[r] <= 0.0
+        P[r] = 0.0
+        if active[r]:
+            na += 1
+    if na == 0:
+        rhs = lw[2]
+        _k.cho_solve(L, f, rhs, n)
+        for i in range(n):
+            v_new[i] = v[i] + h * rhs[i]
+        return 0
+    cnt[C_SOLVES] += 1
+    ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, GA_all)
+    GA = lw[0]
+    cA = lw[1]
+    j = 0
+    for r in range(m):
+        if active[r]:
+            u = 0.0
+            for i in range(n):
+                GA[j, i] = GA_all[r, i]
+                u += GA_all[r, i] * v[i]
+            cA[j] = -e[r] * u
+            j += 1
+    b = lw[3]
+    for i in range(n):
+        s = h * f[i]
+        for l in range(n):
+            s += M[i, l] * v[l]
+        b[i] = s
+    PA = lw[4]
+    if not _contact_solve(M, L, b, GA, cA, na, v_new, PA, iset, fset, cnt, acc, fail, ws):
+        return -1
+    j = 0
+    for r in range(m):
+        if active[r]:
+            P[r] = PA[j]
+            j += 1
+    return 1
+
+
+@_inline
+def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw):
+    """Drift control: move q onto g >= 0 for eligible rows (see PositionProjection)."""
+    ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e = model
+    n, m = ints[0], ints[1]
+    dtol = fset[F_DRIFT_TOL]
+    need = False
+    for r in range(m):
+        if eligible[r] and gq[r] < -dtol:
+            need = True
+    if not need:
+        return True
+    G = lw[5]
+    dq = lw[6]
+    zero = lw[7]
+    for _ in range(iset[S_DRIFT_ITER]):
+        na = 0
+        for r in range(m):
+            if (gq[r] < 0.0 or active[r]) and eligible[r]:
+                na += 1
+        ev.mass(ints, pool, user, q, cq, sq, M)
+        if _k.cholesky(M, L, n) >= 0:
+            cnt[C_FAILKIND] = NOT_SPD
+            return False
+        ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, G)
+        GA = lw[0]
+        cA = lw[1]
+        j = 0
+        for r in range(m):
+            if (gq[r] < 0.0 or active[r]) and eligible[r]:
+                for i in range(n):
+                    GA[j, i] = G[r, i]
+                cA[j] = -gq[r]
+                j += 1
+        PA = lw[4]
+        if not _contact_solve(M, L, zero, GA, cA, na, dq, PA, iset, fset, cnt, acc, fail, ws):
+            cnt[C_FAILKIND] = SOLVER_FAILED
+            return False
+        for i in range(n):
+            q[i] += dq[i]
+        if ints[8]:
+            _k.trig(q, cq, sq)
+        ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, gq)
+        done = True
+        for r in range(m):
+            if eligible[r] and gq[r] < -dtol:
+                done = False
+        if done:
+            break
+    cnt[C_PROJ] += 1
+    return True
+
+
+@_jit
+def run_chunk(model, user, iset, fset, eligible, q, v, k_end, in_contact, P_acc, act_acc,
+              T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail):
+    """Advance the run to step ``k_end`` (see the module docstring); returns a status.
+
+    State (q, v, step ``cnt[C_K]``, contact flags, impulse accumulators) is updated in
+    place, so a chunk resumes where the previous one stopped.
+    """
+    ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e = model
+    n, m = ints[0], ints[1]
+    h, t0 = fset[F_H], fset[F_T0]
+    stride, nsteps = iset[S_STRIDE], iset[S_NSTEPS]
+    theta = iset[S_THETA] == 1 and ints[7] == 1
+    const_mass = ints[2] == _k.MASS_CONST
+    M = np.empty((n, n))
+    L = np.empty((n, n))
+    cm = np.zeros(n)
+    sm = np.zeros(n)
+    cq = np.zeros(n)
+    sq = np.zeros(n)
+    if const_mass:
+        ev.mass(ints, pool, user, q, cq, sq, M)
+        if _k.cholesky(M, L, n) >= 0:
+            return NOT_SPD
+    qm = np.empty(n)
+    f = np.empty(n)
+    v_new = np.empty(n)
+    v_pred = np.empty(n)
+    vbar = np.empty(n)
+    q_new = np.empty(n)
+    gm = np.empty(m)
+    gq = np.empty(m)
+    P = np.zeros(m)
+    active = np.zeros(m, dtype=np.bool_)
+    G = np.empty((m, n))
+    vfree = np.empty(n)
+    ws = workspace(n, m)
+    mm = max(m, 1)
+    lw = (np.empty((mm, n)), np.empty(mm), np.empty(n), np.empty(n), np.empty(mm),
+          np.empty((mm, n)), np.empty(n), np.zeros(n))
+    cap = IMP.shape[0]
+    while cnt[C_K] < k_end:
+        if m > 0 and cnt[C_NIMP] + m > cap:
+            return IMPACTS_FULL
+        k = cnt[C_K]
+        t = t0 + k * h
+        for i in range(n):
+            qm[i] = q[i] + 0.5 * h * v[i]
+        if ints[8]:
+            _k.trig(qm, cm, sm)
+        if not const_mass:
+            ev.mass(ints, pool, user, qm, cm, sm, M)
+            if ints[2] != _k.MASS_CHAIN and _k.symmetry_defect(M) > 1e-10:
+                return NOT_SPD
+            if _k.cholesky(M, L, n) >= 0:
+                return NOT_SPD
+        ev.force(ints, ekind, eoff, pool, user, t + 0.5 * h, qm, cm, sm, v, f)
+        if m > 0:
+            ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, gm)
+            s = 0.0
+            for r in range(m):
+                s += gm[r]
+            if not math.isfinite(s):
+                return NONFINITE_GAP
+        if theta:
+            code = _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, f, v, gm, v_pred, P,
+                                    active, G, cnt, acc, fail, ws, lw)
+            if code < 0:
+                return SOLVER_FAILED
+            for i in range(n):
+                vbar[i] = 0.5 * (v[i] + v_pred[i])
+            ev.force(ints, ekind, eoff, pool, user, t + 0.5 * h, qm, cm, sm, vbar, f)
+        code = _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, f, v, gm, v_new, P, active,
+                                G, cnt, acc, fail, ws, lw)
+        if code < 0:
+            return SOLVER_FAILED
+        # smooth-force work of the step, h fᵀ (v + v⁺)/2
+        wf = 0.0
+        for i in range(n):
+            wf += f[i] * (v[i] + v_new[i])
+        acc[A_WORK_F] += 0.5 * h * wf
+        if code == 1:
+            cnt[C_CONTACT] += 1
+            onset = False
+            for r in range(m):
+                if P[r] != 0.0:
+                    P_acc[r] += P[r]
+                if active[r]:
+                    act_acc[r] = True
+                    ub = 0.0
+                    ua = 0.0
+                    for i in range(n):
+                        ub += G[r, i] * v[i]
+                        ua += G[r, i] * v_new[i]
+                    acc[A_WORK_C] += 0.5 * P[r] * (ub + ua)
+                    if P[r] > 0.0 and not in_contact[r]:
+                        onset = True
+            if onset:
+                _k.cho_solve(L, f, vfree, n)
+                for i in range(n):
+                    vfree[i] = v[i] + h * vfree[i]
+                for r in range(m):
+                    if P[r] > 0.0 and not in_contact[r]:
+                        ub = 0.0
+                        ua = 0.0
+                        uf = 0.0
+                        for i in range(n):
+                            ub += G[r, i] * v[i]
+                            ua += G[r, i] * v_new[i]
+                            uf += G[r, i] * vfree[i]
+                        if -ub > abs(uf - ub):  # an impact, not a sliding contact closing again
+                            j = cnt[C_NIMP]
+                            IMP[j, 0] = t
+                            IMP[j, 1] = k
+                            IMP[j, 2] = r
+                            IMP[j, 3] = ub
+                            IMP[j, 4] = ua
+                            IMP[j, 5] = P[r]
+                            IMP[j, 6] = -0.5 * P[r] * (ua + ub)
+                            cnt[C_NIMP] = j + 1
+            for r in range(m):
+                in_contact[r] = P[r] > 0.0
+        else:
+            for r in range(m):
+                in_contact[r] = False
+                active[r] = False
+        s = 0.0
+        for i in range(n):
+            q_new[i] = qm[i] + 0.5 * h * v_new[i]
+            s += q_new[i] + v_new[i]
+        if not math.isfinite(s):
+            return NONFINITE
+        if ints[8] and (m > 0 or iset[S_ENERGY] == 1):
+            _k.trig(q_new, cq, sq)
+        if m > 0:
+            ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, q_new, cq, sq, gq)
+            if iset[S_DRIFT] == 1:
+                if not _project(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc,
+                                fail, eligible, ws, lw):
+                    return cnt[C_FAILKIND]
+            for r in range(m):
+                if -gq[r] > pen[r]:
+                    pen[r] = -gq[r]
+        q[:] = q_new
+        v[:] = v_new
+        k += 1
+        cnt[C_K] = k
+        if k % stride == 0 or k == nsteps:
+            rec = cnt[C_REC]
+            T[rec] = t0 + k * h
+            Q[rec, :] = q
+            V[rec, :] = v
+            if m > 0:
+                PS[rec, :] = P_acc
+                ACT[rec, :] = act_acc
+                GP[rec, :] = gq
+                P_acc[:] = 0.0
+                act_acc[:] = False
+            if iset[S_ENERGY] == 1:
+                ev.mass(ints, pool, user, q, cq, sq, M)
+                ke = 0.0
+                for i in range(n):
+                    for l in range(n):
+                        ke += v[i] * M[i, l] * v[l]
+                KE[rec] = 0.5 * ke
+                PE[rec] = ev.potential(ints, ekind, eoff, pool, q, cq, sq) + fset[F_PE0]
+            cnt[C_REC] = rec + 1
+    return DONE

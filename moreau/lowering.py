@@ -1,0 +1,177 @@
+"""Lowering a scene to the data of the compiled time loop.
+
+A :class:`~moreau.scene.Scene` becomes a :class:`CompiledScene`: one record per effect and
+per contact of the scene — its kernel code (:mod:`moreau.kernels`) and the offset of its
+parameters in one flat float pool — and nothing else. The compiled loop walks these
+records, so a scene without damping never evaluates damping and a scene without
+barriers never builds a contact problem, in machine code as on the Python path. Every
+built-in scene lowers to arrays only (the loop is compiled once and loaded from numba's
+cache by every later process); numba-compiled user callables (``@numba.njit``) ride
+along in a tuple, for which the loop is specialized (compiled once per process).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import kernels as _k
+from .scene import Scene
+
+__all__ = ["CompiledScene", "NotCompilable", "lower"]
+
+
+class NotCompilable(ValueError):
+    """A part of the scene has no compiled form; the message names it."""
+
+
+@dataclass
+class CompiledScene:
+    """A scene as arrays for :func:`moreau.loop.run_chunk`.
+
+    Attributes
+    ----------
+    ints : ndarray of int64
+        ``[n, m, mass_kind, has_bias, mass_off, n_effects, n_contacts, velocity_dependent,
+        needs_trig]`` (needs_trig: some kernel uses cos q, sin q).
+    ekind, eoff : ndarray of int64, shape (n_effects,)
+        Kernel code and pool offset of each effect.
+    bkind, boff, brow : ndarray of int64, shape (n_contacts,)
+        Kernel code, pool offset and first row of each contact's barrier.
+    bnrows : ndarray of int64, shape (n_contacts,)
+        Rows of each barrier.
+    pool : ndarray of float64
+        All parameters, flattened.
+    restitution : ndarray, shape (m,)
+    user : tuple
+        ``(mass_fns, force_fns, barrier_fns, barrier_rows)``: numba-compiled user
+        callables (empty tuples for a built-in scene).
+    """
+
+    ints: np.ndarray
+    ekind: np.ndarray
+    eoff: np.ndarray
+    bkind: np.ndarray
+    boff: np.ndarray
+    brow: np.ndarray
+    bnrows: np.ndarray
+    pool: np.ndarray
+    restitution: np.ndarray
+    user: tuple = field(default=((), (), (), np.zeros(0, dtype=np.int64)))
+
+    @property
+    def builtin(self) -> bool:
+        """True when no user callable is involved (the loop comes from numba's cache)."""
+        return not (self.user[0] or self.user[1] or self.user[2])
+
+    def arrays(self) -> tuple:
+        return (self.ints, self.ekind, self.eoff, self.bkind, self.boff, self.brow, self.bnrows,
+                self.pool, self.restitution)
+
+
+class _Pool:
+    def __init__(self) -> None:
+        self.chunks: list[np.ndarray] = []
+        self.size = 0
+
+    def add(self, *params) -> int:
+        off = self.size
+        for p in params:
+            a = np.ascontiguousarray(p, dtype=float).ravel()
+            self.chunks.append(a)
+            self.size += a.size
+        return off
+
+    def array(self) -> np.ndarray:
+        return np.concatenate(self.chunks) if self.chunks else np.zeros(1)
+
+
+def lower(scene: Scene) -> CompiledScene:
+    """The compiled form of ``scene``.
+
+    Raises
+    ------
+    NotCompilable
+        Naming the system, effect or contact (and its callable) that has no compiled
+        kernel: plain Python callables run on the Python path only; wrap them with
+        ``numba.njit`` to run compiled.
+    """
+    if not isinstance(scene, Scene):
+        raise ValueError(f"scene must be a Scene, got {scene!r}")
+    n = scene.ndof
+    pool = _Pool()
+    sysm = scene.system
+    mk = sysm.mass_kernel()
+    if mk is None:
+        raise NotCompilable(
+            f"system {type(sysm).__name__} has no compiled mass matrix (a plain Python callable "
+            "for mass or bias: decorate it with @numba.njit to run compiled)")
+    mass_fns: tuple = ()
+    if mk[0] == "user":
+        mass_fun, bias_fun = mk[1]
+        mass_kind = _k.MASS_USER if mass_fun is not None else _k.MASS_CONST
+        mass_off = pool.add(sysm.mass_matrix(np.zeros(n))) if mass_fun is None else 0
+        mass_fns = (mass_fun, bias_fun)
+    else:
+        mass_kind = mk[0]
+        mass_off = pool.add(*mk[1])
+    has_bias = bool(sysm.has_bias)
+
+    ekind, eoff, force_fns = [], [], []
+    for e in scene.effects:
+        spec = e.kernel()
+        if spec is None:
+            raise NotCompilable(
+                f"effect {e.name!r} ({type(e).__name__}) has no compiled kernel: its force is a plain "
+                "Python callable; decorate it with @numba.njit to run compiled")
+        kind, params = spec
+        if kind == "user":
+            ekind.append(_k.USER)
+            eoff.append(len(force_fns))
+            force_fns.append(params)
+        else:
+            ekind.append(kind)
+            eoff.append(pool.add(*params))
+
+    bkind, boff, brow, bnrows, bar_fns, bar_rows = [], [], [], [], [], []
+    row = 0
+    for c in scene.contacts:
+        spec = c.barrier.kernel()
+        if spec is None:
+            raise NotCompilable(
+                f"contact {c.name!r} ({type(c.barrier).__name__}) has no compiled kernel: its gap or "
+                "Jacobian is a plain Python callable; decorate both with @numba.njit to run compiled")
+        kind, params = spec
+        if kind == "user":
+            bkind.append(_k.BAR_USER)
+            boff.append(len(bar_fns))
+            bar_fns.append(params)
+            bar_rows.append(row)
+        else:
+            bkind.append(kind)
+            boff.append(pool.add(*params))
+        brow.append(row)
+        bnrows.append(c.barrier.nrows)
+        row += c.barrier.nrows
+
+    i64 = lambda x: np.array(x, dtype=np.int64)  # noqa: E731
+    needs_trig = (mass_kind == _k.MASS_CHAIN or any(k in (_k.TRIG, _k.FOURIER_PT) for k in ekind)
+                  or any(k == _k.BAR_TRIG for k in bkind))
+    ints = i64([n, scene.nrows, mass_kind, int(has_bias), mass_off, len(ekind), len(bkind),
+                int(scene.velocity_dependent), int(needs_trig)])
+    return CompiledScene(
+        ints=ints, ekind=i64(ekind), eoff=i64(eoff), bkind=i64(bkind), boff=i64(boff),
+        brow=i64(brow), bnrows=i64(bnrows), pool=pool.array(),
+        restitution=np.ascontiguousarray(scene.restitution, dtype=float),
+        user=(mass_fns, tuple(force_fns), tuple(bar_fns), i64(bar_rows)),
+    )
+
+
+def compiles(scene: Scene) -> tuple[bool, str]:
+    """``(True, "")`` when the scene lowers, else ``(False, reason)``."""
+    try:
+        lower(scene)
+    except NotCompilable as exc:
+        return False, str(exc)
+    return True, ""
