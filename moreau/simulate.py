@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 
-from ._validation import as_positive
+from ._validation import as_positive, as_record_every, as_time_span, start_integrator
 from .errors import SimulationError, SolverError
 from .integrator import MoreauJeanMidpoint, NonFiniteState, OneStepIntegrator
 from .result import ImpactLog, SolverStats, Trajectory
@@ -94,17 +94,9 @@ def simulate(
     """
     if not isinstance(scene, Scene):
         raise ValueError(f"scene must be a Scene, got {scene!r}")
-    try:
-        t0, t1 = (float(x) for x in t_span)
-    except (TypeError, ValueError):
-        raise ValueError(f"t_span must be two numbers (t0, t1), got {t_span!r}") from None
-    if not (math.isfinite(t0) and math.isfinite(t1)):
-        raise ValueError(f"t_span must be finite, got {t_span!r}")
-    if t1 <= t0:
-        raise ValueError(f"t_span must satisfy t1 > t0, got t_span = ({t0!r}, {t1!r})")
+    t0, t1 = as_time_span(t_span)
     h = as_positive(h, "step size h")
-    if isinstance(record_every, bool) or not isinstance(record_every, (int, np.integer)) or record_every < 1:
-        raise ValueError(f"record_every must be a positive integer, got {record_every!r}")
+    record_every = as_record_every(record_every)
     if not (isinstance(integrator, type) and issubclass(integrator, OneStepIntegrator)):
         raise ValueError(f"integrator must be a OneStepIntegrator subclass, got {integrator!r}")
 
@@ -114,7 +106,7 @@ def simulate(
                          f"at most {_MAX_STEPS:.0e} steps are allowed")
     n_steps = max(1, math.ceil(ratio - 1e-9))
     integ = integrator(scene, h, solver=solver, fallback=fallback, tol=tol, drift_control=drift_control)
-    integ.init(t0, q0, v0)
+    start_integrator(integ, scene, t0, q0, v0)
 
     n, m = scene.ndof, scene.nrows
     stride = int(record_every)
