@@ -15,17 +15,27 @@ Record on disk and resuming
 With ``out="results.parquet"`` (or ``.csv``) every finished point is written at once, as
 one small JSON file in the directory ``results.parquet.parts/`` (written to a temporary
 name and renamed, so a file is either complete or absent), and the whole table is
-consolidated into ``out`` at the end (also after an interrupt, with the points done so
-far). Run the same call again after an interrupt, a crash or a reboot and the points that
-have a part file are read back, not recomputed. A point is identified by its parameters:
-names and values, floats to 12 significant digits (``0.1`` and ``np.float64(0.1)`` and
-``0.1 + 1e-17`` are one point). The parts directory is the record: keep it to extend a
-sweep later (new points are computed, the others read); delete it to recompute
-everything — in particular after changing the function: the record refuses another
-function (by name) but only warns when the same function's source code has changed, and
-knows nothing of the code that function calls. One sweep at a time may write to a given
-``out``.
+consolidated into ``out`` at the end (also after an interrupt: every point listed, those
+not finished with the error ``"not computed"``). Run the same call again after an
+interrupt, a crash or a reboot and the finished points are read back, not recomputed.
 
+A record is reused only for the same computation. Its key is made of
+
+* the point's parameters (names and values, floats to 12 significant digits: ``0.1``,
+  ``np.float64(0.1)`` and ``0.1 + 1e-17`` are one point),
+* the function: its qualified name, the hash of its source code, and the arguments bound
+  by ``functools.partial`` (``partial(f, y=0)`` and ``partial(f, y=100)`` never share
+  records),
+* the moreau version (records of another version are recomputed),
+* ``cache_key``: anything else the results depend on that the function's own source does
+  not show, typically a digest of the code it calls (:func:`source_digest`; ``moreau
+  sweep`` and the notebooks pass the digest of ``problems/piston`` and of ``moreau``).
+
+Every record read back is checked against its point and its function; a malformed or
+mismatched one is recomputed with a warning. A lock file (``<out>.parts/sweep.lock``)
+refuses a second sweep on the same ``out`` while one runs (a lock left by a process that
+no longer exists on this machine is taken over). The record also refuses an ``out`` whose
+table was written by another function. Delete the parts directory to drop the record.
 Failures
 --------
 A point whose function raises an ``Exception`` gets its message in ``error``
@@ -46,6 +56,7 @@ scalars and arrays are converted to Python numbers and lists).
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import functools
 import hashlib
 import inspect
@@ -54,6 +65,7 @@ import json
 import logging
 import math
 import os
+import socket
 import time
 import uuid
 from collections.abc import Callable, Iterable, Mapping, Sequence
@@ -62,12 +74,14 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["sweep", "grid_points", "point_key", "read_table"]
+__all__ = ["sweep", "grid_points", "point_key", "read_table", "source_digest", "SweepLockedError"]
 
 log = logging.getLogger(__name__)
 
 _PARTS_SUFFIX = ".parts"
 _MANIFEST = "sweep.json"
+_LOCK = "sweep.lock"
+_RECORD_FORMAT = 2
 _ERROR = "error"
 
 
@@ -212,67 +226,248 @@ def _fun_source_hash(fun: Callable) -> str | None:
         return None
 
 
+def _key_value(value: Any) -> Any:
+    """A value as canonical JSON data for a key (numbers as in :func:`point_key`; objects
+    without a JSON form by type and repr, so an unknown object never matches another)."""
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if isinstance(value, np.generic):
+        value = value.item()
+    if value is None or isinstance(value, (str, bool)):
+        return value
+    if isinstance(value, (int, float)):
+        return _canonical(value)
+    if isinstance(value, (list, tuple)):
+        return [_key_value(v) for v in value]
+    if isinstance(value, Mapping):
+        return {str(k): _key_value(v) for k, v in sorted(value.items(), key=lambda kv: str(kv[0]))}
+    return f"{type(value).__module__}.{type(value).__qualname__}:{value!r}"
+
+
+def _fun_identity(fun: Callable, cache_key: Any) -> dict:
+    """What identifies the computation besides the point: function, source, bound
+    arguments of partials, moreau version, the user's cache_key."""
+    from . import __version__
+
+    layers = []
+    f = fun
+    while isinstance(f, functools.partial):
+        layers.append(f)
+        f = f.func
+    args: list = []
+    keywords: dict = {}
+    for p in reversed(layers):  # the innermost partial binds first
+        args.extend(p.args)
+        keywords.update(p.keywords)
+    return {"function": _fun_name(fun), "source": _fun_source_hash(fun), "args": _key_value(args),
+            "keywords": _key_value(keywords), "moreau": __version__, "cache_key": _key_value(cache_key)}
+
+
+def _record_key(point: Mapping[str, Any], fun_id: str) -> str:
+    canon = json.dumps({"point": {k: _canonical(v) for k, v in point.items()}, "fun": fun_id}, sort_keys=True)
+    return hashlib.sha1(canon.encode()).hexdigest()[:24]
+
+
+def source_digest(*modules: Any) -> str:
+    """A hash of the source code of modules or packages (every ``.py`` file below a
+    package), for ``sweep(..., cache_key=...)``: records computed before any of that code
+    changed are then recomputed.
+
+    Parameters
+    ----------
+    *modules : module or str
+        Modules, packages, or their import names (``"problems.piston"``).
+    """
+    import importlib
+
+    h = hashlib.sha1()
+    for mod in modules:
+        if isinstance(mod, str):
+            mod = importlib.import_module(mod)
+        paths = []
+        if hasattr(mod, "__path__"):
+            for root in mod.__path__:
+                for dirpath, dirnames, filenames in os.walk(root):
+                    dirnames[:] = sorted(d for d in dirnames if not d.startswith((".", "__pycache__")))
+                    paths.extend(os.path.join(dirpath, f) for f in sorted(filenames) if f.endswith(".py"))
+            base = os.path.dirname(list(mod.__path__)[0])
+        else:
+            paths.append(mod.__file__)
+            base = os.path.dirname(mod.__file__)
+        for path in paths:
+            h.update(os.path.relpath(path, base).replace(os.sep, "/").encode())
+            with open(path, "rb") as fh:
+                h.update(hashlib.sha1(fh.read()).digest())
+    return h.hexdigest()[:16]
+
+
+class SweepLockedError(ValueError):
+    """Another sweep is writing to the same ``out``."""
+
+
 # -- the record on disk -------------------------------------------------------------------
 @dataclass
 class _Record:
-    """The ``<out>.parts/`` directory: one JSON file per finished point."""
+    """The ``<out>.parts/`` directory: one JSON file per finished point, a manifest, a lock."""
 
     directory: str
+    fun_id: str = ""
+
+    def lock(self) -> None:
+        """Take the lock, or ``SweepLockedError`` naming the process that holds it."""
+        os.makedirs(self.directory, exist_ok=True)
+        path = os.path.join(self.directory, _LOCK)
+        me = {"pid": os.getpid(), "host": socket.gethostname(), "started": time.strftime("%Y-%m-%dT%H:%M:%S")}
+        for _ in range(2):
+            try:
+                fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+            except FileExistsError:
+                holder = self._holder(path)
+                if holder is not None and self._stale(holder):
+                    log.warning("taking over the lock %s left by process %s, which no longer runs", path,
+                                holder.get("pid"))
+                    with contextlib.suppress(FileNotFoundError):
+                        os.remove(path)
+                    continue
+                who = (f"process {holder.get('pid')} on {holder.get('host')}, started {holder.get('started')}"
+                       if holder else "another process")
+                raise SweepLockedError(f"another sweep ({who}) is writing to {self.directory!r}; wait for it "
+                                       f"or give another out (if none runs, delete {path!r})") from None
+            with os.fdopen(fd, "w") as fh:
+                json.dump(me, fh)
+            self._locked = path
+            return
+        raise SweepLockedError(f"could not take the lock {path!r}")
+
+    def unlock(self) -> None:
+        path = getattr(self, "_locked", None)
+        if path is not None:
+            with contextlib.suppress(FileNotFoundError):
+                os.remove(path)
+            self._locked = None
+
+    @staticmethod
+    def _holder(path: str) -> dict | None:
+        try:
+            with open(path) as fh:
+                holder = json.load(fh)
+            return holder if isinstance(holder, dict) else None
+        except (OSError, ValueError):
+            return None
+
+    @staticmethod
+    def _stale(holder: dict) -> bool:
+        """A lock of a process of this machine that no longer exists (POSIX only)."""
+        pid = holder.get("pid")
+        if os.name != "posix" or holder.get("host") != socket.gethostname() or not isinstance(pid, int):
+            return False
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return True
+        except OSError:
+            return False
+        return False
 
     def check_manifest(self, name: str, source: str | None) -> None:
-        """Refuse parts of another function; warn when its source code has changed."""
+        """Refuse an ``out`` of another function; note a changed source (its records are
+        not reused: the source is part of their key)."""
         os.makedirs(self.directory, exist_ok=True)
         path = os.path.join(self.directory, _MANIFEST)
+        manifest = None
         if os.path.exists(path):
-            with open(path) as fh:
-                manifest = json.load(fh)
+            try:
+                with open(path) as fh:
+                    manifest = json.load(fh)
+            except (OSError, ValueError) as exc:
+                log.warning("ignoring the unreadable manifest %s (%s)", path, exc)
+            if not isinstance(manifest, dict):
+                manifest = None
+        if manifest is not None:
             old = manifest.get("function")
             if old != name:
                 raise ValueError(f"the finished points in {self.directory!r} were computed by {old}, not "
                                  f"{name}: give another out, or delete that directory to start afresh")
             if source is not None and manifest.get("source") not in (None, source):
                 log.warning("the source of %s has changed since the points recorded in %s were computed; "
-                            "they are reused as they are: delete that directory to recompute them",
-                            name, self.directory)
-        else:
-            self._write(path, {"function": name, "source": source,
-                               "created": time.strftime("%Y-%m-%dT%H:%M:%S")})
+                            "they are recomputed", name, self.directory)
+        if manifest is None or manifest.get("source") != source:
+            self._write(path, {"function": name, "source": source, "written": time.strftime("%Y-%m-%dT%H:%M:%S")})
 
-    def read(self, key: str) -> dict | None:
+    def read(self, key: str, point: dict) -> dict | None:
+        """The record of ``point``, checked; None (recompute) when absent or not valid."""
         path = os.path.join(self.directory, key + ".json")
         try:
             with open(path) as fh:
-                return json.load(fh)
+                part = json.load(fh)
         except FileNotFoundError:
             return None
         except (OSError, ValueError) as exc:  # a damaged file: recompute the point
             log.warning("ignoring unreadable part %s (%s); the point is recomputed", path, exc)
             return None
+        problem = self._check(part, point)
+        if problem:
+            log.warning("ignoring part %s: %s; the point is recomputed", path, problem)
+            return None
+        return part
+
+    def _check(self, part: Any, point: dict) -> str | None:
+        if not isinstance(part, dict):
+            return f"not a record (a JSON {type(part).__name__})"
+        if part.get("format") != _RECORD_FORMAT:
+            return f"record format {part.get('format')!r}, expected {_RECORD_FORMAT}"
+        params, result, error = part.get("params"), part.get("result"), part.get("error")
+        if not isinstance(params, dict) or point_key(_untuple(params)) != point_key(point) or set(params) != set(point):
+            return f"its parameters {params!r} are not the point {point!r}"
+        if part.get("fun") != self.fun_id:
+            return "it was computed by another function, arguments, version or cache_key"
+        if not (result is None or isinstance(result, dict)) or not (error is None or isinstance(error, str)):
+            return "result must be a dict or null and error a string or null"
+        if result is None and error is None:
+            return "neither a result nor an error"
+        return None
 
     def write(self, key: str, point: dict, result: dict | None, error: str | None) -> None:
         self._write(os.path.join(self.directory, key + ".json"),
-                    {"params": point, "result": result, "error": error})
+                    {"format": _RECORD_FORMAT, "params": point, "fun": self.fun_id, "result": result, "error": error})
 
     @staticmethod
     def _write(path: str, data: dict) -> None:
-        tmp = f"{path}.{os.getpid()}.tmp"
-        with open(tmp, "w") as fh:
-            json.dump(data, fh)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
+        tmp = f"{path}.{os.getpid()}-{uuid.uuid4().hex[:8]}.tmp"
+        try:
+            with open(tmp, "x") as fh:
+                json.dump(data, fh)
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.replace(tmp, path)
+        except BaseException:
+            with contextlib.suppress(OSError):
+                os.remove(tmp)
+            raise
+
+
+def _untuple(params: dict) -> dict:
+    """Parameters read back from JSON: lists were tuples."""
+    return {k: tuple(v) if isinstance(v, list) else v for k, v in params.items()}
 
 
 # -- executors ----------------------------------------------------------------------------
-def _dask_client(executor: Any):
-    """(client, owned) for a Dask Client or a scheduler address; (None, False) otherwise."""
+def _dask_client(executor: Any, timeout: float = 10.0):
+    """(client, owned) for a Dask Client or a scheduler address; (None, False) otherwise.
+
+    An address that cannot be reached within ``timeout`` seconds is a ``ConnectionError``.
+    """
     if isinstance(executor, str) and ":" in executor:
         try:
             from distributed import Client
         except ImportError:
             raise ImportError("running a sweep on a Dask scheduler needs dask.distributed: "
                               "pip install 'moreau[dask]' (or pip install 'dask[distributed]')") from None
-        return Client(executor), True
+        try:
+            return Client(executor, timeout=timeout), True
+        except (OSError, TimeoutError) as exc:
+            raise ConnectionError(f"cannot reach the Dask scheduler at {executor!r} within {timeout:g} s "
+                                  f"({type(exc).__name__}: {exc})") from None
     mod = type(executor).__module__ or ""
     if mod.split(".")[0] == "distributed" and hasattr(executor, "submit") and hasattr(executor, "gather"):
         return executor, False
@@ -299,17 +494,6 @@ def _run_futures(pool: cf.Executor, fun, todo, on_done):
         raise
 
 
-def _terminate(pool: cf.ProcessPoolExecutor) -> None:
-    """Stop a process pool at once: cancel the queued points, end the running ones."""
-    pool.shutdown(wait=False, cancel_futures=True)
-    if hasattr(pool, "terminate_workers"):  # Python >= 3.14
-        pool.terminate_workers()
-        return
-    for proc in list((getattr(pool, "_processes", None) or {}).values()):
-        if proc.is_alive():
-            proc.terminate()
-
-
 def _outcome(fut) -> tuple[dict | None, str | None]:
     try:
         return fut.result()
@@ -320,6 +504,35 @@ def _outcome(fut) -> tuple[dict | None, str | None]:
         raise
     except Exception as exc:  # noqa: BLE001 - e.g. the result could not be sent back
         return None, f"{type(exc).__name__}: {exc}"
+
+
+def _run_processes(fun, todo, workers: int, on_done) -> None:
+    """The local process pool: the scheduler shared with ``moreau piston``
+    (:func:`moreau._pool.run_jobs`): a point starts only when a worker is free; on Ctrl-C
+    or SIGTERM the running points are stopped, none starts, the workers end."""
+    from ._pool import run_jobs
+
+    index = [i for i, _ in todo]
+    state = {"stopping": False}
+
+    def done(j: int, outcome, exc: BaseException | None) -> None:
+        if isinstance(exc, KeyboardInterrupt):  # the point was interrupted: the sweep is
+            if not state["stopping"]:
+                state["stopping"] = True
+                raise exc
+            return
+        if exc is not None:
+            if isinstance(exc, cf.process.BrokenProcessPool):
+                raise RuntimeError(f"a worker process died ({exc}); the finished points are recorded, "
+                                   "run the sweep again to resume") from exc
+            outcome = (None, f"{type(exc).__name__}: {exc}")
+        on_done(index[j], *outcome, quiet=state["stopping"])
+
+    try:
+        run_jobs(_call, [(fun, point) for _, point in todo], workers, done)
+    except KeyboardInterrupt:
+        state["stopping"] = True
+        raise
 
 
 def _run_dask(client, fun, todo, on_done):
@@ -361,6 +574,8 @@ def sweep(
     out: str | os.PathLike | None = None,
     progress: bool = True,
     retry_errors: bool = False,
+    cache_key: Any = None,
+    dask_timeout: float = 10.0,
 ):
     """Run ``fun(**point)`` over a grid of points; one row per point, in grid order.
 
@@ -386,6 +601,13 @@ def sweep(
         A tqdm progress bar over the points.
     retry_errors : bool
         Recompute recorded points whose function raised.
+    cache_key : JSON-like value, optional
+        Part of every record's key, for what the results depend on beyond the function's
+        own source and arguments (the code it calls, data files): e.g.
+        ``source_digest("problems.piston")``. Records made with another ``cache_key`` are
+        not reused.
+    dask_timeout : float
+        Seconds to wait for a Dask scheduler given by its address.
 
     Returns
     -------
@@ -398,11 +620,15 @@ def sweep(
     ------
     ValueError
         A bad grid, an ``out`` suffix other than .parquet/.csv, or an ``out`` whose
-        recorded points came from another function.
+        recorded points came from another function; :class:`SweepLockedError` (a
+        ValueError) when another sweep is writing to ``out``.
     ImportError
         pandas, pyarrow (for parquet) or dask.distributed missing.
+    ConnectionError
+        A Dask scheduler address that does not answer within ``dask_timeout``.
     KeyboardInterrupt
-        Re-raised after recording the finished points (``out`` holds them).
+        Ctrl-C, or SIGTERM under ``moreau sweep``: re-raised after recording the
+        finished points (``out`` lists every point, ``"not computed"`` for the others).
     """
     pd = _require("pandas", "sweeps return a pandas DataFrame: pip install 'moreau[sweeps]'")
     if isinstance(executor, str) and executor not in ("processes", "serial") and ":" not in executor:
@@ -420,12 +646,16 @@ def sweep(
     results: list[tuple[dict | None, str | None] | None] = [None] * len(points)
     record = None
     if out_path is not None:
+        if os.path.isdir(out_path):
+            raise ValueError(f"out {out_path!r} is a directory; give the table's file name (.parquet or .csv)")
         parent = os.path.dirname(os.path.abspath(out_path))
         os.makedirs(parent, exist_ok=True)
-        record = _Record(out_path + _PARTS_SUFFIX)
+        fun_id = json.dumps(_fun_identity(fun, cache_key), sort_keys=True)
+        record = _Record(out_path + _PARTS_SUFFIX, fun_id)
         record.check_manifest(name, _fun_source_hash(fun))
+        keys = [_record_key(p, fun_id) for p in points]
         for i, k in enumerate(keys):
-            part = record.read(k)
+            part = record.read(k, points[i])
             if part is not None and not (retry_errors and part.get("error")):
                 results[i] = (part.get("result"), part.get("error"))
     todo = [(i, points[i]) for i in range(len(points)) if results[i] is None]
@@ -450,8 +680,15 @@ def sweep(
         if not quiet:
             bar.update(1)
 
-    client, owned = (None, False) if not todo else _dask_client(executor)
+    client, owned = None, False
+    if record is not None:
+        try:
+            record.lock()  # released in the finally below
+        except BaseException:
+            bar.close()
+            raise
     try:
+        client, owned = (None, False) if not todo else _dask_client(executor, dask_timeout)
         if not todo:
             pass
         elif client is not None:
@@ -459,15 +696,7 @@ def sweep(
         elif executor == "serial":
             _run_serial(fun, todo, on_done)
         elif executor == "processes":
-            n = max(1, min(workers or os.cpu_count() or 1, len(todo)))
-            pool = cf.ProcessPoolExecutor(max_workers=n)
-            try:
-                _run_futures(pool, fun, todo, on_done)
-            except BaseException:
-                _terminate(pool)  # do not wait for the points still running
-                raise
-            else:
-                pool.shutdown(wait=True)
+            _run_processes(fun, todo, max(1, min(workers or os.cpu_count() or 1, len(todo))), on_done)
         elif isinstance(executor, cf.Executor):
             _run_futures(executor, fun, todo, on_done)
         else:
@@ -477,13 +706,15 @@ def sweep(
         done = sum(r is not None for r in results)
         log.warning("sweep interrupted: %d of %d points finished%s", done, len(points),
                     f" and recorded in {record.directory}; run it again to resume" if record else "")
-        if out_path is not None:
-            _write_table(_table(pd, points, results, finished_only=True), out_path)
+        if out_path is not None:  # every point, "not computed" for the unfinished ones
+            _write_table(_table(pd, points, results), out_path)
         raise
     finally:
         bar.close()
         if owned:
             client.close()
+        if record is not None:
+            record.unlock()
 
     df = _table(pd, points, results)
     if out_path is not None:
