@@ -284,7 +284,14 @@ def _sweep_out(path: str) -> str:
     directory (one-line ``CLIError``, exit code 2)."""
     if os.path.isdir(path):
         raise CLIError(f"--out {path!r} is a directory; give the table's file name (.parquet or .csv)", EXIT_USAGE)
-    output_dir(os.path.dirname(os.path.abspath(path)))
+    parent = os.path.dirname(os.path.abspath(path))
+    if os.path.exists(parent) and not os.path.isdir(parent):
+        raise CLIError(f"--out {path!r}: {parent!r} is a file, not a directory", EXIT_USAGE)
+    try:
+        os.makedirs(parent, exist_ok=True)
+    except OSError as exc:
+        raise CLIError(f"--out {path!r}: cannot create the directory {parent!r} ({exc.strerror or exc})",
+                       EXIT_USAGE) from None
     parts = path + ".parts"
     if os.path.exists(parts) and not os.path.isdir(parts):
         raise CLIError(f"--out {path!r}: {parts!r} (where finished points are kept) is a file", EXIT_USAGE)
