@@ -192,7 +192,10 @@ def _collect_after_interrupt(pool, running: dict, on_done, grace: float) -> None
         _signal_workers(pool, signal.SIGTERM)
         done, _ = cf.wait(running, timeout=1.0)
         for fut in done:
-            _deliver(fut, running.pop(fut), on_done)
+            try:
+                _deliver(fut, running.pop(fut), on_done)
+            except KeyboardInterrupt:  # on_done stopping on an interrupted job: we already are
+                pass
     if running:
         log.warning("%d job(s) did not stop within %g s; their workers are killed", len(running), grace)
 

@@ -133,6 +133,29 @@ def test_workers_end_when_the_parent_is_killed(tmp_path):
 
 
 @linux
+def test_sigterm_to_sweep_keeps_the_record_lists_every_point_and_leaves_no_worker(tmp_path):
+    from moreau.sweeps import read_table
+
+    proc, err = start_command(["sweep", "piston", "--param", "e=0,0.5,0.9", "--cycles", "40", "--transient", "0",
+                               "--h", "1e-3", "--workers", "2", "--out", "s.csv", "--no-progress"], tmp_path)
+    t0 = time.monotonic()
+    while len(children(proc.pid)) < 2 and time.monotonic() - t0 < 60:
+        time.sleep(0.1)
+    time.sleep(3.0)
+    workers = children(proc.pid)
+    os.kill(proc.pid, signal.SIGTERM)
+    rc = finish(proc)
+    stderr = b"".join(err).decode(errors="replace")
+    assert rc == 143 and "Traceback" not in stderr, stderr[-800:]
+    assert "moreau sweep: terminated (SIGTERM): the finished points are kept" in stderr
+    table = read_table(tmp_path / "s.csv")
+    assert table["e"].tolist() == [0.0, 0.5, 0.9] and (table["error"] == "not computed").all()
+    assert not (tmp_path / "s.csv.parts" / "sweep.lock").exists()
+    time.sleep(0.5)
+    assert not [p for p in workers if alive(p)]
+
+
+@linux
 def test_sigterm_to_ball_saves_the_partial_trajectory(tmp_path):
     proc, err = start_command(["ball", "--t-end", "100", "--h", "1e-5", "--out", "out"], tmp_path)
     wait_for(err, b"step/s]", proc)
