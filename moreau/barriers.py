@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import kernels as _k
-from ._validation import as_matrix, as_vector
+from ._validation import as_matrix, as_vector, is_number
 
 __all__ = [
     "Barrier",
@@ -87,12 +87,14 @@ class LinearBarrier(Barrier):
     constant_jacobian = True
 
     def __init__(self, A, b=0.0) -> None:
-        A = np.array(A, dtype=float)
-        if A.ndim == 1:
-            A = A.reshape(1, -1)
-        self.A = as_matrix(A, "LinearBarrier.A")
+        try:
+            one_row = np.ndim(A) == 1
+        except ValueError:  # ragged: as_matrix names it
+            one_row = False
+        self.A = as_matrix([A] if one_row else A, "LinearBarrier.A")
         self.nrows, self.ndof = self.A.shape
-        b = np.broadcast_to(np.asarray(b, dtype=float), (self.nrows,)) if np.ndim(b) == 0 else b
+        if is_number(b):
+            b = np.full(self.nrows, float(b))
         self.b = as_vector(b, "LinearBarrier.b", self.nrows)
         if np.any(np.all(self.A == 0.0, axis=1)):
             raise ValueError(f"LinearBarrier.A has an all-zero row: {self.A.tolist()}")

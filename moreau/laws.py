@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._validation import is_number
+
 __all__ = ["NewtonImpact"]
 
 
@@ -26,10 +28,9 @@ class NewtonImpact:
     e: float
 
     def __post_init__(self) -> None:
-        try:
-            e = float(self.e)
-        except (TypeError, ValueError):
-            raise ValueError(f"restitution e must be a number in [0, 1], got {self.e!r}") from None
+        if not is_number(self.e):  # bools and strings are refused, not converted
+            raise ValueError(f"restitution e must be a number in [0, 1], got {self.e!r}")
+        e = float(self.e)
         if not np.isfinite(e) or e < 0.0 or e > 1.0:
             raise ValueError(f"restitution e must be in [0, 1], got {self.e!r}")
         object.__setattr__(self, "e", e)

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import uuid
 from dataclasses import dataclass, field, fields
 
 import numpy as np
@@ -197,7 +199,13 @@ class Trajectory:
 
     # -- persistence ----------------------------------------------------------------------
     def save(self, path: str | os.PathLike) -> str:
-        """Write the trajectory to a ``.npz`` file (numpy only, no pickle); returns the path."""
+        """Write the trajectory to a ``.npz`` file (numpy only, no pickle); returns the path.
+
+        The file is written under a temporary name unique to this call, in the same
+        directory, then renamed: concurrent saves of one path do not collide, and a save
+        that fails (disk full, interrupt) removes its temporary file and leaves an
+        existing file at ``path`` untouched.
+        """
         path = os.fspath(path)
         if not path.endswith(".npz"):
             path += ".npz"
@@ -223,9 +231,18 @@ class Trajectory:
                 arrays[name] = getattr(self, name)
         for f in fields(ImpactLog):
             arrays["impacts_" + f.name] = getattr(self.impacts, f.name)
-        tmp = path + ".tmp.npz"
-        np.savez_compressed(tmp, meta=np.array(json.dumps(meta, default=_json_default)), **arrays)
-        os.replace(tmp, path)
+        # a temporary file of this call only, in the target directory, renamed over the
+        # target: two processes saving one path never collide, a reader never sees half a
+        # file, and a failed save leaves nothing behind
+        tmp = f"{path}.{os.getpid()}-{uuid.uuid4().hex[:12]}.tmp"
+        try:
+            with open(tmp, "xb") as fh:
+                np.savez_compressed(fh, meta=np.array(json.dumps(meta, default=_json_default)), **arrays)
+            os.replace(tmp, path)
+        except BaseException:
+            with contextlib.suppress(OSError):
+                os.remove(tmp)
+            raise
         return path
 
     @classmethod

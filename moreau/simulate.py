@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 
-from ._validation import as_positive
+from ._validation import as_positive, as_record_every, as_time_span, checked_start
 from .errors import SimulationError, SolverError
 from .integrator import (MoreauJeanMidpoint, MoreauJeanTheta, NonFiniteState, OneStepIntegrator,
                          check_initial_state)
@@ -113,17 +113,9 @@ def simulate(
     """
     if not isinstance(scene, Scene):
         raise ValueError(f"scene must be a Scene, got {scene!r}")
-    try:
-        t0, t1 = (float(x) for x in t_span)
-    except (TypeError, ValueError):
-        raise ValueError(f"t_span must be two numbers (t0, t1), got {t_span!r}") from None
-    if not (math.isfinite(t0) and math.isfinite(t1)):
-        raise ValueError(f"t_span must be finite, got {t_span!r}")
-    if t1 <= t0:
-        raise ValueError(f"t_span must satisfy t1 > t0, got t_span = ({t0!r}, {t1!r})")
+    t0, t1 = as_time_span(t_span)
     h = as_positive(h, "step size h")
-    if isinstance(record_every, bool) or not isinstance(record_every, (int, np.integer)) or record_every < 1:
-        raise ValueError(f"record_every must be a positive integer, got {record_every!r}")
+    record_every = as_record_every(record_every)
     if not (isinstance(integrator, type) and issubclass(integrator, OneStepIntegrator)):
         raise ValueError(f"integrator must be a OneStepIntegrator subclass, got {integrator!r}")
 
@@ -143,7 +135,7 @@ def simulate(
     if path == "compiled":
         from .compiled import run_compiled
 
-        t0, q0, v0 = check_initial_state(scene, t0, q0, v0)
+        t0, q0, v0 = checked_start(lambda: check_initial_state(scene, t0, q0, v0), scene, t0, q0, v0)
         bar = _progress_bar(progress, n_steps, scene.name)
         try:
             return run_compiled(scene, cs, t0, q0, v0, h, n_steps, theta=integrator is MoreauJeanTheta,
@@ -153,7 +145,7 @@ def simulate(
             if bar is not None:
                 bar.close()
     integ = integrator(scene, h, solver=solver, fallback=fallback, tol=tol, drift_control=drift_control)
-    integ.init(t0, q0, v0)
+    checked_start(lambda: integ.init(t0, q0, v0), scene, t0, q0, v0)
     return _run_python(scene, integ, h, n_steps, stride, n_rec, progress, energy)
 
 

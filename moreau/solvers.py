@@ -21,9 +21,6 @@ Backends
 
 from __future__ import annotations
 
-import ctypes
-import os
-import sys
 from abc import ABC, abstractmethod
 
 import numpy as np
@@ -74,48 +71,32 @@ class ContactSolver(ABC):
         return {"name": self.name}
 
 
-class _NullWriter:
-    def write(self, s):
-        return len(s)
+def _unconstrained_if_feasible(M, b, G, c, rows, factor=None):
+    """The unconstrained minimizer ``v = M⁻¹ b`` when it satisfies every active row, else None.
 
-    def flush(self):
-        pass
+    Then it is the exact solution, with P = 0 (the QP is strictly convex). OSQP (1.x)
+    prints "Polishing not needed - no active set detected at optimal point" through
+    ``sys.stdout`` whenever polishing finds no active row, whatever ``verbose`` says; the
+    OSQP backends use this test to switch polishing off for such a solve (polishing would
+    not change the answer). Redirecting ``sys.stdout`` or file descriptor 1 around each
+    solve instead is process-global state and breaks under threads. What remains: a solve
+    whose true impulses are nonzero but below OSQP's detection threshold can still print
+    that line (measured: 1 in ~6 000 piston solves); it changes no result.
 
-
-class _StdoutSilencer:
-    """Silences stdout around a call, at both levels OSQP may print on.
-
-    OSQP prints "Polishing not needed ..." even with ``verbose=False``: the Python
-    bindings of osqp 1.x through ``PySys_WriteStdout`` (that is, ``sys.stdout``), older
-    builds with C ``printf`` (file descriptor 1). Both are redirected for the duration of
-    the call; together this costs ~1 µs per solve.
+    ``factor`` is a Cholesky factor of a constant M (``scipy.linalg.cho_factor``), or None.
     """
+    try:
+        if factor is not None:
+            import scipy.linalg as sla
 
-    _null = _NullWriter()
-
-    def __init__(self) -> None:
-        self._libc = ctypes.CDLL(None)
-        self._devnull = os.open(os.devnull, os.O_WRONLY)
-
-    def __enter__(self):
-        self._py = sys.stdout
-        sys.stdout = self._null
-        self._libc.fflush(None)
-        self._saved = os.dup(1)
-        os.dup2(self._devnull, 1)
-
-    def __exit__(self, *exc):
-        self._libc.fflush(None)
-        os.dup2(self._saved, 1)
-        os.close(self._saved)
-        sys.stdout = self._py
-        return False
-
-    def __del__(self):
-        try:
-            os.close(self._devnull)
-        except (OSError, AttributeError):
-            pass
+            v = sla.cho_solve(factor, b)
+        else:
+            v = np.linalg.solve(M, b)
+    except (np.linalg.LinAlgError, ValueError):
+        return None
+    if not np.all(np.isfinite(v)) or not np.all(G[rows] @ v >= c[rows]):
+        return None
+    return v
 
 
 class OSQPSolver(ContactSolver):
@@ -162,14 +143,20 @@ class OSQPSolver(ContactSolver):
         self._u = np.full(m, np.inf)
         self._constant_mass = mass is not None
         self._last_A = None
-        self._silencer = _StdoutSilencer()
+        self._factor = None
+        if mass is not None:
+            import scipy.linalg as sla
+
+            try:
+                self._factor = sla.cho_factor(np.asarray(mass, dtype=float))
+            except (np.linalg.LinAlgError, ValueError):
+                self._factor = None
         s = osqp.OSQP()
-        with self._silencer:
-            s.setup(
-                Ppat, np.zeros(n), Apat, self._l, self._u,
-                verbose=False, eps_abs=self.eps, eps_rel=self.eps, polishing=self.polish,
-                warm_starting=True, max_iter=self.max_iter, eps_prim_inf=1e-12, eps_dual_inf=1e-12,
-            )
+        s.setup(
+            Ppat, np.zeros(n), Apat, self._l, self._u,
+            verbose=False, eps_abs=self.eps, eps_rel=self.eps, polishing=self.polish,
+            warm_starting=True, max_iter=self.max_iter, eps_prim_inf=1e-12, eps_dual_inf=1e-12,
+        )
         self._solver = s
         self._solved_status = osqp.SolverStatus.OSQP_SOLVED
 
@@ -185,8 +172,15 @@ class OSQPSolver(ContactSolver):
         if G is not self._last_A:
             kw["Ax"] = G.ravel(order="F")
             self._last_A = G
-        with self._silencer:
-            self._solver.update(**kw)
+        # polishing would find no active row: skip it, it would only print that (see
+        # _unconstrained_if_feasible); the answer is the same
+        quiet = self.polish and _unconstrained_if_feasible(M, b, G, c, rows, self._factor) is not None
+        self._solver.update(**kw)
+        if quiet:
+            self._solver.update_settings(polishing=False)
+            res = self._solver.solve(raise_error=False)
+            self._solver.update_settings(polishing=True)
+        else:
             res = self._solver.solve(raise_error=False)
         if res.info.status_val != self._solved_status:  # an IntEnum: compares with the int
             raise SolveFailed(f"OSQP status {res.info.status!r} after {res.info.iter} iterations")
@@ -286,13 +280,15 @@ class QpsolversSolver(ContactSolver):
         self.exact = backend != "osqp"
         self.options = options
         self._qpsolvers = qpsolvers
-        self._silencer = _StdoutSilencer()
 
     def solve(self, M, b, G, c, rows):
         qp = self._qpsolvers
+        if self.backend == "osqp":  # keeps OSQP's polishing from printing
+            free = _unconstrained_if_feasible(M, b, G, c, rows)
+            if free is not None:
+                return free, np.zeros(rows.shape[0])
         problem = qp.Problem(P=M, q=-b, G=-G[rows], h=-c[rows])
-        with self._silencer:
-            sol = qp.solve_problem(problem, solver=self.backend, **self.options)
+        sol = qp.solve_problem(problem, solver=self.backend, **self.options)
         if not sol.found or sol.x is None:
             raise SolveFailed(f"{self.backend} found no solution")
         P = sol.z if sol.z is not None else np.zeros(rows.shape[0])

@@ -15,17 +15,27 @@ Record on disk and resuming
 With ``out="results.parquet"`` (or ``.csv``) every finished point is written at once, as
 one small JSON file in the directory ``results.parquet.parts/`` (written to a temporary
 name and renamed, so a file is either complete or absent), and the whole table is
-consolidated into ``out`` at the end (also after an interrupt, with the points done so
-far). Run the same call again after an interrupt, a crash or a reboot and the points that
-have a part file are read back, not recomputed. A point is identified by its parameters:
-names and values, floats to 12 significant digits (``0.1`` and ``np.float64(0.1)`` and
-``0.1 + 1e-17`` are one point). The parts directory is the record: keep it to extend a
-sweep later (new points are computed, the others read); delete it to recompute
-everything — in particular after changing the function: the record refuses another
-function (by name) but only warns when the same function's source code has changed, and
-knows nothing of the code that function calls. One sweep at a time may write to a given
-``out``.
+consolidated into ``out`` at the end (also after an interrupt: every point listed, those
+not finished with the error ``"not computed"``). Run the same call again after an
+interrupt, a crash or a reboot and the finished points are read back, not recomputed.
 
+A record is reused only for the same computation. Its key is made of
+
+* the point's parameters (names and values, floats to 12 significant digits: ``0.1``,
+  ``np.float64(0.1)`` and ``0.1 + 1e-17`` are one point),
+* the function: its qualified name, the hash of its source code, and the arguments bound
+  by ``functools.partial`` (``partial(f, y=0)`` and ``partial(f, y=100)`` never share
+  records),
+* the moreau version (records of another version are recomputed),
+* ``cache_key``: anything else the results depend on that the function's own source does
+  not show, typically a digest of the code it calls (:func:`source_digest`; ``moreau
+  sweep`` and the notebooks pass the digest of ``problems/piston`` and of ``moreau``).
+
+Every record read back is checked against its point and its function; a malformed or
+mismatched one is recomputed with a warning. A lock file (``<out>.parts/sweep.lock``)
+refuses a second sweep on the same ``out`` while one runs (a lock left by a process that
+no longer exists on this machine is taken over). The record also refuses an ``out`` whose
+table was written by another function. Delete the parts directory to drop the record.
 Failures
 --------
 A point whose function raises an ``Exception`` gets its message in ``error``
@@ -46,29 +56,33 @@ scalars and arrays are converted to Python numbers and lists).
 from __future__ import annotations
 
 import concurrent.futures as cf
-import functools
-import hashlib
-import inspect
 import itertools
 import json
 import logging
-import math
 import os
-import time
-import uuid
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-__all__ = ["sweep", "grid_points", "point_key", "read_table"]
+from ._sweep_exec import _dask_client, _run_dask, _run_futures, _run_processes, _run_serial
+from ._sweep_record import (
+    SweepLockedError,
+    _fun_identity,
+    _fun_name,
+    _fun_source_hash,
+    _Record,
+    _record_key,
+    point_key,
+    source_digest,
+)
+from ._sweep_table import _require, _table, _table_format, _write_table, read_table
+
+__all__ = ["sweep", "grid_points", "point_key", "read_table", "source_digest", "SweepLockedError"]
 
 log = logging.getLogger(__name__)
 
 _PARTS_SUFFIX = ".parts"
-_MANIFEST = "sweep.json"
-_ERROR = "error"
 
 
 # -- grid ---------------------------------------------------------------------------------
@@ -138,219 +152,6 @@ def grid_points(grid: Mapping[str, Any] | Iterable[Mapping[str, Any]]) -> list[d
     return points
 
 
-def _canonical(value: Any) -> Any:
-    if isinstance(value, tuple):
-        return [_canonical(v) for v in value]
-    if isinstance(value, bool) or value is None or isinstance(value, str):
-        return value
-    if isinstance(value, int):
-        return value
-    x = float(value)
-    if math.isfinite(x) and x.is_integer() and abs(x) < 1e15:
-        return int(x)
-    return format(x, ".12g")
-
-
-def point_key(point: Mapping[str, Any]) -> str:
-    """The identity of a point: a hash of its parameter names and values.
-
-    Numbers are compared as floats to 12 significant digits (``1`` and ``1.0`` are the
-    same value); the order of the parameters does not matter.
-    """
-    canon = json.dumps({k: _canonical(v) for k, v in point.items()}, sort_keys=True)
-    return hashlib.sha1(canon.encode()).hexdigest()[:20]
-
-
-# -- running one point --------------------------------------------------------------------
-def _plain(value: Any) -> Any:
-    """A returned value as JSON-like Python data (numpy → Python numbers and lists)."""
-    if isinstance(value, np.ndarray):
-        return _plain(value.tolist())
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, Mapping):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if value is None or isinstance(value, (str, bool, int, float)):
-        return value
-    raise TypeError(f"returned a value of type {type(value).__name__} ({value!r:.60}); "
-                    "return numbers, strings, bools, None, lists or numpy arrays")
-
-
-def _call(fun: Callable[..., Mapping], point: dict) -> tuple[dict | None, str | None]:
-    """Run ``fun(**point)``: (result, None), or (None, message) if it raised an Exception.
-
-    Runs on the worker. ``KeyboardInterrupt`` and other BaseExceptions pass through.
-    """
-    try:
-        result = fun(**point)
-        if not isinstance(result, Mapping):
-            raise TypeError(f"the sweep function must return a dict, got {type(result).__name__}")
-        result = {str(k): _plain(v) for k, v in result.items()}
-        clash = sorted(set(result) & (set(point) | {_ERROR}))
-        if clash:
-            raise ValueError(f"the result's keys {clash} clash with the parameters or the error column")
-        return result, None
-    except Exception as exc:  # noqa: BLE001 - recorded in the row, the sweep goes on
-        return None, f"{type(exc).__name__}: {exc}"
-
-
-def _fun_name(fun: Callable) -> str:
-    while isinstance(fun, functools.partial):
-        fun = fun.func
-    return f"{getattr(fun, '__module__', '?')}.{getattr(fun, '__qualname__', type(fun).__name__)}"
-
-
-def _fun_source_hash(fun: Callable) -> str | None:
-    """A hash of the function's source code (None when it has none, e.g. a builtin)."""
-    while isinstance(fun, functools.partial):
-        fun = fun.func
-    try:
-        return hashlib.sha1(inspect.getsource(fun).encode()).hexdigest()[:12]
-    except (OSError, TypeError):
-        return None
-
-
-# -- the record on disk -------------------------------------------------------------------
-@dataclass
-class _Record:
-    """The ``<out>.parts/`` directory: one JSON file per finished point."""
-
-    directory: str
-
-    def check_manifest(self, name: str, source: str | None) -> None:
-        """Refuse parts of another function; warn when its source code has changed."""
-        os.makedirs(self.directory, exist_ok=True)
-        path = os.path.join(self.directory, _MANIFEST)
-        if os.path.exists(path):
-            with open(path) as fh:
-                manifest = json.load(fh)
-            old = manifest.get("function")
-            if old != name:
-                raise ValueError(f"the finished points in {self.directory!r} were computed by {old}, not "
-                                 f"{name}: give another out, or delete that directory to start afresh")
-            if source is not None and manifest.get("source") not in (None, source):
-                log.warning("the source of %s has changed since the points recorded in %s were computed; "
-                            "they are reused as they are: delete that directory to recompute them",
-                            name, self.directory)
-        else:
-            self._write(path, {"function": name, "source": source,
-                               "created": time.strftime("%Y-%m-%dT%H:%M:%S")})
-
-    def read(self, key: str) -> dict | None:
-        path = os.path.join(self.directory, key + ".json")
-        try:
-            with open(path) as fh:
-                return json.load(fh)
-        except FileNotFoundError:
-            return None
-        except (OSError, ValueError) as exc:  # a damaged file: recompute the point
-            log.warning("ignoring unreadable part %s (%s); the point is recomputed", path, exc)
-            return None
-
-    def write(self, key: str, point: dict, result: dict | None, error: str | None) -> None:
-        self._write(os.path.join(self.directory, key + ".json"),
-                    {"params": point, "result": result, "error": error})
-
-    @staticmethod
-    def _write(path: str, data: dict) -> None:
-        tmp = f"{path}.{os.getpid()}.tmp"
-        with open(tmp, "w") as fh:
-            json.dump(data, fh)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-
-
-# -- executors ----------------------------------------------------------------------------
-def _dask_client(executor: Any):
-    """(client, owned) for a Dask Client or a scheduler address; (None, False) otherwise."""
-    if isinstance(executor, str) and ":" in executor:
-        try:
-            from distributed import Client
-        except ImportError:
-            raise ImportError("running a sweep on a Dask scheduler needs dask.distributed: "
-                              "pip install 'moreau[dask]' (or pip install 'dask[distributed]')") from None
-        return Client(executor), True
-    mod = type(executor).__module__ or ""
-    if mod.split(".")[0] == "distributed" and hasattr(executor, "submit") and hasattr(executor, "gather"):
-        return executor, False
-    return None, False
-
-
-def _run_serial(fun, todo, on_done):
-    for i, point in todo:
-        on_done(i, *_call(fun, point))
-
-
-def _run_futures(pool: cf.Executor, fun, todo, on_done):
-    futures = {pool.submit(_call, fun, point): i for i, point in todo}
-    try:
-        for fut in cf.as_completed(futures):
-            on_done(futures[fut], *_outcome(fut))
-    except BaseException:
-        for fut in futures:
-            fut.cancel()
-        # keep what had finished anyway
-        for fut, i in futures.items():
-            if fut.done() and not fut.cancelled() and fut.exception() is None:
-                on_done(i, *fut.result(), quiet=True)
-        raise
-
-
-def _terminate(pool: cf.ProcessPoolExecutor) -> None:
-    """Stop a process pool at once: cancel the queued points, end the running ones."""
-    pool.shutdown(wait=False, cancel_futures=True)
-    if hasattr(pool, "terminate_workers"):  # Python >= 3.14
-        pool.terminate_workers()
-        return
-    for proc in list((getattr(pool, "_processes", None) or {}).values()):
-        if proc.is_alive():
-            proc.terminate()
-
-
-def _outcome(fut) -> tuple[dict | None, str | None]:
-    try:
-        return fut.result()
-    except cf.process.BrokenProcessPool as exc:
-        raise RuntimeError(f"a worker process died ({exc}); the finished points are recorded, "
-                           "run the sweep again to resume") from exc
-    except (KeyboardInterrupt, SystemExit):
-        raise
-    except Exception as exc:  # noqa: BLE001 - e.g. the result could not be sent back
-        return None, f"{type(exc).__name__}: {exc}"
-
-
-def _run_dask(client, fun, todo, on_done):
-    from distributed import as_completed
-
-    futures = {}
-    for i, point in todo:
-        # a fresh key each run: never a stale result of an earlier run of the same point
-        fut = client.submit(_call, fun, point, key=f"moreau-sweep-{point_key(point)}-{uuid.uuid4().hex[:8]}",
-                            pure=False)
-        futures[fut.key] = (fut, i)
-    try:
-        for fut in as_completed([f for f, _ in futures.values()]):
-            i = futures[fut.key][1]
-            try:
-                res, err = fut.result()
-            except (KeyboardInterrupt, SystemExit):
-                raise
-            except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker
-                res, err = None, f"{type(exc).__name__}: {exc}"
-            on_done(i, res, err)
-    except BaseException:
-        pending = [f for f, _ in futures.values() if not f.done()]
-        for fut, i in futures.values():
-            if fut.status == "finished":
-                on_done(i, *fut.result(), quiet=True)
-        if pending:
-            client.cancel(pending)
-        raise
-
-
 # -- the sweep ----------------------------------------------------------------------------
 def sweep(
     fun: Callable[..., Mapping[str, Any]],
@@ -361,6 +162,8 @@ def sweep(
     out: str | os.PathLike | None = None,
     progress: bool = True,
     retry_errors: bool = False,
+    cache_key: Any = None,
+    dask_timeout: float = 10.0,
 ):
     """Run ``fun(**point)`` over a grid of points; one row per point, in grid order.
 
@@ -386,6 +189,13 @@ def sweep(
         A tqdm progress bar over the points.
     retry_errors : bool
         Recompute recorded points whose function raised.
+    cache_key : JSON-like value, optional
+        Part of every record's key, for what the results depend on beyond the function's
+        own source and arguments (the code it calls, data files): e.g.
+        ``source_digest("problems.piston")``. Records made with another ``cache_key`` are
+        not reused.
+    dask_timeout : float
+        Seconds to wait for a Dask scheduler given by its address.
 
     Returns
     -------
@@ -398,11 +208,15 @@ def sweep(
     ------
     ValueError
         A bad grid, an ``out`` suffix other than .parquet/.csv, or an ``out`` whose
-        recorded points came from another function.
+        recorded points came from another function; :class:`SweepLockedError` (a
+        ValueError) when another sweep is writing to ``out``.
     ImportError
         pandas, pyarrow (for parquet) or dask.distributed missing.
+    ConnectionError
+        A Dask scheduler address that does not answer within ``dask_timeout``.
     KeyboardInterrupt
-        Re-raised after recording the finished points (``out`` holds them).
+        Ctrl-C, or SIGTERM under ``moreau sweep``: re-raised after recording the
+        finished points (``out`` lists every point, ``"not computed"`` for the others).
     """
     pd = _require("pandas", "sweeps return a pandas DataFrame: pip install 'moreau[sweeps]'")
     if isinstance(executor, str) and executor not in ("processes", "serial") and ":" not in executor:
@@ -420,12 +234,16 @@ def sweep(
     results: list[tuple[dict | None, str | None] | None] = [None] * len(points)
     record = None
     if out_path is not None:
+        if os.path.isdir(out_path):
+            raise ValueError(f"out {out_path!r} is a directory; give the table's file name (.parquet or .csv)")
         parent = os.path.dirname(os.path.abspath(out_path))
         os.makedirs(parent, exist_ok=True)
-        record = _Record(out_path + _PARTS_SUFFIX)
+        fun_id = json.dumps(_fun_identity(fun, cache_key), sort_keys=True)
+        record = _Record(out_path + _PARTS_SUFFIX, fun_id)
         record.check_manifest(name, _fun_source_hash(fun))
+        keys = [_record_key(p, fun_id) for p in points]
         for i, k in enumerate(keys):
-            part = record.read(k)
+            part = record.read(k, points[i])
             if part is not None and not (retry_errors and part.get("error")):
                 results[i] = (part.get("result"), part.get("error"))
     todo = [(i, points[i]) for i in range(len(points)) if results[i] is None]
@@ -450,8 +268,15 @@ def sweep(
         if not quiet:
             bar.update(1)
 
-    client, owned = (None, False) if not todo else _dask_client(executor)
+    client, owned = None, False
+    if record is not None:
+        try:
+            record.lock()  # released in the finally below
+        except BaseException:
+            bar.close()
+            raise
     try:
+        client, owned = (None, False) if not todo else _dask_client(executor, dask_timeout)
         if not todo:
             pass
         elif client is not None:
@@ -459,15 +284,7 @@ def sweep(
         elif executor == "serial":
             _run_serial(fun, todo, on_done)
         elif executor == "processes":
-            n = max(1, min(workers or os.cpu_count() or 1, len(todo)))
-            pool = cf.ProcessPoolExecutor(max_workers=n)
-            try:
-                _run_futures(pool, fun, todo, on_done)
-            except BaseException:
-                _terminate(pool)  # do not wait for the points still running
-                raise
-            else:
-                pool.shutdown(wait=True)
+            _run_processes(fun, todo, max(1, min(workers or os.cpu_count() or 1, len(todo))), on_done)
         elif isinstance(executor, cf.Executor):
             _run_futures(executor, fun, todo, on_done)
         else:
@@ -477,13 +294,15 @@ def sweep(
         done = sum(r is not None for r in results)
         log.warning("sweep interrupted: %d of %d points finished%s", done, len(points),
                     f" and recorded in {record.directory}; run it again to resume" if record else "")
-        if out_path is not None:
-            _write_table(_table(pd, points, results, finished_only=True), out_path)
+        if out_path is not None:  # every point, "not computed" for the unfinished ones
+            _write_table(_table(pd, points, results), out_path)
         raise
     finally:
         bar.close()
         if owned:
             client.close()
+        if record is not None:
+            record.unlock()
 
     df = _table(pd, points, results)
     if out_path is not None:
@@ -491,109 +310,3 @@ def sweep(
         log.info("sweep table written to %s", out_path)
     return df
 
-
-def _table(pd, points: list[dict], results: list, finished_only: bool = False):
-    """The rows in grid order: parameters, results (None where missing), error."""
-    param_cols: list[str] = []
-    result_cols: list[str] = []
-    for p, r in zip(points, results):
-        param_cols.extend(k for k in p if k not in param_cols)
-        if r is not None and r[0]:
-            result_cols.extend(k for k in r[0] if k not in result_cols)
-    rows = []
-    for p, r in zip(points, results):
-        if r is None and finished_only:
-            continue
-        res, err = r if r is not None else (None, "not computed")
-        row = {k: list(v) if isinstance(v := p.get(k), tuple) else v for k in param_cols}
-        row.update({k: (res or {}).get(k) for k in result_cols})
-        row[_ERROR] = err
-        rows.append(row)
-    cols = param_cols + result_cols + [_ERROR]
-    df = pd.DataFrame.from_records(rows, columns=cols)
-    return _error_as_object(pd, df)
-
-
-def _error_as_object(pd, df):
-    """The error column as Python objects (None or str) whatever the pandas version, so
-    tables with and without failures, in memory and read back, compare equal."""
-    df[_ERROR] = pd.Series([e if isinstance(e, str) else None for e in df[_ERROR]], index=df.index, dtype=object)
-    return df
-
-
-def _table_format(path: str) -> str:
-    low = path.lower()
-    if low.endswith(".parquet") or low.endswith(".pq"):
-        return "parquet"
-    if low.endswith(".csv"):
-        return "csv"
-    raise ValueError(f"out must end in .parquet or .csv, got {path!r}")
-
-
-def _write_table(df, path: str) -> None:
-    """Write the table atomically (temporary file, then rename)."""
-    tmp = f"{path}.{os.getpid()}.tmp"
-    if _table_format(path) == "parquet":
-        try:
-            df.to_parquet(tmp, index=False)
-        except Exception as exc:  # noqa: BLE001 - pyarrow refuses mixed columns (lists and scalars, ...)
-            log.warning("writing %s: %s; list columns are written as JSON text", path, exc)
-            _json_columns(df).to_parquet(tmp, index=False)
-    else:
-        _json_columns(df).to_csv(tmp, index=False)
-    os.replace(tmp, path)
-
-
-def _json_columns(df):
-    """A copy in which every object column holding lists or dicts is JSON text (None and
-    NaN stay missing)."""
-    enc = df.copy()
-    for c in enc.columns:
-        if enc[c].dtype == object and enc[c].map(lambda x: isinstance(x, (list, dict))).any():
-            enc[c] = enc[c].map(lambda x: None if x is None or (isinstance(x, float) and math.isnan(x))
-                                else json.dumps(x))
-    return enc
-
-
-def _decode_json_column(col):
-    """A column of JSON text back to Python values, if it is one: every non-missing value
-    a string that parses, and at least one a list or dict. Other columns are unchanged."""
-    vals = [x for x in col if isinstance(x, str)]
-    if not vals or len(vals) != int(col.notna().sum()) or not any(v[:1] in "[{" for v in vals):
-        return col
-    try:
-        decoded = {v: json.loads(v) for v in set(vals)}
-    except ValueError:
-        return col
-    return col.map(lambda x: decoded[x] if isinstance(x, str) else None).astype(object)
-
-
-def read_table(path: str | os.PathLike):
-    """Read a table written by :func:`sweep` (list columns of a CSV are JSON-decoded).
-
-    Returns
-    -------
-    pandas.DataFrame
-    """
-    pd = _require("pandas", "reading a sweep table needs pandas: pip install 'moreau[sweeps]'")
-    path = os.fspath(path)
-    if _table_format(path) == "parquet":
-        df = pd.read_parquet(path)
-        for c in df.columns:
-            if df[c].dtype == object:
-                df[c] = df[c].map(lambda x: x.tolist() if isinstance(x, np.ndarray) else x)
-    else:
-        df = pd.read_csv(path)
-    for c in df.columns:
-        if df[c].dtype == object or str(df[c].dtype).startswith("str"):
-            df[c] = _decode_json_column(df[c])
-    return _error_as_object(pd, df) if _ERROR in df.columns else df
-
-
-def _require(module: str, message: str):
-    import importlib
-
-    try:
-        return importlib.import_module(module)
-    except ImportError:
-        raise ImportError(message) from None

@@ -114,7 +114,7 @@ class FunctionSystem(MechanicalSystem):
             M = as_matrix(mass, "mass")
             if M.shape[0] != M.shape[1]:
                 raise ValueError(f"FunctionSystem: mass must be square, got shape {M.shape}")
-            if ndof is not None and ndof != M.shape[0]:
+            if ndof is not None and _positive_int(ndof, "ndof") != M.shape[0]:
                 raise ValueError(
                     f"FunctionSystem: ndof={ndof} does not match mass of shape {M.shape}"
                 )

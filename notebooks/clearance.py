@@ -45,6 +45,7 @@ import pandas as pd
 from moreau.sweeps import sweep
 from problems.piston.study import (
     DEFAULT_ANGLES_DEG,
+    piston_cache_key,
     piston_point,
     plot_section,
     plot_side_change_angles,
@@ -81,7 +82,8 @@ print(f"{len(grid)} points: D = {D[0]}–{D[-1]} mm, e = {E}; {TRANSIENT} + {CYC
 
 # %%
 t0 = time.perf_counter()
-runs = sweep(piston_point, grid, out=os.path.join(DATA_DIR, f"clearance_{tag}.parquet"), progress=not SMALL)
+runs = sweep(piston_point, grid, out=os.path.join(DATA_DIR, f"clearance_{tag}.parquet"), progress=not SMALL,
+             cache_key=piston_cache_key())  # recomputed when the model or the engine changes
 print(f"sweep: {time.perf_counter() - t0:.1f} s wall, {runs['wall_time_s'].sum():.0f} s of simulation")
 assert runs["error"].isna().all(), runs.loc[runs["error"].notna(), ["e", "D_mm", "error"]]
 runs[["e", "D_mm", "clearance_um", "h", "side_changes", "slaps_mean", "impacts_mean", "energy_lost_J_mean",

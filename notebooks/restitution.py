@@ -54,6 +54,7 @@ import pandas as pd
 from moreau.sweeps import sweep
 from problems.piston.study import (
     DEFAULT_ANGLES_DEG,
+    piston_cache_key,
     piston_point,
     plot_section,
     plot_side_change_angles,
@@ -93,7 +94,8 @@ print(f"{len(E)} values of e; per point {RUN['transient']} + {RUN['cycles']} cyc
 # %%
 t0 = time.perf_counter()
 grid = {"e": E, **RUN, "section_deg": tuple(SECTION_DEG)}  # a tuple is one value: the same angles for all
-runs = sweep(piston_point, grid, out=os.path.join(DATA_DIR, f"restitution_{tag}.parquet"), progress=not SMALL)
+runs = sweep(piston_point, grid, out=os.path.join(DATA_DIR, f"restitution_{tag}.parquet"), progress=not SMALL,
+             cache_key=piston_cache_key())  # recomputed when the model or the engine changes
 print(f"sweep: {time.perf_counter() - t0:.1f} s wall, {runs['wall_time_s'].sum():.0f} s of simulation")
 assert runs["error"].isna().all(), runs.loc[runs["error"].notna(), ["e", "error"]]
 runs[["e", "side_changes", "slaps_mean", "impacts_mean", "energy_lost_J_mean", "flight_deg_mean", "rpm",

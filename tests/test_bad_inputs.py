@@ -24,6 +24,7 @@ Bugs this catalogue found (now fixed) have their own tests at the end of part 1.
 from __future__ import annotations
 
 import json
+from numbers import Real
 import re
 import subprocess
 import sys
@@ -112,6 +113,32 @@ CATALOGUE = [
     ("fallback unknown", lambda: sim(fallback="cplex"), ValueError, "unknown solver 'cplex'"),
     ("fallback is the solver", lambda: (lambda s: sim(solver=s, fallback=s))(mo.EnumerationSolver()), ValueError,
      "fallback must be a different solver object"),
+    # issue 11 F: undocumented input is refused, not converted
+    ("h boolean", lambda: sim(h=True), ValueError, "step size h must be a number, got True"),
+    ("h a numeric string", lambda: sim(h="0.001"), ValueError, "step size h must be a number, got '0.001'"),
+    ("tol boolean", lambda: sim(tol=True), ValueError, "tol must be a number, got True"),
+    ("t_span a dict", lambda: sim(t_span={0: 0.0, 1: 0.01}), ValueError,
+     r"t_span must be two numbers \(t0, t1\), got \{0: 0\.0, 1: 0\.01\}"),
+    ("t_span of numeric strings", lambda: sim(t_span=("0", "0.01")), ValueError,
+     r"t_span must be two numbers \(t0, t1\), got \('0', '0\.01'\)"),
+    ("t_span a set", lambda: sim(t_span={0.0, 0.01}), ValueError, "t_span must be two numbers"),
+    ("t_span of booleans", lambda: sim(t_span=(False, True)), ValueError, "t_span must be two numbers"),
+    ("q0 None", lambda: sim(q0=None), ValueError, "q0 must be an array of numbers, got None"),
+    ("q0 boolean", lambda: sim(q0=[True]), ValueError, r"q0 must be an array of numbers, got \[True\]"),
+    ("v0 numeric string", lambda: sim(v0=["0"]), ValueError, r"v0 must be an array of numbers, got \['0'\]"),
+    ("q0 complex", lambda: sim(q0=[1.0 + 0j]), ValueError, "q0 must be an array of numbers"),
+    ("NewtonImpact boolean", lambda: mo.NewtonImpact(True), ValueError, "restitution e must be a number in \\[0, 1\\], got True"),
+    ("NewtonImpact numeric string", lambda: mo.NewtonImpact("0.5"), ValueError, "restitution e must be a number in \\[0, 1\\], got '0.5'"),
+    ("Contact law boolean", lambda: mo.Contact(mo.LinearBarrier([[1.0]]), True), ValueError, "got True"),
+    ("FunctionSystem empty mass", lambda: mo.FunctionSystem(np.zeros((0, 0))), ValueError,
+     r"mass must not be empty, got shape \(0, 0\)"),
+    ("FunctionSystem ndof boolean", lambda: mo.FunctionSystem(np.eye(1), ndof=True), ValueError,
+     "ndof must be a positive integer, got True"),
+    ("mass of booleans", lambda: mo.FunctionSystem([[True]]), ValueError, r"mass must be an array of numbers, got \[\[True\]\]"),
+    ("gap raising at t0", lambda: sim(point1(contacts=[floor_contact(gap=lambda q: np.array([1.0 / int(q[0] - q[0])]))])), ValueError,
+     r"gap of contact 'floor' raised ZeroDivisionError at the initial state \(t0 = 0\.0, q0 = \[1\.0\]\)"),
+    ("force raising at t0", lambda: sim(point1([mo.FunctionForce(lambda t, q, v: {}["x"], name="thrust")])), ValueError,
+     "force of effect 'thrust' raised KeyError at the initial state"),
     # systems: mass matrices
     ("negative inertia (FunctionSystem)", lambda: mo.FunctionSystem(np.diag([2.0, 2.0, -0.1])), ValueError,
      r"mass is not positive definite \(smallest eigenvalue -0\.1\)"),
@@ -302,28 +329,46 @@ matrices = st.one_of(
 SETTINGS = dict(deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 
 
-def only_documented(call, *args, **kw):
-    """Call; a documented exception is fine, anything else fails the test. Outcomes are
-    counted as hypothesis events (``--hypothesis-show-statistics``)."""
+def only_documented(call, *args, documented=None, **kw):
+    """Call; a documented exception is fine, anything else fails the test. When the call
+    is accepted, ``documented()`` (if given) must hold: what is accepted is what the
+    docstrings promise, not whatever numpy can convert. Outcomes are counted as
+    hypothesis events (``--hypothesis-show-statistics``)."""
     try:
         call(*args, **kw)
     except DOCUMENTED as exc:
         event(f"refused: {type(exc).__name__}")
     else:
         event("accepted")
+        if documented is not None:
+            assert documented(), f"accepted an undocumented input: {args!r} {kw!r}"
+
+
+def is_number(x):
+    """A real number that is not a bool (what the docs call a number)."""
+    return isinstance(x, Real) and not isinstance(x, (bool, np.bool_))
+
+
+def numeric(x):
+    """A number, or a (nested) list of numbers."""
+    if isinstance(x, (list, tuple)):
+        return all(numeric(el) for el in x)
+    return is_number(x)
 
 
 @settings(max_examples=300, **SETTINGS)
 @given(mass=matrices, ndof=st.one_of(st.none(), st.integers(-1, 4), numbers))
 def test_function_system_properties(mass, ndof):
-    only_documented(mo.FunctionSystem, mass, ndof=ndof)
+    only_documented(mo.FunctionSystem, mass, ndof=ndof,
+                    documented=lambda: numeric(mass) and np.size(mass) > 0
+                    and (ndof is None or (isinstance(ndof, int) and not isinstance(ndof, bool))))
 
 
 @settings(max_examples=250, **SETTINGS)
 @given(A=matrices, b=values, law=values)
 def test_barrier_law_contact_properties(A, b, law):
-    only_documented(mo.LinearBarrier, A, b)
-    only_documented(mo.NewtonImpact, law)
+    only_documented(mo.NewtonImpact, law, documented=lambda: is_number(law) and 0 <= law <= 1)
+    only_documented(mo.LinearBarrier, A, b, documented=lambda: numeric(A) and (b is None or numeric(b)))
     try:
         barrier = mo.LinearBarrier(A, b)
     except ValueError:
@@ -397,3 +442,5 @@ def test_simulate_properties(t0, span, q0, v0, h_fraction, e, solver):
         event("accepted")
         # accepted input gives a finite result, whatever it was
         assert traj.completed and np.all(np.isfinite(traj.q)) and np.all(np.isfinite(traj.v))
+        # ... and only documented input is accepted: numbers, not bools, strings or None
+        assert numeric(q0) and numeric(v0) and np.size(q0) == 1 and np.size(v0) == 1, (q0, v0)

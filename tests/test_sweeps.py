@@ -25,20 +25,26 @@ def cheap(a: float, b: int, tag: str = "x") -> dict:
             "seq": [a, b, a * b], "big": np.float64(a) ** 2}
 
 
+FLAKY = {"fail": True}  # module state, not an argument: a changed argument is another computation
+
+
 def flaky(a: float, b: int, fail: bool = True) -> dict:
-    """Raises for one point (when ``fail``)."""
-    if fail and a == 0.5 and b == 2:
+    """Raises for one point (when ``fail`` and ``FLAKY["fail"]``)."""
+    if fail and FLAKY["fail"] and a == 0.5 and b == 2:
         raise ValueError(f"no result at a={a}, b={b}")
     return cheap(a, b)
 
 
-def counted(a: float, b: int, calls_dir: str, interrupt_at: tuple | None = None) -> dict:
+def counted(a: float, b: int, calls_dir: str) -> dict:
     """``cheap`` that leaves one file per call in ``calls_dir/<a>_<b>/`` (counts calls across
-    processes) and raises KeyboardInterrupt at the point ``interrupt_at``."""
+    processes) and raises KeyboardInterrupt at the point named in ``calls_dir/interrupt_at``
+    if that file exists (a file, not an argument: the interrupted and the resumed sweep
+    must be the same computation)."""
     d = os.path.join(calls_dir, f"{a}_{b}")
     os.makedirs(d, exist_ok=True)
     open(os.path.join(d, uuid.uuid4().hex), "w").close()
-    if interrupt_at is not None and (a, b) == tuple(interrupt_at):
+    trigger = os.path.join(calls_dir, "interrupt_at")
+    if os.path.exists(trigger) and open(trigger).read() == f"{a}_{b}":
         raise KeyboardInterrupt
     return cheap(a, b)
 
@@ -100,10 +106,16 @@ def test_failing_point_records_its_error_and_the_sweep_completes(tmp_path):
     back = read_table(out)
     assert back["error"].notna().sum() == 1 and back["seq"].iloc[0] == df["seq"].iloc[0]
     # a failed point is a finished one (not recomputed); retry_errors recomputes it
-    fixed = functools.partial(flaky, fail=False)
-    assert sweep(fixed, GRID, executor="serial", out=out, progress=False)["error"].notna().sum() == 1
-    df2 = sweep(fixed, GRID, executor="serial", out=out, progress=False, retry_errors=True)
+    FLAKY["fail"] = False
+    try:
+        assert sweep(flaky, GRID, executor="serial", out=out, progress=False)["error"].notna().sum() == 1
+        df2 = sweep(flaky, GRID, executor="serial", out=out, progress=False, retry_errors=True)
+    finally:
+        FLAKY["fail"] = True
     pd.testing.assert_frame_equal(df2, sweep(cheap, GRID, executor="serial", progress=False))
+    # another bound argument is another computation: nothing reused (issue 11 E)
+    fixed = functools.partial(flaky, fail=False)
+    assert sweep(fixed, GRID, executor="serial", out=out, progress=False)["error"].notna().sum() == 0
 
 
 def test_process_pool_and_dask_give_identical_rows(tmp_path):
@@ -132,14 +144,17 @@ def test_interrupted_sweep_resumes_without_recomputing_finished_points(tmp_path,
     fun = functools.partial(counted, calls_dir=str(calls_dir))
     full = sweep(functools.partial(counted, calls_dir=str(tmp_path / "ref_calls")), GRID, executor="serial",
                  progress=False)
+    calls_dir.mkdir()
+    (calls_dir / "interrupt_at").write_text("0.5_2")
     with pytest.raises(KeyboardInterrupt):
-        sweep(functools.partial(counted, calls_dir=str(calls_dir), interrupt_at=(0.5, 2)), GRID,
-              executor=executor, workers=2, out=out, progress=False)
+        sweep(fun, GRID, executor=executor, workers=2, out=out, progress=False)
+    (calls_dir / "interrupt_at").unlink()
     parts = [p for p in (tmp_path / "sweep.parquet.parts").iterdir() if p.name != "sweep.json"]
     before = calls(calls_dir)
     assert 7 <= len(parts) < 15  # the 7 points before (0.5, 2) at least; not all
-    # the finished points so far are in the table already
-    assert len(read_table(out)) == len(parts)
+    # the table lists every point: the finished ones, and the others as not computed
+    table = read_table(out)
+    assert len(table) == 15 and (table["error"] == "not computed").sum() == 15 - len(parts)
 
     resumed = sweep(fun, GRID, executor=executor, workers=2, out=out, progress=False)
     after = calls(calls_dir)
@@ -169,7 +184,7 @@ def test_out_of_another_function_is_refused_a_changed_one_warned(tmp_path, caplo
     manifest = tmp_path / "t.csv.parts" / "sweep.json"
     manifest.write_text(manifest.read_text().replace('"source": "', '"source": "0'))
     sweep(cheap, {"a": [1.0], "b": [1]}, executor="serial", out=out, progress=False)
-    assert "has changed" in caplog.text
+    assert "has changed" in caplog.text and "recomputed" in caplog.text
     with pytest.raises(ValueError, match=".parquet or .csv"):
         sweep(cheap, {"a": [1.0], "b": [1]}, executor="serial", out=tmp_path / "t.txt", progress=False)
 

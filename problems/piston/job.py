@@ -8,18 +8,18 @@ import logging
 import os
 import time
 from collections.abc import Sequence
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import asdict, dataclass
 
 import numpy as np
 
 import moreau as mo
+from moreau._pool import interrupt_for_signal, run_jobs
 
 from .analysis import cycle_figures, max_penetration_ratio, steady_speed_rpm
 from .model import piston_model
 from .params import PistonParameters
 
-__all__ = ["PAPER_CASES", "Case", "run_case", "run_cases"]
+__all__ = ["PAPER_CASES", "STATUSES", "Case", "run_case", "run_cases", "summary_row", "case_files"]
 
 log = logging.getLogger(__name__)
 
@@ -46,6 +46,8 @@ class Case:
         Project positions back onto the cylinder after each step
         (:class:`moreau.PositionProjection`); without it the midpoint drift leaves the
         piston ≈ 10 % of the clearance inside the wall at h = 1e-4.
+    record_every : int, optional
+        Keep every k-th step (default: about one record per 0.1° of crank angle).
     """
 
     e: float
@@ -55,6 +57,7 @@ class Case:
     transient: int = 1
     solver: str = "enum"
     drift_control: bool = True
+    record_every: int | None = None
 
     @property
     def label(self) -> str:
@@ -64,41 +67,83 @@ class Case:
 PAPER_CASES = ((0.0, 0.08004), (0.9, 0.08004), (0.9, 0.0802))
 
 
+STATUSES = ("completed", "failed", "interrupted", "not started")
+
+
+def case_files(case: Case, out: str) -> list[str]:
+    """Every file a run of ``case`` may write into ``out`` (trajectory, partial trajectory,
+    figure)."""
+    stem = os.path.join(out, f"piston_{case.label}")
+    return [stem + ".npz", stem + ".partial.npz", stem + ".png"]
+
+
 def run_case(case: Case, out: str, progress: bool | dict = False) -> dict:
     """Run one case; save its trajectory and figure into ``out``; return its summary row.
 
-    A run that fails or is interrupted saves what it computed (``*.partial.npz``) and its
-    row says so in ``status``.
+    A run that fails or is interrupted (Ctrl-C, SIGTERM) saves what it computed
+    (``*.partial.npz``) and its row says so in ``status``; an interrupt is not re-raised
+    here (the caller stops starting cases). Both ways an interrupt may arrive are handled:
+    a returned trajectory with ``status == "interrupted"``, or a ``KeyboardInterrupt``
+    carrying it as ``exc.trajectory`` (which may be None).
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from .figures import plot_cycle
-
     params = PistonParameters(e=case.e, D=case.D)
-    model = piston_model(params)
     stem = os.path.join(out, f"piston_{case.label}")
-    record_every = max(1, int(round(2e-3 / case.h)))  # ~0.1° of crank angle per record
+    record_every = case.record_every or max(1, int(round(2e-3 / case.h)))  # ~0.1° of crank angle per record
     wall0 = time.perf_counter()
+    traj, status = None, None
     try:
+        model = piston_model(params)
         traj = model.simulate(case.transient + case.cycles, case.h, solver=case.solver,
                               record_every=record_every, progress=progress, energy=False,
                               drift_control=mo.PositionProjection() if case.drift_control else None)
     except (mo.SolverError, mo.SimulationError) as exc:
         traj = exc.trajectory
         log.error("case %s failed: %s", case.label, exc)
+    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM (moreau._pool.Terminated)
+        traj, status = getattr(exc, "trajectory", None), "interrupted"
+        log.warning("case %s interrupted", case.label)
     wall = time.perf_counter() - wall0
+    if traj is None:
+        return summary_row(case, status or "failed", wall=wall)
     traj.extra.update({"case": asdict(case), "params": asdict(params)})
     traj.save(stem + (".npz" if traj.completed else ".partial.npz"))
+    row, figs = _figures_row(case, params, traj, status or traj.status, wall)
+    if figs:
+        import matplotlib
 
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        from .figures import plot_cycle
+
+        last = figs[-1]
+        fig = plot_cycle(traj, params, last.cycle,
+                         title=f"e = {case.e:g}, D = {1e3 * case.D:.2f} mm: cycle {last.cycle}, "
+                               f"{last.side_changes} side changes, {last.impacts} impacts")
+        fig.savefig(stem + ".png", dpi=110)
+        plt.close(fig)
+    return row
+
+
+def summary_row(case: Case, status: str, wall: float = float("nan")) -> dict:
+    """The summary row of a case without a trajectory (not started, or stopped before its
+    first step): its parameters and status, NaN figures."""
+    nan = float("nan")
+    return {
+        "e": case.e, "D_mm": round(1e3 * case.D, 4), "h": case.h, "status": status, "cycles": 0,
+        "rpm": nan, "side_changes_per_cycle": "", "side_change_angles_deg": "", "impacts_per_cycle": nan,
+        "max_penetration_over_clearance": nan, "energy_lost_per_cycle_J": nan, "max_slap_impulse_Ns": nan,
+        "drift_control": case.drift_control, "fallbacks": 0, "wall_time_s": round(wall, 2), "us_per_step": nan,
+    }
+
+
+def _figures_row(case: Case, params: PistonParameters, traj: mo.Trajectory, status: str, wall: float):
     figs = [c for c in cycle_figures(traj, params) if c.cycle >= case.transient]
     row = {
         "e": case.e,
         "D_mm": round(1e3 * case.D, 4),
         "h": case.h,
-        "status": traj.status,
+        "status": status,
         "cycles": len(figs),
         "rpm": steady_speed_rpm(traj, params, skip_cycles=case.transient) if figs else float("nan"),
         "side_changes_per_cycle": " ".join(str(c.side_changes) for c in figs),
@@ -112,44 +157,63 @@ def run_case(case: Case, out: str, progress: bool | dict = False) -> dict:
         "wall_time_s": round(wall, 2),
         "us_per_step": round(traj.stats.us_per_step, 1),
     }
-    if figs:
-        last = figs[-1]
-        fig = plot_cycle(traj, params, last.cycle,
-                         title=f"e = {case.e:g}, D = {1e3 * case.D:.2f} mm: cycle {last.cycle}, "
-                               f"{last.side_changes} side changes, {last.impacts} impacts")
-        fig.savefig(stem + ".png", dpi=110)
-        plt.close(fig)
-    return row
+    return row, figs
+
+
+def clear_case_files(cases: Sequence[Case], out: str) -> list[str]:
+    """Remove the files an earlier run left for these cases in ``out`` (and its
+    ``summary.csv``), so that nothing old looks like a result of this run; returns what
+    was removed."""
+    removed = []
+    for path in [p for c in cases for p in case_files(c, out)] + [os.path.join(out, "summary.csv")]:
+        try:
+            os.remove(path)
+            removed.append(path)
+        except FileNotFoundError:
+            pass
+    if removed:
+        log.warning("removed %d file(s) of an earlier run from %s", len(removed), out)
+    return removed
 
 
 def run_cases(cases: Sequence[Case], out: str, progress: bool = True, workers: int | None = None) -> list[dict]:
-    """Run cases in parallel processes (one per core by default); rows in input order."""
+    """Run cases, in parallel processes (one per core by default); one row per case, in
+    input order, whatever happens.
+
+    The files an earlier run left for these cases in ``out`` are removed first. On Ctrl-C
+    or SIGTERM no further case starts, the running ones save what they computed, and the
+    ``KeyboardInterrupt`` (:class:`moreau._pool.Terminated` after SIGTERM) is re-raised
+    with the rows of every case as ``exc.rows`` (status ``"interrupted"`` or
+    ``"not started"`` for those that did not complete).
+    """
     os.makedirs(out, exist_ok=True)
+    clear_case_files(cases, out)
     workers = workers or min(len(cases), os.cpu_count() or 1)
     jobs = [(c, out, {"position": i, "desc": c.label} if progress else False) for i, c in enumerate(cases)]
-    if workers == 1 or len(cases) == 1:
-        return [run_case(*j) for j in jobs]
     rows: list = [None] * len(jobs)
-    queue = list(enumerate(jobs))
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        running: dict = {}
-        try:
-            # submit a case only when a worker is free, so that an interrupt leaves no case
-            # queued in the pool (its queue would start it after the interrupt)
-            while queue or running:
-                while queue and len(running) < workers:
-                    i, job = queue.pop(0)
-                    running[pool.submit(run_case, *job)] = i
-                done, _ = wait(running, return_when=FIRST_COMPLETED)
-                for f in done:
-                    rows[running.pop(f)] = f.result()
-        except KeyboardInterrupt:
-            # the running cases got the interrupt too and save what they computed
-            for f, i in running.items():
+
+    def on_done(i: int, row: dict | None, exc: BaseException | None) -> None:
+        if exc is not None:
+            status = "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
+            log.warning("case %s %s: %s: %s", cases[i].label, status, type(exc).__name__, exc)
+            row = summary_row(cases[i], status)
+        rows[i] = row
+
+    try:
+        if workers == 1 or len(cases) == 1:
+            for i, job in enumerate(jobs):
                 try:
-                    rows[i] = f.result()
-                except Exception as exc:  # noqa: BLE001 - reported, the others kept
-                    log.warning("case %s: %s", jobs[i][0].label, exc)
-            log.warning("interrupted: %d of %d cases returned a (partial) result",
-                        sum(r is not None for r in rows), len(cases))
-    return [r for r in rows if r is not None]
+                    on_done(i, run_case(*job), None)
+                except KeyboardInterrupt:  # after the simulation: the row is lost, the files are not
+                    rows[i] = summary_row(cases[i], "interrupted")
+                    raise
+                if rows[i]["status"] == "interrupted":  # the interrupt stopped this run: stop here
+                    raise interrupt_for_signal()
+        else:
+            run_jobs(run_case, jobs, workers, on_done)
+    except KeyboardInterrupt as exc:
+        exc.rows = [r if r is not None else summary_row(c, "not started") for r, c in zip(rows, cases)]
+        log.warning("interrupted: %d of %d cases returned a (partial) result",
+                    sum(r is not None for r in rows), len(cases))
+        raise
+    return rows

@@ -43,11 +43,21 @@ from .params import PistonParameters
 
 __all__ = [
     "piston_point", "bifurcation_samples", "DEFAULT_ANGLES_DEG", "SLAP_FRACTION", "record_every_for",
-    "step_for_clearance", "section_long",
+    "step_for_clearance", "section_long", "piston_cache_key",
     "plot_sweep", "plot_section", "plot_side_change_angles",
 ]
 
 DEFAULT_ANGLES_DEG = (60.0, 420.0)
+
+
+def piston_cache_key() -> str:
+    """The ``cache_key`` of piston sweeps (``moreau sweep``, the notebooks): a digest of
+    the source of ``problems.piston`` and of ``moreau``, so that recorded points are
+    recomputed after any change to the model, its parameters or the engine."""
+    from moreau.sweeps import source_digest
+
+    return source_digest("problems.piston", "moreau")
+
 SLAP_FRACTION = 0.01
 """An impact is a *slap* when its impulse is at least this fraction of the largest one
 of its cycle. The count of all logged impacts can include a swarm of micro-impacts whose

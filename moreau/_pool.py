@@ -1,0 +1,223 @@
+"""One local process-pool scheduler, used by ``moreau piston`` (:mod:`problems.piston.job`)
+and by :func:`moreau.sweeps.sweep`.
+
+Stopping
+--------
+* **Ctrl-C and SIGTERM are handled alike.** :func:`sigterm_as_interrupt` makes SIGTERM (what
+  schedulers, systemd and containers send) raise :class:`Terminated`, a
+  ``KeyboardInterrupt``, in the main thread. :func:`run_jobs` then starts no new job, sends
+  SIGTERM to the workers still running one (they stop as on Ctrl-C: a simulation returns
+  or raises with what it computed, and the job saves it), collects what they return for up
+  to ``grace`` seconds, stops the pool and re-raises.
+* **Workers never outlive the parent.** Each worker polls its parent process id; when the
+  parent is gone (even after SIGKILL) a running job is interrupted as above, allowed to
+  finish saving for a grace period, and the worker exits without sending anything (there is
+  no one to send it to). An idle worker exits at once.
+* A job is submitted only when a worker is free, so an interrupt leaves nothing queued.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import contextlib
+import logging
+import os
+import signal
+import threading
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
+
+__all__ = ["Terminated", "sigterm_as_interrupt", "interrupt_exit_code", "was_terminated", "run_jobs"]
+
+log = logging.getLogger(__name__)
+
+_WATCH_INTERVAL = 0.5  # s between two checks of the parent process id in a worker
+_ORPHAN_GRACE = 30.0  # s an orphaned worker's job gets to save what it computed
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM received: raised like Ctrl-C's ``KeyboardInterrupt`` (a subclass of it)."""
+
+
+_received: dict[str, int | None] = {"signum": None}
+
+
+def was_terminated() -> bool:
+    """True once this process has received SIGTERM under :func:`sigterm_as_interrupt`."""
+    return _received["signum"] == signal.SIGTERM
+
+
+def interrupt_exit_code(exc: BaseException | None = None) -> int:
+    """The exit code of a stopped command: 143 (128 + SIGTERM) after SIGTERM, else 130
+    (128 + SIGINT, Ctrl-C)."""
+    return 143 if isinstance(exc, Terminated) or was_terminated() else 130
+
+
+def interrupt_for_signal() -> KeyboardInterrupt:
+    """A new interrupt of the kind this process received (Terminated after SIGTERM)."""
+    return Terminated("terminated (SIGTERM)") if was_terminated() else KeyboardInterrupt()
+
+
+@contextlib.contextmanager
+def sigterm_as_interrupt():
+    """Within the block, SIGTERM raises :class:`Terminated` in the main thread (once: later
+    SIGTERMs are ignored while the command stops and saves). Elsewhere than in the main
+    thread this does nothing."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum, frame):
+        if _received["signum"] == signal.SIGTERM:
+            log.warning("SIGTERM again: still stopping and saving")
+            return
+        _received["signum"] = signal.SIGTERM
+        raise Terminated("terminated (SIGTERM)")
+
+    old = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
+# -- the worker side ------------------------------------------------------------------------
+_worker = {"running": False, "stopping": False, "parent_gone": False}
+
+
+def _worker_init(parent_pid: int) -> None:
+    signal.signal(signal.SIGINT, _worker_signal)
+    signal.signal(signal.SIGTERM, _worker_signal)
+    threading.Thread(target=_watch_parent, args=(parent_pid,), daemon=True, name="moreau-parent-watch").start()
+
+
+def _worker_signal(signum, frame) -> None:
+    """Interrupt the running job once (later signals are ignored while it saves); an idle
+    worker ignores the signal (the parent stops the pool)."""
+    if not _worker["running"] or _worker["stopping"]:
+        return
+    _worker["stopping"] = True
+    _received["signum"] = signum
+    raise Terminated("terminated (SIGTERM)") if signum == signal.SIGTERM else KeyboardInterrupt()
+
+
+def _watch_parent(parent_pid: int) -> None:
+    while os.getppid() == parent_pid:
+        time.sleep(_WATCH_INTERVAL)
+    _worker["parent_gone"] = True
+    if _worker["running"]:
+        log.warning("worker %d: the parent process is gone; stopping the job", os.getpid())
+        os.kill(os.getpid(), signal.SIGTERM)  # the job stops as on Ctrl-C and saves what it has
+        time.sleep(_ORPHAN_GRACE)
+    os._exit(143)
+
+
+def _call_in_worker(fn: Callable, args: tuple) -> Any:
+    _worker["running"], _worker["stopping"] = True, False
+    try:
+        return fn(*args)
+    finally:
+        _worker["running"] = False
+        if _worker["parent_gone"]:
+            os._exit(143)  # nobody to send the result to
+
+
+# -- the parent side ------------------------------------------------------------------------
+def run_jobs(fn: Callable, jobs: Sequence[tuple], workers: int,
+             on_done: Callable[[int, Any, BaseException | None], None], grace: float = 60.0) -> None:
+    """Run ``fn(*jobs[i])`` on a pool of ``workers`` processes.
+
+    Parameters
+    ----------
+    fn : callable
+        A picklable function (module level).
+    jobs : sequence of tuple
+        The arguments of each call.
+    workers : int
+        Processes (>= 1).
+    on_done : callable ``on_done(i, result, exc)``
+        Called in this process as each job ends: its result, or the exception it raised
+        (``exc``, then ``result`` is None; a ``KeyboardInterrupt`` when the job was
+        interrupted without returning). Jobs that never started are not reported.
+    grace : float
+        Seconds the running jobs get to return after an interrupt before their workers are
+        killed.
+
+    Raises
+    ------
+    KeyboardInterrupt
+        Re-raised (a :class:`Terminated` after SIGTERM) once the running jobs returned or
+        the grace period ended; the pool's processes are gone by then.
+    """
+    pool = cf.ProcessPoolExecutor(max_workers=max(1, int(workers)), initializer=_worker_init,
+                                  initargs=(os.getpid(),))
+    queue = list(enumerate(jobs))
+    running: dict[cf.Future, int] = {}
+    try:
+        while queue or running:
+            while queue and len(running) < workers:
+                i, job = queue.pop(0)
+                running[pool.submit(_call_in_worker, fn, tuple(job))] = i
+            done, _ = cf.wait(running, return_when=cf.FIRST_COMPLETED)
+            for fut in done:
+                _deliver(fut, running.pop(fut), on_done)
+    except KeyboardInterrupt:
+        try:
+            _collect_after_interrupt(pool, running, on_done, grace)
+        finally:
+            _stop(pool)
+        raise
+    except BaseException:
+        _stop(pool)
+        raise
+    pool.shutdown(wait=True)
+
+
+def _deliver(fut: cf.Future, i: int, on_done) -> None:
+    if fut.cancelled():
+        return
+    try:
+        result, exc = fut.result(), None
+    except BaseException as e:  # noqa: BLE001 - the job's own exception, handed over
+        result, exc = None, e
+    on_done(i, result, exc)
+
+
+def _collect_after_interrupt(pool, running: dict, on_done, grace: float) -> None:
+    """Signal the running jobs (again every second: one may have been starting) and hand
+    over what they return until ``grace`` seconds have passed."""
+    deadline = time.monotonic() + grace
+    while running and time.monotonic() < deadline:
+        _signal_workers(pool, signal.SIGTERM)
+        done, _ = cf.wait(running, timeout=1.0)
+        for fut in done:
+            try:
+                _deliver(fut, running.pop(fut), on_done)
+            except KeyboardInterrupt:  # on_done stopping on an interrupted job: we already are
+                pass
+    if running:
+        log.warning("%d job(s) did not stop within %g s; their workers are killed", len(running), grace)
+
+
+def _processes(pool) -> list:
+    return [p for p in list((getattr(pool, "_processes", None) or {}).values()) if p.is_alive()]
+
+
+def _signal_workers(pool, signum: int) -> None:
+    for proc in _processes(pool):
+        try:
+            os.kill(proc.pid, signum)
+        except (ProcessLookupError, OSError):
+            pass
+
+
+def _stop(pool) -> None:
+    """Stop the pool now: nothing queued runs, every worker process ends."""
+    procs = _processes(pool)
+    pool.shutdown(wait=False, cancel_futures=True)
+    for proc in procs:
+        if proc.is_alive():
+            proc.kill()
+    for proc in procs:
+        proc.join(timeout=5)
