@@ -98,7 +98,7 @@ class SolverSpec:
 
     def simulate_kwargs(self) -> dict:
         if self.checked:
-            return {"solver": self.make(), "fallback": "enum"}
+            return {"solver": self.make(), "fallback": "auto"}  # enum, or exact when the main is enum
         return {"solver": self.make(), "fallback": None, "tol": 1e30}
 
 

@@ -63,6 +63,12 @@ class Barrier(ABC):
     def describe(self) -> dict:
         return {"type": type(self).__name__, "nrows": self.nrows}
 
+    def gap_scale(self) -> np.ndarray:
+        """Magnitude of the terms summed in each gap, shape (m,) (gap units): its round-off
+        is about ε times this. A row closes when ``g <= 4 ε · gap_scale`` (0: unknown,
+        then exactly ``g <= 0``)."""
+        return np.zeros(self.nrows)
+
     def kernel(self):
         """``(kind, params)`` of the compiled gap and Jacobian kernels (see
         :mod:`moreau.kernels`), ``("user", (gap, jacobian))`` for numba-compiled user
@@ -99,17 +105,21 @@ class LinearBarrier(Barrier):
         if np.any(np.all(self.A == 0.0, axis=1)):
             raise ValueError(f"LinearBarrier.A has an all-zero row: {self.A.tolist()}")
         self.A.setflags(write=False)
+        self._p = _k.flat(self.A, self.b)  # layout of kernels.gaps_linear
 
     def gap(self, q):
         out = np.empty(self.nrows)
-        _k.gaps_linear(self.A, self.b, q, out)
+        _k.gaps_linear(self._p, 0, self.nrows, q, out, 0)
         return out
 
     def jacobian(self, q):
         return self.A
 
     def kernel(self):
-        return _k.BAR_LINEAR, (self.A, self.b)
+        return _k.BAR_LINEAR, (self._p,)
+
+    def gap_scale(self):
+        return np.abs(self.b) + np.abs(self.A).sum(axis=1)
 
     def describe(self):
         return {**super().describe(), "A": self.A.tolist(), "b": self.b.tolist()}

@@ -894,6 +894,9 @@ class PointLineBarrier(Barrier):
     def kernel(self):
         return _k.BAR_TRIG, (self._p,)
 
+    def gap_scale(self):
+        return np.abs(self._g0) + np.abs(self._A).sum(axis=1) + np.abs(self._B).sum(axis=1)
+
     def row_names(self, prefix):
         if self.nrows == 1 and self.rows[0].name is None:
             return [prefix]
@@ -972,6 +975,9 @@ class JointStop(Barrier):
 
     def kernel(self):
         return _k.BAR_LINEAR, (self._p,)
+
+    def gap_scale(self):
+        return np.abs(self._b) + np.abs(self.G).sum(axis=1)
 
     def row_names(self, prefix):
         if self.nrows == 1:

@@ -85,6 +85,8 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     acc = np.zeros(3)
     fail = np.zeros((2, 4))
     model = cs.arrays()
+    # the inverse of a constant M, as the reference path uses it for free steps
+    Minv = np.linalg.inv(scene.system.mass_matrix(q0)) if scene.system.constant_mass else np.zeros((n, n))
 
     status, message, error, interrupt = "completed", "", None, None
     chunk = 2000
@@ -96,7 +98,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
             while cnt[lp.C_K] < n_steps:
                 k_before = int(cnt[lp.C_K])
                 c0 = time.perf_counter()
-                code = lp.run_chunk(model, cs.user, iset, fset, eligible, q, v,
+                code = lp.run_chunk(model, cs.user, iset, fset, Minv, eligible, q, v,
                                     min(n_steps, k_before + chunk), in_contact, P_acc, act_acc,
                                     T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail)
                 if bar is not None:
@@ -171,7 +173,7 @@ def _error(code, scene, k, t, q, v, h, fail, cs):
     if code == lp.SOLVER_FAILED:
         qm = q + 0.5 * h * v
         g = scene.gaps(qm) if scene.nrows else np.zeros(0)
-        rows = [scene.row_names[i] for i in np.flatnonzero(g <= 0.0)]
+        rows = [scene.row_names[i] for i in np.flatnonzero(g <= scene.activation_tol)]
         names = ["main", "fallback"]
         residuals = {names[i]: dict(zip(("primal", "dual", "complementarity", "stationarity"),
                                         fail[i].tolist())) for i in range(2)}

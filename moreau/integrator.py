@@ -309,7 +309,7 @@ class MoreauJeanMidpoint(OneStepIntegrator):
                 raise NonFiniteState(
                     f"gaps became non-finite at step {self.k} (t = {self.t:.9g}): g = {g.tolist()}",
                     self.k, self.t)
-            active = g <= 0.0
+            active = g <= scene.activation_tol  # g <= 0 up to the gap's own round-off
             if active.any():
                 rows = np.flatnonzero(active)
                 G = scene.jacobian(qm)

@@ -154,10 +154,10 @@ def gaps_linear(p, o, mr, q, g, r0):
     n = q.shape[0]
     ob = o + mr * n
     for r in range(mr):
-        t = p[ob + r]
+        t = 0.0
         for j in range(n):
             t += p[o + r * n + j] * q[j]
-        g[r0 + r] = t
+        g[r0 + r] = t + p[ob + r]  # A q first, then b: numpy's order of the reference path
 
 
 @_jit
@@ -177,10 +177,12 @@ def gaps_trig(p, o, mr, c, s, g, r0):
     oa = o + mr
     ob = oa + mr * n
     for r in range(mr):
-        t = p[o + r]
+        ac = 0.0
+        bs = 0.0
         for j in range(n):
-            t += p[oa + r * n + j] * c[j] + p[ob + r * n + j] * s[j]
-        g[r0 + r] = t
+            ac += p[oa + r * n + j] * c[j]
+            bs += p[ob + r * n + j] * s[j]
+        g[r0 + r] = p[o + r] + ac + bs  # the order of g0 + A cos q + B sin q
 
 
 @_jit

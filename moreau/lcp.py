@@ -338,4 +338,34 @@ def solve_one_step(M, L, b, G, c, P, v, k, method, tol, ws):
         for j in range(k):
             t += MinvGt[j, i] * P[j]
         v[i] = t
+    if status == OK:
+        _refine(G, c, P, v, k, W, MinvGt, ws)
     return status
+
+
+@_inline
+def _refine(G, c, P, v, k, W, MinvGt, ws):
+    """One step of iterative refinement on the rows with P > 0: v⁺ = v_free + M⁻¹GᵀP
+    cancels large free velocities (an impulse that stops a driven joint), leaving G v⁺
+    off its bound c by round-off of the large terms; correct P and v by the residual."""
+    A = ws[5]
+    rhs = ws[7]
+    dP = ws[8]
+    na = 0
+    for i in range(k):
+        if P[i] > 0.0:
+            t = -c[i]
+            for j in range(v.shape[0]):
+                t += G[i, j] * v[j]
+            A[na] = i
+            rhs[na] = -t
+            na += 1
+    if na == 0 or not _solve_active(W, A, na, rhs, dP, ws[9], ws[10]):
+        return
+    for a in range(na):
+        if P[A[a]] + dP[a] < 0.0:
+            return
+    for a in range(na):
+        P[A[a]] += dP[a]
+        for j in range(v.shape[0]):
+            v[j] += MinvGt[A[a], j] * dP[a]

@@ -65,22 +65,29 @@ def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail
 
 
 @_inline
-def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, f, v, gm, v_new, P, active,
+def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, v_new, P, active,
                      GA_all, cnt, acc, fail, ws, lw):
     """v⁺ with the contacts closed at qm (gaps ``gm``); returns 1 (contact), 0 (free) or
     −1 (solve failed). ``P`` (m,) and ``active`` (m,) are set for the step."""
-    ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e = model
+    ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e, atol = model
     n, m = ints[0], ints[1]
     h = fset[F_H]
     na = 0
     for r in range(m):
-        active[r] = gm[r] <= 0.0
+        active[r] = gm[r] <= atol[r]
         P[r] = 0.0
         if active[r]:
             na += 1
     if na == 0:
         rhs = lw[2]
-        _k.cho_solve(L, f, rhs, n)
+        if ints[2] == _k.MASS_CONST:  # M⁻¹ f with the inverse of the constant M, as the reference path
+            for i in range(n):
+                t = 0.0
+                for j in range(n):
+                    t += Minv[i, j] * f[j]
+                rhs[i] = t
+        else:
+            _k.cho_solve(L, f, rhs, n)
         for i in range(n):
             v_new[i] = v[i] + h * rhs[i]
         return 0
@@ -117,7 +124,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, f, v, gm, v_new,
 @_inline
 def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw):
     """Drift control: move q onto g >= 0 for eligible rows (see PositionProjection)."""
-    ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e = model
+    ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e, atol = model
     n, m = ints[0], ints[1]
     dtol = fset[F_DRIFT_TOL]
     need = False
@@ -168,14 +175,14 @@ def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fai
 
 
 @_jit
-def run_chunk(model, user, iset, fset, eligible, q, v, k_end, in_contact, P_acc, act_acc,
+def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
               T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail):
     """Advance the run to step ``k_end`` (see the module docstring); returns a status.
 
     State (q, v, step ``cnt[C_K]``, contact flags, impulse accumulators) is updated in
     place, so a chunk resumes where the previous one stopped.
     """
-    ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e = model
+    ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e, atol = model
     n, m = ints[0], ints[1]
     h, t0 = fset[F_H], fset[F_T0]
     stride, nsteps = iset[S_STRIDE], iset[S_NSTEPS]
@@ -232,14 +239,14 @@ def run_chunk(model, user, iset, fset, eligible, q, v, k_end, in_contact, P_acc,
             if not math.isfinite(s):
                 return NONFINITE_GAP
         if theta:
-            code = _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, f, v, gm, v_pred, P,
+            code = _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, v_pred, P,
                                     active, G, cnt, acc, fail, ws, lw)
             if code < 0:
                 return SOLVER_FAILED
             for i in range(n):
                 vbar[i] = 0.5 * (v[i] + v_pred[i])
             ev.force(ints, ekind, eoff, pool, user, t + 0.5 * h, qm, cm, sm, vbar, f)
-        code = _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, f, v, gm, v_new, P, active,
+        code = _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, v_new, P, active,
                                 G, cnt, acc, fail, ws, lw)
         if code < 0:
             return SOLVER_FAILED

@@ -44,6 +44,8 @@ class CompiledScene:
     pool : ndarray of float64
         All parameters, flattened.
     restitution : ndarray, shape (m,)
+    activation_tol : ndarray, shape (m,)
+        A row is closed when its gap is at most this (see ``Scene.activation_tol``).
     user : tuple
         ``(mass_fns, force_fns, barrier_fns, barrier_rows)``: numba-compiled user
         callables (empty tuples for a built-in scene).
@@ -58,6 +60,7 @@ class CompiledScene:
     bnrows: np.ndarray
     pool: np.ndarray
     restitution: np.ndarray
+    activation_tol: np.ndarray
     user: tuple = field(default=((), (), (), np.zeros(0, dtype=np.int64)))
 
     @property
@@ -67,7 +70,7 @@ class CompiledScene:
 
     def arrays(self) -> tuple:
         return (self.ints, self.ekind, self.eoff, self.bkind, self.boff, self.brow, self.bnrows,
-                self.pool, self.restitution)
+                self.pool, self.restitution, self.activation_tol)
 
 
 class _Pool:
@@ -164,6 +167,7 @@ def lower(scene: Scene) -> CompiledScene:
         ints=ints, ekind=i64(ekind), eoff=i64(eoff), bkind=i64(bkind), boff=i64(boff),
         brow=i64(brow), bnrows=i64(bnrows), pool=pool.array(),
         restitution=np.ascontiguousarray(scene.restitution, dtype=float),
+        activation_tol=np.ascontiguousarray(scene.activation_tol, dtype=float),
         user=(mass_fns, tuple(force_fns), tuple(bar_fns), i64(bar_rows)),
     )
 

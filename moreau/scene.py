@@ -126,6 +126,10 @@ class Scene:
             [np.full(c.barrier.nrows, i) for i, c in enumerate(self.contacts)]
         ).astype(int) if self.contacts else np.zeros(0, dtype=int)
         self.row_names = [n for c in self.contacts for n in c.barrier.row_names(c.name)]
+        #: a row is closed at the midpoint when g <= activation_tol (its gap's round-off)
+        self.activation_tol = 4.0 * np.finfo(float).eps * (
+            np.concatenate([np.asarray(c.barrier.gap_scale(), dtype=float) for c in self.contacts])
+            if self.contacts else np.zeros(0))
         self.velocity_dependent = system.has_bias or any(e.velocity_dependent for e in self.effects)
         self.time_dependent = any(e.time_dependent for e in self.effects)
         self.conservative = all(e.has_potential for e in self.effects) and not any(

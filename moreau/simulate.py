@@ -115,6 +115,7 @@ def simulate(
         raise ValueError(f"scene must be a Scene, got {scene!r}")
     t0, t1 = as_time_span(t_span)
     h = as_positive(h, "step size h")
+    tol = as_positive(tol, "tol")
     record_every = as_record_every(record_every)
     if not (isinstance(integrator, type) and issubclass(integrator, OneStepIntegrator)):
         raise ValueError(f"integrator must be a OneStepIntegrator subclass, got {integrator!r}")

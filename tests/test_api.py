@@ -126,7 +126,9 @@ def test_save_load_roundtrip(tmp_path):
     np.testing.assert_array_equal(back.impacts.energy_lost, traj.impacts.energy_lost)
     assert back.stats == traj.stats
     assert back.h == 1e-3 and back.scene["contacts"][0]["restitution"] == [0.5]
-    assert back.stats.solver == "osqp" and back.version == mo.__version__
+    # a built-in scene runs compiled, with the exact dual active-set solver by default
+    assert back.stats.solver == "exact" and back.stats.backend == "compiled"
+    assert back.version == mo.__version__
 
 
 def test_load_rejects_corrupt_files(tmp_path):
@@ -156,14 +158,16 @@ def test_nan_mid_run_stops_with_error_and_keeps_the_trajectory():
     assert traj.q[-1, 0] == pytest.approx(10.0 - 0.5 * 9.81 * 0.5**2, rel=1e-9)
 
 
-def test_keyboard_interrupt_returns_the_partial_trajectory():
+def test_keyboard_interrupt_propagates_with_the_partial_trajectory():
     def force(t, q, v):
         if t > 0.3:
             raise KeyboardInterrupt
         return np.array([-9.81])
 
     scene = mo.Scene(mo.FunctionSystem(np.eye(1)), [mo.FunctionForce(force)])
-    traj = mo.simulate(scene, (0.0, 1.0), [10.0], [0.0], 1e-3)
+    with pytest.raises(KeyboardInterrupt) as info:
+        mo.simulate(scene, (0.0, 1.0), [10.0], [0.0], 1e-3)
+    traj = info.value.trajectory
     assert traj.status == "interrupted" and "interrupted" in traj.message
     assert traj.t[-1] == pytest.approx(0.3, abs=2e-3)
 

@@ -136,7 +136,7 @@ def test_workers_end_when_the_parent_is_killed(tmp_path):
 def test_sigterm_to_sweep_keeps_the_record_lists_every_point_and_leaves_no_worker(tmp_path):
     from moreau.sweeps import read_table
 
-    proc, err = start_command(["sweep", "piston", "--param", "e=0,0.5,0.9", "--cycles", "40", "--transient", "0",
+    proc, err = start_command(["sweep", "piston", "--param", "e=0,0.5,0.9", "--cycles", "4000", "--transient", "0",
                                "--h", "1e-3", "--workers", "2", "--out", "s.csv", "--no-progress"], tmp_path)
     t0 = time.monotonic()
     while len(children(proc.pid)) < 2 and time.monotonic() - t0 < 60:
