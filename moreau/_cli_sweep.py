@@ -83,7 +83,7 @@ def _cmd_sweep(args) -> int:
     grid = {_SWEEP_PARAMS[n][0]: v for n, v in given.items()}
     grid.setdefault("e", [0.0])
     grid.setdefault("D_mm", [80.04])
-    grid.update(cycles=args.cycles, transient=args.transient, h=args.h, solver=args.solver,
+    grid.update(cycles=args.cycles, transient=args.transient, h=args.h, solver=args.solver, backend=args.backend,
                 drift_control=not args.no_drift_control)
     n = len(grid["e"]) * len(grid["D_mm"])
     where = f"Dask scheduler {args.dask}" if args.dask else f"{args.workers or os.cpu_count()} processes"

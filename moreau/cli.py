@@ -100,7 +100,7 @@ def _run(scene, t_span, q0, v0, args, out_stem: str, **kw):
     import moreau as mo
 
     try:
-        traj = mo.simulate(scene, t_span, q0, v0, args.h, solver=args.solver,
+        traj = mo.simulate(scene, t_span, q0, v0, args.h, solver=args.solver, backend=args.backend,
                            progress=not args.no_progress, **kw)
     except (mo.SolverError, mo.SimulationError) as exc:
         path = exc.trajectory.save(out_stem + ".partial.npz")
@@ -130,6 +130,7 @@ def _cmd_piston(args) -> int:
     else:
         pairs = [(0.0 if args.e is None else args.e, 0.08004 if args.D is None else args.D / 1e3)]
     cases = [Case(e=e, D=D, h=args.h, cycles=args.cycles, transient=args.transient, solver=args.solver,
+                  backend=args.backend,
                   drift_control=not args.no_drift_control, record_every=args.record_every)
              for e, D in pairs]
     output_dir(args.out)
@@ -170,10 +171,18 @@ def _engine_run_args(parser: argparse.ArgumentParser, cycles: int, h: float) -> 
     parser.add_argument("--transient", type=_int_at_least(0), default=1, help="cycles discarded first (default 1)")
     parser.add_argument("--h", type=_float_in(0.0, 0.05, lo_open=True), default=h,
                         help=f"time step in non-dimensional time τ = ωt (default {h:g})")
-    parser.add_argument("--solver", choices=available_solvers(), default="enum",
-                        help="contact solver (default enum, the fastest exact one here)")
+    parser.add_argument("--solver", choices=available_solvers(), default="exact",
+                        help="contact solver (default exact: the dual active-set method, which runs "
+                             "compiled; osqp, daqp and quadprog run on the Python path)")
+    _backend_arg(parser)
     parser.add_argument("--no-drift-control", action="store_true",
                         help="do not project positions back onto the cylinder after each step")
+
+
+def _backend_arg(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--backend", choices=("auto", "compiled", "python"), default="auto",
+                        help="where the time loop runs: compiled (numba), python (the reference "
+                             "path, to compare), auto (compiled when the scene and solver allow; default)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -193,7 +202,9 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--h0", type=_float_in(0.0, None, lo_open=True), default=1.0, help="drop height (m)")
     b.add_argument("--h", type=_float_in(0.0, None, lo_open=True), default=1e-4, help="time step (s)")
     b.add_argument("--t-end", type=_float_in(0.0, None, lo_open=True), default=2.0, help="end time (s)")
-    b.add_argument("--solver", choices=available_solvers(), default="osqp")
+    b.add_argument("--solver", choices=available_solvers(), default="exact",
+                   help="contact solver (default exact, compiled)")
+    _backend_arg(b)
     b.add_argument("--record-every", type=_positive_int, default=1, metavar="K",
                    help="keep every K-th step (default 1; raise it for long runs)")
     b.add_argument("--out", default="ball-out", help="output directory")

@@ -27,10 +27,13 @@ def convergence_order(h, errors) -> float:
 
 
 def max_penetration(traj: Trajectory) -> float:
-    """Largest penetration ``max(0, -min g)`` over the recorded states (gap units)."""
-    if traj.gaps.size == 0:
-        return 0.0
-    return max(0.0, -float(np.nanmin(traj.gaps)))
+    """Largest penetration ``max(0, -min g)`` over every step of the run (gap units):
+    ``traj.max_penetration`` (kept per step by both paths), and the records for a
+    trajectory saved without it."""
+    rec = max(0.0, -float(np.nanmin(traj.gaps))) if traj.gaps.size else 0.0
+    if traj.max_penetration is not None and np.size(traj.max_penetration):
+        return max(rec, float(np.max(traj.max_penetration)))
+    return rec
 
 
 def impact_energy_audit(traj: Trajectory) -> float:

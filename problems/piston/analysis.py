@@ -170,7 +170,7 @@ def steady_speed_rpm(traj: mo.Trajectory, params: PistonParameters, skip_cycles:
 
 
 def max_penetration_ratio(traj: mo.Trajectory, params: PistonParameters) -> float:
-    """Largest penetration over the records divided by the clearance D − d."""
+    """Largest penetration over every step divided by the clearance D − d."""
     return mo.diagnostics.max_penetration(traj) / (params.clearance / params.l1)
 
 

@@ -41,7 +41,10 @@ class Case:
     transient : int
         Engine cycles simulated first and discarded.
     solver : str
-        Contact solver backend.
+        Contact solver (``"exact"``: compiled dual active set).
+    backend : str
+        Where the loop runs: ``"auto"``, ``"compiled"`` or ``"python"`` (see
+        :func:`moreau.simulate`).
     drift_control : bool
         Project positions back onto the cylinder after each step
         (:class:`moreau.PositionProjection`); without it the midpoint drift leaves the
@@ -55,7 +58,8 @@ class Case:
     h: float = 1e-4
     cycles: int = 3
     transient: int = 1
-    solver: str = "enum"
+    solver: str = "exact"
+    backend: str = "auto"
     drift_control: bool = True
     record_every: int | None = None
 
@@ -93,7 +97,7 @@ def run_case(case: Case, out: str, progress: bool | dict = False) -> dict:
     traj, status = None, None
     try:
         model = piston_model(params)
-        traj = model.simulate(case.transient + case.cycles, case.h, solver=case.solver,
+        traj = model.simulate(case.transient + case.cycles, case.h, solver=case.solver, backend=case.backend,
                               record_every=record_every, progress=progress, energy=False,
                               drift_control=mo.PositionProjection() if case.drift_control else None)
     except (mo.SolverError, mo.SimulationError) as exc:

@@ -99,12 +99,12 @@ def step_for_clearance(D_mm: float, h: float = 3e-4, margin: float = 0.5, d_mm: 
 
 
 def _run(e: float, D_mm: float, total_cycles: float, h: float, solver: str,
-         drift_control: bool) -> tuple[mo.Trajectory, PistonParameters]:
+         drift_control: bool, backend: str = "auto") -> tuple[mo.Trajectory, PistonParameters]:
     """Simulate the engine; a Ctrl-C re-raises KeyboardInterrupt (so a sweep records
     nothing for the point), a failed run raises its SolverError / SimulationError."""
     params = PistonParameters(e=float(e), D=float(D_mm) / 1e3)
     model = piston_model(params)
-    traj = model.simulate(total_cycles, h, solver=solver, record_every=record_every_for(h),
+    traj = model.simulate(total_cycles, h, solver=solver, backend=backend, record_every=record_every_for(h),
                           progress=False, energy=False,
                           drift_control=mo.PositionProjection() if drift_control else None)
     if traj.status == "interrupted":
@@ -136,7 +136,7 @@ def _angles(angle_deg) -> np.ndarray:
 
 
 def piston_point(e: float, D_mm: float = 80.04, cycles: int = 5, transient: int = 1, h: float = 3e-4,
-                 solver: str = "enum", drift_control: bool = True,
+                 solver: str = "exact", drift_control: bool = True, backend: str = "auto",
                  section_deg: float | Sequence[float] | None = None) -> dict:
     """Run the engine for ``transient + cycles`` cycles and return per-cycle figures of
     the ``cycles`` analyzed ones.
@@ -155,13 +155,15 @@ def piston_point(e: float, D_mm: float = 80.04, cycles: int = 5, transient: int 
         Step size in non-dimensional time τ = ω t (1e-4: reference; 3e-4: sweeps;
         1e-3: quick looks, with a penetration near the clearance at D = 80.04 mm).
     solver : str
-        Contact backend of :func:`moreau.simulate`.
+        Contact solver of :func:`moreau.simulate` (``"exact"`` runs compiled).
     drift_control : bool
         Use ``moreau.PositionProjection()`` (defaults: plastic contacts projected back onto
         the cylinder after each step).
     section_deg : float or sequence of float, optional
         Also sample the state once per analyzed cycle at these crank angles (degrees in
         [0, 720)), as :func:`bifurcation_samples` does, from the same run.
+    backend : str
+        ``"auto"`` (compiled when possible), ``"compiled"`` or ``"python"``.
 
     Returns
     -------
@@ -192,7 +194,7 @@ def piston_point(e: float, D_mm: float = 80.04, cycles: int = 5, transient: int 
         raise ValueError(f"need cycles >= 1 and transient >= 0, got cycles={cycles}, transient={transient}")
     angles = None if section_deg is None else _angles(section_deg)
     wall0 = time.perf_counter()
-    traj, params = _run(e, D_mm, transient + cycles, h, solver, drift_control)
+    traj, params = _run(e, D_mm, transient + cycles, h, solver, drift_control, backend)
     figs = [c for c in cycle_figures(traj, params) if c.cycle >= transient]
     if len(figs) != cycles:
         raise RuntimeError(f"expected {cycles} analyzed cycles, the run holds {len(figs)}")
@@ -242,7 +244,7 @@ def piston_point(e: float, D_mm: float = 80.04, cycles: int = 5, transient: int 
 
 def bifurcation_samples(e: float, D_mm: float = 80.04, cycles: int = 30, h: float = 3e-4,
                         angle_deg: float | Sequence[float] = DEFAULT_ANGLES_DEG, transient: int = 1,
-                        solver: str = "enum", drift_control: bool = True) -> dict:
+                        solver: str = "exact", drift_control: bool = True, backend: str = "auto") -> dict:
     """The pin's lateral position x_O3 and the tilt φ3 once per cycle at fixed crank angles.
 
     Runs ``transient + cycles`` cycles and samples, in each analyzed cycle k, the state
@@ -252,7 +254,7 @@ def bifurcation_samples(e: float, D_mm: float = 80.04, cycles: int = 30, h: floa
 
     Parameters
     ----------
-    e, D_mm, h, transient, solver, drift_control
+    e, D_mm, h, transient, solver, drift_control, backend
         As for :func:`piston_point`.
     cycles : int
         Analyzed cycles: samples per angle.
@@ -270,7 +272,7 @@ def bifurcation_samples(e: float, D_mm: float = 80.04, cycles: int = 30, h: floa
     angles = _angles(angle_deg)
     if cycles < 1 or transient < 0:
         raise ValueError(f"need cycles >= 1 and transient >= 0, got cycles={cycles}, transient={transient}")
-    traj, params = _run(e, D_mm, transient + cycles, h, solver, drift_control)
+    traj, params = _run(e, D_mm, transient + cycles, h, solver, drift_control, backend)
     figs = [c for c in cycle_figures(traj, params) if c.cycle >= transient]
     return {
         **_section(traj, params, transient, cycles, angles),
