@@ -1,0 +1,204 @@
+"""The compiled path (issue 10): same answers as the Python reference path, a scene
+compiles to exactly its effects, user @njit callables run compiled, clear errors for
+what does not compile, and a new process loads the loop from numba's cache."""
+
+import os
+import subprocess
+import sys
+import textwrap
+
+import numba
+import numpy as np
+import pytest
+
+import moreau as mo
+from moreau import kernels as K
+from moreau.chain import ChainGravity, JointDamping, Link, PendulumChain, PointLineBarrier, PointLineRow
+from moreau.lowering import NotCompilable, lower
+from problems.bouncing_ball import bouncing_ball
+from problems.piston import piston_model
+
+
+def triple_with_walls():
+    chain = PendulumChain([Link.rod(m=1.0, l=0.5), Link.rod(m=0.8, l=0.45),
+                           Link(m=0.5, J=0.01, l=0.4, com=0.25, com_lateral=0.02)])
+    walls = PointLineBarrier(chain, [
+        PointLineRow(2, (0.4, 0.0), line_point=(0.55, 0.0), normal=(-1.0, 0.1), name="right"),
+        PointLineRow(0, (0.5, 0.0), line_point=(-0.3, 0.0), normal=(1.0, 0.3), name="left"),
+        PointLineRow(2, (0.4, 0.0), line_point=(0.0, -1.2), normal=(0.2, 1.0), name="floor"),
+    ])
+    scene = mo.Scene(chain, [ChainGravity(chain, g=9.81), JointDamping(chain, [0.01, 0.005, 0.005])],
+                     [mo.Contact(walls, law=[0.8, 0.5, 0.9], name="walls")])
+    return scene, [1.2, 0.3, -0.5], [0.0, 0.0, 0.0], 1e-3
+
+
+def piston_case(e, drift):
+    model = piston_model(e=e)
+    q0, v0 = model.initial_state()
+    return model.scene, q0, v0, 1e-4, (mo.PositionProjection() if drift else None)
+
+
+def both(scene, q0, v0, h, steps, **kw):
+    runs = {b: mo.simulate(scene, (0.0, steps * h), q0, v0, h, backend=b, solver="exact", **kw)
+            for b in ("compiled", "python")}
+    assert runs["compiled"].stats.backend == "compiled" and runs["python"].stats.backend == "python"
+    return runs["compiled"], runs["python"]
+
+
+def assert_same(c, p, rtol=1e-9):
+    assert c.completed and p.completed and len(c) == len(p)
+    scale = np.abs(p.q).max(axis=0) + np.abs(p.v).max(axis=0)
+    assert np.all(np.abs(c.q - p.q) <= rtol * scale) and np.all(np.abs(c.v - p.v) <= rtol * scale)
+    np.testing.assert_array_equal(c.active, p.active)  # the same contact decisions
+    np.testing.assert_array_equal(c.impacts.step, p.impacts.step)
+    np.testing.assert_array_equal(c.impacts.row, p.impacts.row)
+    np.testing.assert_allclose(c.impacts.impulse, p.impacts.impulse, rtol=1e-7)
+    np.testing.assert_allclose(c.max_penetration, p.max_penetration, rtol=1e-6, atol=1e-15)
+    for key in ("forces", "contacts"):
+        assert c.work[key] == pytest.approx(p.work[key], rel=1e-7, abs=1e-12)
+    assert (c.stats.solves, c.stats.contact_steps) == (p.stats.solves, p.stats.contact_steps)
+
+
+@pytest.mark.parametrize("name", ["ball", "pendulum-wall", "triple-chain"])
+def test_compiled_equals_python_over_10000_steps(name):
+    if name == "ball":
+        c, p = both(bouncing_ball(0.5), [1.0], [0.0], 3e-4, 10_000)  # through the Zeno point
+    elif name == "pendulum-wall":
+        chain = PendulumChain([Link.rod(m=1.0, l=1.0)])  # the pendulum against a wall, built in
+        wall = PointLineBarrier(chain, [PointLineRow(0, (1.0, 0.0), line_point=(0.5, 0.0), normal=(-1.0, 0.0))])
+        scene = mo.Scene(chain, [ChainGravity(chain), JointDamping(chain, [0.05])],
+                         [mo.Contact(wall, 0.8, name="wall")])
+        c, p = both(scene, [-1.2], [0.0], 1e-3, 10_000)
+    else:
+        scene, q0, v0, h = triple_with_walls()
+        c, p = both(scene, q0, v0, h, 10_000)
+    assert len(c.impacts) > 3  # the comparison covers impacts
+    assert_same(c, p)
+    np.testing.assert_allclose(c.energy, p.energy, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(c.gaps, p.gaps, rtol=0, atol=1e-9)  # lengths ~1: the states' 1e-9
+
+
+@pytest.mark.parametrize("e, drift", [(0.0, True), (0.0, False), (0.9, True), (0.9, False)])
+def test_compiled_equals_python_on_the_piston_over_10000_steps(e, drift):
+    scene, q0, v0, h, dc = piston_case(e, drift)
+    c, p = both(scene, q0, v0, h, 10_000, drift_control=dc, record_every=10)
+    assert c.stats.contact_steps > 1000
+    assert_same(c, p)
+    assert c.stats.projections == p.stats.projections
+
+
+def test_theta_integrator_compiled_equals_python():
+    scene, q0, v0, h = triple_with_walls()
+    runs = [mo.simulate(scene, (0.0, 2.0), q0, v0, h, backend=b, solver="exact", integrator=mo.MoreauJeanTheta)
+            for b in ("compiled", "python")]
+    assert_same(*runs)
+
+
+def test_a_scene_compiles_to_exactly_its_effects():
+    model = piston_model(effects=("gas", "brake"))
+    cs = lower(model.scene)
+    assert sorted(cs.ekind.tolist()) == sorted([K.FOURIER_PT, K.CONST])  # no gravity, no damping
+    assert cs.ints[1] == 4 and cs.bkind.tolist() == [K.BAR_TRIG]
+    free = lower(mo.Scene(mo.FunctionSystem(np.eye(2)), [mo.ConstantForce([0.0, -9.81])]))
+    assert free.ints[1] == 0 and free.bkind.size == 0 and free.ekind.tolist() == [K.CONST]
+    assert free.ints[8] == 0  # no kernel needs cos q, sin q: none evaluated
+
+
+def test_compiled_scene_parameters_are_the_objects_own():
+    """The lowering reads each component's own parameter array: the kernels the Python
+    objects call are fed the very same numbers."""
+    model = piston_model()
+    cs = lower(model.scene)
+    for e, kind, off in zip(model.scene.effects, cs.ekind, cs.eoff):
+        p = e.kernel()[1][0]
+        np.testing.assert_array_equal(cs.pool[off:off + p.size], p)
+
+
+@numba.njit
+def _mass(q):
+    return np.array([[2.0 + 0.1 * np.cos(q[1]), 0.0], [0.0, 1.0]])
+
+
+@numba.njit
+def _bias(q, v):
+    return np.array([0.0, 0.05 * np.sin(q[1]) * v[0] ** 2])
+
+
+@numba.njit
+def _force(t, q, v):
+    return np.array([-0.3 * v[0], -9.81])
+
+
+@numba.njit
+def _gap(q):
+    return np.array([q[1] - 0.1 * q[0]])
+
+
+@numba.njit
+def _jac(q):
+    return np.array([[-0.1, 1.0]])
+
+
+def user_scene(compiled=True):
+    wrap = (lambda f: f) if compiled else (lambda f: f.py_func)
+    system = mo.FunctionSystem(wrap(_mass), ndof=2, bias=wrap(_bias))
+    return mo.Scene(system, [mo.FunctionForce(wrap(_force))],
+                    [mo.Contact(mo.FunctionBarrier(wrap(_gap), wrap(_jac)), 0.6, name="floor")])
+
+
+@pytest.mark.slow  # a scene of user callables compiles its own loop: ~1.5 min
+def test_user_njit_callables_run_compiled_with_the_same_answers():
+    c = mo.simulate(user_scene(), (0.0, 2.0), [0.0, 1.0], [1.0, 0.0], 1e-3)
+    assert c.stats.backend == "compiled"
+    p = mo.simulate(user_scene(), (0.0, 2.0), [0.0, 1.0], [1.0, 0.0], 1e-3, backend="python", solver="exact")
+    assert len(c.impacts) >= 3
+    assert_same(c, p)
+
+
+def test_plain_python_callables_run_on_the_python_path_or_are_refused_by_name():
+    scene = user_scene(compiled=False)
+    auto = mo.simulate(scene, (0.0, 0.2), [0.0, 1.0], [1.0, 0.0], 1e-3)
+    assert auto.stats.backend == "python"
+    with pytest.raises(ValueError, match="backend='compiled'.*FunctionSystem.*numba.njit"):
+        mo.simulate(scene, (0.0, 0.2), [0.0, 1.0], [1.0, 0.0], 1e-3, backend="compiled")
+    with pytest.raises(NotCompilable, match="effect 'force'"):
+        lower(mo.Scene(mo.FunctionSystem(np.eye(2)), [mo.FunctionForce(lambda t, q, v: -q)]))
+    with pytest.raises(ValueError, match="solver 'osqp' does not run in compiled code"):
+        mo.simulate(bouncing_ball(), (0, 0.1), [1.0], [0.0], 1e-3, backend="compiled", solver="osqp")
+    with pytest.raises(ValueError, match="backend must be"):
+        mo.simulate(bouncing_ball(), (0, 0.1), [1.0], [0.0], 1e-3, backend="fast")
+
+
+@pytest.mark.slow  # a user @njit mass matrix: its own compile, ~1.5 min
+def test_compiled_failures_keep_the_run_and_name_the_step():
+    @numba.njit
+    def mass(q):  # stops being positive definite below q = 0.5
+        return np.array([[q[0] - 0.5]])
+
+    scene = mo.Scene(mo.FunctionSystem(mass, ndof=1), [mo.ConstantForce([-1.0])])
+    with pytest.raises(mo.SimulationError, match="stopped being symmetric positive definite at step") as info:
+        mo.simulate(scene, (0.0, 5.0), [1.0], [0.0], 1e-3)
+    traj = info.value.trajectory
+    assert traj.status == "failed" and traj.stats.backend == "compiled"
+    assert np.all(traj.q[:-1, 0] > 0.5)  # every state before the failing step is good
+    assert f"at step {traj.stats.steps} " in str(info.value)
+
+
+def test_a_new_process_loads_the_loop_from_the_cache():
+    code = textwrap.dedent("""
+        import time, moreau as mo
+        from moreau import loop
+        from problems.piston import piston_model
+        m = piston_model(e=0.9)
+        t = time.perf_counter()
+        traj = m.simulate(0.01, 1e-4, drift_control=mo.PositionProjection())
+        assert traj.stats.backend == "compiled"
+        st = loop.run_chunk.stats
+        print(sum(st.cache_hits.values()), sum(st.cache_misses.values()), time.perf_counter() - t)
+    """)
+    env = dict(os.environ, PYTHONPATH=os.getcwd())
+    for _ in range(2):  # the first run may compile (a fresh clone); the second must not
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=900)
+        assert out.returncode == 0, out.stderr[-2000:]
+    hits, misses, seconds = out.stdout.split()
+    assert int(hits) >= 1 and int(misses) == 0  # machine code loaded, nothing compiled
