@@ -1,92 +1,146 @@
-"""Cost of one time step (µs) for free-flight and contact steps with each backend.
+"""Cost of one time step (µs): the compiled loop against the Python reference path.
 
-Prints a table, and the ratio of OSQP set up once and updated each step to OSQP rebuilt
-every step through ``qpsolvers.solve_qp``. Absolute times on a shared 2-core machine are
-noisy: read the ratios, which are measured in the same run.
+Prints, in one run (absolute times on a shared 2-core machine are noisy; the ratios are
+measured side by side):
 
-    python benchmarks/step_cost.py [--steps N]
+1. the piston at h = 1e-4 over one engine cycle (e = 0 with drift control, e = 0.9),
+   compiled and Python, and their ratio;
+2. pendulum chains of N = 3, 6, 12, 24 links with a floor row per link, swinging free
+   and lying on the floor (N rows in contact every step);
+3. the compile time of the loop (a fresh numba cache, in a new process) and the time a
+   new process takes to load it from the cache;
+4. (full mode) the contact backends of the Python path: OSQP updated against OSQP
+   rebuilt every step through qpsolvers, enum, daqp.
+
+    python benchmarks/step_cost.py            # everything (the compile alone takes ~1.5 min)
+    python benchmarks/step_cost.py --quick    # < 30 s: shorter runs, no fresh compile
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import subprocess
+import sys
+import tempfile
 import time
 
 import numpy as np
 
 import moreau as mo
-from problems.bouncing_ball import bouncing_ball
-from problems.pendulum_wall import pendulum_wall
+from moreau.chain import ChainGravity, Link, PendulumChain, PointLineBarrier, PointLineRow
 from problems.piston import PistonParameters, piston_model
 
-
-def three_dof_four_rows() -> tuple[mo.Scene, np.ndarray, np.ndarray]:
-    """A 3-DOF body pressed by a force into a corner of 4 planes (2 active): the size of
-    the piston's contact problem."""
-    rng = np.random.default_rng(0)
-    A = rng.normal(size=(3, 3))
-    M = A @ A.T + 3 * np.eye(3)
-    G = np.array([[1.0, 0.2, 0.0], [0.0, 1.0, 0.3], [-1.0, 0.1, 0.0], [0.0, -1.0, 0.2]])
-    barrier = mo.LinearBarrier(G, [0.0, 0.0, 1.0, 1.0])
-    push = mo.ConstantForce(-(G[0] + G[1]), name="push")
-    scene = mo.Scene(mo.FunctionSystem(M), [push], [mo.Contact(barrier, 0.5, name="walls")], name="3dof-4rows")
-    return scene, np.zeros(3), np.zeros(3)
+H = 1e-4
+CYCLE = 4 * np.pi  # one engine cycle in non-dimensional time
 
 
-def cases():
-    ball = bouncing_ball(0.5)
-    yield "free flight (pendulum, n=1)", pendulum_wall(wall_x=None), [0.3], [0.0]
-    yield "contact (ball at rest, n=1, m=1)", ball, [0.0], [0.0]
-    scene, q0, v0 = three_dof_four_rows()
-    yield "contact (n=3, m=4, 2 active)", scene, q0, v0
-    piston = piston_model(PistonParameters(e=0.0))
-    q0, v0 = piston.initial_state(phi1=np.radians(60.0))  # adjoining the left wall, sliding
-    yield "piston sliding (n=3, m=4, config. M)", piston.scene, q0, v0
+def us_per_step(scene, q0, v0, steps, h=H, **kw) -> float:
+    traj = mo.simulate(scene, (0.0, steps * h), q0, v0, h, energy=False,
+                       record_every=max(1, steps // 1000), **kw)
+    if not traj.completed:
+        raise RuntimeError(traj.message)
+    return traj.stats.us_per_step
 
 
-def time_case(scene, q0, v0, solver, steps, h=1e-4):
-    traj = mo.simulate(scene, (0.0, steps * h), q0, v0, h, solver=solver, energy=False, fallback="enum")
-    return traj.stats.us_per_step, traj.stats.fallbacks
-
-
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--steps", type=int, default=20_000, help="steps per measurement")
-    args = ap.parse_args(argv)
-    solvers = {
-        "osqp (update)": lambda: mo.OSQPSolver(),
-        "qpsolvers:osqp (rebuild)": lambda: mo.QpsolversSolver("osqp", eps_abs=1e-9, eps_rel=1e-9, polish=True),
-        "enum": lambda: mo.EnumerationSolver(),
-        "daqp": lambda: mo.make_solver("daqp"),
-        "quadprog": lambda: mo.make_solver("quadprog"),
-    }
+def piston_table(quick: bool) -> list[tuple]:
     rows = []
-    for label, scene, q0, v0 in cases():
-        for sname, make in solvers.items():
-            steps = args.steps if "rebuild" not in sname else max(1000, args.steps // 10)
-            t0 = time.perf_counter()
-            us, fb = time_case(scene, q0, v0, make(), steps)
-            rows.append((label, sname, us, fb))
-            del t0
-    w = max(len(r[0]) for r in rows)
-    print(f"{'case':<{w}}  {'solver':<26} {'µs/step':>9} {'fallbacks':>9}")
-    for label, sname, us, fb in rows:
-        print(f"{label:<{w}}  {sname:<26} {us:9.1f} {fb:9d}")
-    # drift control on the piston: same steps with and without the position projection
-    piston = piston_model(PistonParameters(e=0.0))
-    q0, v0 = piston.initial_state(phi1=np.radians(60.0))
-    cost = {}
-    for dc in (None, mo.PositionProjection()):
-        traj = mo.simulate(piston.scene, (0.0, args.steps * 1e-4), q0, v0, 1e-4, solver="enum",
-                           energy=False, drift_control=dc)
-        cost[dc is not None] = traj.stats.us_per_step
-    print(f"piston sliding, enum: {cost[False]:.1f} µs/step plain, {cost[True]:.1f} with drift control "
-          f"(ratio {cost[True] / cost[False]:.2f})")
-    by = {(r[0], r[1]): r[2] for r in rows}
-    for label in dict.fromkeys(r[0] for r in rows):
-        if not label.startswith("free"):
-            ratio = by[(label, "qpsolvers:osqp (rebuild)")] / by[(label, "osqp (update)")]
-            print(f"ratio rebuild/update for {label}: {ratio:.1f}x")
+    cycle_steps = int(round(CYCLE / H))
+    py_steps = 3_000 if quick else 30_000
+    for e, drift in ((0.0, True), (0.9, False)):
+        model = piston_model(PistonParameters(e=e))
+        q0, v0 = model.initial_state()
+        dc = mo.PositionProjection() if drift else None
+        comp = us_per_step(model.scene, q0, v0, cycle_steps, backend="compiled", drift_control=dc)
+        py = us_per_step(model.scene, q0, v0, py_steps, backend="python", solver="enum", drift_control=dc)
+        rows.append((f"piston e = {e:g}{' + drift control' if drift else ''}", cycle_steps, comp, py_steps, py))
+    return rows
+
+
+def chain_scene(N: int, on_floor: bool):
+    """N equal rods hanging from the origin; a floor row under each link's tip, at y = 0
+    (the chain laid on it, horizontal) or far below (free swinging)."""
+    chain = PendulumChain([Link.rod(m=1.0 / N, l=1.0 / N) for _ in range(N)])
+    y_floor = 0.0 if on_floor else -10.0
+    rows = [PointLineRow(i, (1.0 / N, 0.0), line_point=(0.0, y_floor), normal=(0.0, 1.0)) for i in range(N)]
+    scene = mo.Scene(chain, [ChainGravity(chain)], [mo.Contact(PointLineBarrier(chain, rows), 0.0, name="floor")],
+                     name=f"chain{N}")
+    q0 = np.full(N, np.pi / 2) if on_floor else np.linspace(0.3, 1.2, N)
+    return scene, q0, np.zeros(N)
+
+
+def chain_table(quick: bool) -> list[tuple]:
+    rows = []
+    for N in (3, 6, 12, 24):
+        for on_floor in (False, True):
+            scene, q0, v0 = chain_scene(N, on_floor)
+            steps = (20_000 if quick else 100_000) // (N if on_floor else 1)
+            comp = us_per_step(scene, q0, v0, steps, h=1e-3, backend="compiled")
+            py_steps = max(200, (1_000 if quick else 5_000) // N)
+            py = us_per_step(scene, q0, v0, py_steps, h=1e-3, backend="python", solver="osqp")
+            rows.append((f"chain N = {N:2d}, {'on the floor' if on_floor else 'free'}", steps, comp, py_steps, py))
+    return rows
+
+
+_PROBE = """
+import time
+t0 = time.perf_counter()
+import moreau as mo
+from problems.piston import piston_model
+t1 = time.perf_counter()
+m = piston_model(e=0.9)
+t2 = time.perf_counter()
+m.simulate(0.001, 1e-4, drift_control=mo.PositionProjection(), backend="compiled")
+t3 = time.perf_counter()
+print(t1 - t0, t3 - t2)
+"""
+
+
+def startup_times(fresh: bool) -> tuple[float, float]:
+    """(import seconds, first-run seconds) of a new process; ``fresh``: empty numba cache."""
+    env = dict(os.environ, PYTHONPATH=os.getcwd() + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    with tempfile.TemporaryDirectory() as d:
+        if fresh:
+            env["NUMBA_CACHE_DIR"] = d
+        out = subprocess.run([sys.executable, "-c", _PROBE], capture_output=True, text=True, env=env, check=True)
+    imp, first = (float(x) for x in out.stdout.split())
+    return imp, first
+
+
+def backend_table(steps: int) -> list[tuple]:
+    model = piston_model(PistonParameters(e=0.0))
+    q0, v0 = model.initial_state(phi1=np.radians(60.0))  # adjoining the left wall, sliding
+    solvers = {
+        "osqp (set up once, update)": mo.OSQPSolver,
+        "qpsolvers:osqp (rebuilt every step)": lambda: mo.QpsolversSolver("osqp", eps_abs=1e-9, eps_rel=1e-9,
+                                                                          polish=True),
+        "enum": mo.EnumerationSolver,
+        "exact (dual active set)": mo.ExactSolver,
+        "daqp": lambda: mo.make_solver("daqp"),
+    }
+    return [(name, us_per_step(model.scene, q0, v0, steps, backend="python", solver=make()))
+            for name, make in solvers.items()]
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="short runs, no fresh compile (< 30 s)")
+    args = ap.parse_args(argv)
+    t_start = time.perf_counter()
+    us_per_step(*chain_scene(3, True), 10, h=1e-3, backend="compiled")  # load (or compile) first
+    print("\nµs per step, compiled loop vs Python path (ratio = python / compiled)")
+    print(f"{'case':40s} {'steps':>8s} {'compiled':>9s} {'steps':>7s} {'python':>9s} {'ratio':>7s}")
+    for name, cs, comp, ps, py in piston_table(args.quick) + chain_table(args.quick):
+        print(f"{name:40s} {cs:8d} {comp:9.3f} {ps:7d} {py:9.1f} {py / comp:7.0f}")
+    imp, load = startup_times(fresh=False)
+    print(f"\nnew process: import moreau {imp:.2f} s; first piston run, loop loaded from the cache {load:.2f} s")
+    if not args.quick:
+        imp, comp = startup_times(fresh=True)
+        print(f"new process, empty numba cache: first piston run (compiling the loop) {comp:.1f} s")
+        print("\nPython path, piston sliding on a wall (e = 0), µs per contact-heavy step")
+        for name, us in backend_table(5_000):
+            print(f"{name:40s} {us:9.1f}")
+    print(f"\n(benchmark wall time {time.perf_counter() - t_start:.0f} s)")
 
 
 if __name__ == "__main__":

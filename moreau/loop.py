@@ -50,7 +50,8 @@ def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail
             cnt[C_FALLBACKS] += 1
         st = solve_one_step(M, L, b, GA, cA, P_out, v_out, na, method, 1e-12, ws)
         if st == 0:
-            kkt_residuals_kernel(M, L, b, GA, cA, v_out, P_out, na, res, ws[11], ws[12], ws[13], ws[14], ws[15])
+            kkt_residuals_kernel(M, L, b, GA, cA, v_out, P_out, na, res, ws[11], ws[12], ws[13], ws[14], ws[15],
+                                 ws[1])
             worst = max(res[0], res[1], res[2], res[3])
             if worst <= tol:
                 if worst > acc[A_WORST]:

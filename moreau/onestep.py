@@ -115,5 +115,5 @@ def kkt_residuals(M, b, G, c, v, P) -> Residuals:
     kkt_residuals_kernel(M, L, np.ascontiguousarray(b, dtype=float), np.ascontiguousarray(G, dtype=float),
                          np.ascontiguousarray(c, dtype=float), np.ascontiguousarray(v, dtype=float),
                          np.ascontiguousarray(P, dtype=float), np.shape(G)[0], out,
-                         *(np.empty(max(n, np.shape(G)[0])) for _ in range(5)))
+                         *(np.empty(max(n, np.shape(G)[0])) for _ in range(6)))
     return Residuals(*(float(x) for x in out))
