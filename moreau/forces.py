@@ -20,9 +20,9 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ._validation import as_matrix, as_vector
+from ._validation import as_matrix, as_positive, as_vector
 
-__all__ = ["Effect", "ConstantForce", "LinearDamping", "LinearSpring", "FunctionForce"]
+__all__ = ["Effect", "ConstantForce", "LinearDamping", "LinearSpring", "FunctionForce", "HarmonicForce"]
 
 
 class Effect(ABC):
@@ -195,3 +195,36 @@ class FunctionForce(Effect):
         if self._potential is None:
             return super().potential(q)
         return float(self._potential(q))
+
+
+class HarmonicForce(Effect):
+    """A harmonic generalized force ``f(t) = amplitude * sin(omega t + phase)``.
+
+    Parameters
+    ----------
+    amplitude : array_like, shape (n,)
+        Amplitude per coordinate (generalized force units: N, or N m for angles).
+    omega : float
+        Angular frequency (rad per time unit), > 0.
+    phase : float
+        Phase (rad) at t = 0.
+    name : str
+        Label (``"harmonic"`` by default).
+    """
+
+    time_dependent = True
+
+    def __init__(self, amplitude, omega: float, phase: float = 0.0, name: str = "harmonic") -> None:
+        self.amplitude = as_vector(amplitude, "HarmonicForce.amplitude")
+        self.amplitude.setflags(write=False)
+        self.omega = as_positive(omega, "HarmonicForce.omega")
+        phase = as_vector(phase, "HarmonicForce.phase", 1)
+        self.phase = float(phase[0])
+        self.name = name
+
+    def force(self, t, q, v):
+        return self.amplitude * np.sin(self.omega * t + self.phase)
+
+    def describe(self):
+        return {**super().describe(), "amplitude": self.amplitude.tolist(), "omega": self.omega,
+                "phase": self.phase}
