@@ -81,8 +81,10 @@ def detect_period(points, max_period: int = 16, rtol: float = 1e-3, atol: float 
     max_period : int
         Largest period tried.
     rtol, atol : float
-        Tolerances; scale is the spread (max - min) of the points per component, or 1
-        where the points do not spread.
+        Tolerances; scale is the largest magnitude of the points per component (1 where
+        it is 0). With impacts, the scheme's section points of a periodic orbit jitter by
+        O(h·|v|) (the impact instant is quantized to the step grid): the tolerance must
+        exceed that.
     n_check : int, optional
         Number of pairs compared (default: all ``K - p``).
 
@@ -95,8 +97,8 @@ def detect_period(points, max_period: int = 16, rtol: float = 1e-3, atol: float 
     x = np.asarray(points, float)
     if x.ndim == 1:
         x = x[:, None]
-    spread = x.max(axis=0) - x.min(axis=0)
-    scale = np.where(spread > 0, spread, 1.0)
+    mag = np.abs(x).max(axis=0)
+    scale = np.where(mag > 0, mag, 1.0)
     for p in range(1, max_period + 1):
         if x.shape[0] <= p:
             break
