@@ -120,7 +120,7 @@ def _transient(fmap: TimeMap, x: np.ndarray, t: float, n_transient: int) -> tupl
 
 
 def largest_lyapunov(scene: mo.Scene, q0, v0, h: float, *, interval: float, n_intervals: int,
-                     t0: float = 0.0, n_transient: int = 0, d0: float = 1e-6, scale=None,
+                     t0: float = 0.0, n_transient: int = 0, n_align: int = 0, d0: float = 1e-6, scale=None,
                      n_blocks: int = 10, seed: int = 0, progress: bool = False,
                      **simulate_kwargs) -> LyapunovResult:
     """Largest Lyapunov exponent from two nearby trajectories with renormalization.
@@ -142,6 +142,10 @@ def largest_lyapunov(scene: mo.Scene, q0, v0, h: float, *, interval: float, n_in
         Start time.
     n_transient : int
         Intervals discarded first (the reference trajectory only).
+    n_align : int
+        Intervals computed but not averaged after the transient, while the perturbation
+        turns from its arbitrary start into the most unstable direction (a start across
+        a non-normal Jacobian can stretch by far more than the exponent says).
     d0 : float
         Separation in the scaled norm. With impacts it must be large compared with
         ``h·|v| / scale`` (the scheme quantizes the impact instant to the step grid).
@@ -168,18 +172,19 @@ def largest_lyapunov(scene: mo.Scene, q0, v0, h: float, *, interval: float, n_in
     rng = np.random.default_rng(seed)
     u = rng.standard_normal(x.shape[0])
     u /= np.linalg.norm(u)
-    logs = np.empty((n_intervals, 1))
-    times = np.empty(n_intervals)
+    n_all = n_align + n_intervals
+    logs = np.empty((n_all, 1))
+    times = np.empty(n_all)
     n_imp = 0
     from tqdm import tqdm
-    for i in tqdm(range(n_intervals), disable=not progress, desc="largest Lyapunov exponent"):
+    for i in tqdm(range(n_all), disable=not progress, desc="largest Lyapunov exponent"):
         y = x + d0 * W * u
         if not _admissible(scene, y, x):
             u = -u
             y = x + d0 * W * u
         traj = fmap.run(x, t)
         x1 = join_state(traj.q[-1], traj.v[-1])
-        n_imp += len(traj.impacts)
+        n_imp += len(traj.impacts) if i >= n_align else 0
         y1 = fmap(y, t)
         d = (y1 - x1) / W
         dn = float(np.linalg.norm(d))
@@ -189,20 +194,22 @@ def largest_lyapunov(scene: mo.Scene, q0, v0, h: float, *, interval: float, n_in
         u = d / dn
         x, t = x1, t + fmap.T
         times[i] = t
+    logs, times = logs[n_align:], times[n_align:]
     exps, err, running = _stats(logs, fmap.T, n_blocks)
     return LyapunovResult(exps, err, times, running, logs, n_imp, x, "two-trajectory",
                           {"h": fmap.h, "interval": fmap.T, "d0": d0})
 
 
 def lyapunov_spectrum(scene: mo.Scene, q0, v0, h: float, *, interval: float, n_intervals: int,
-                      k: int | None = None, t0: float = 0.0, n_transient: int = 0,
-                      delta: float = 1e-6, scale=None, n_blocks: int = 10, progress: bool = False,
-                      **simulate_kwargs) -> LyapunovResult:
+                      k: int | None = None, t0: float = 0.0, n_transient: int = 0, n_align: int = 0,
+                      delta: float = 1e-6, scale=None, scheme: str = "forward", n_blocks: int = 10,
+                      progress: bool = False, **simulate_kwargs) -> LyapunovResult:
     """The k largest Lyapunov exponents: finite-difference interval-map Jacobians with QR.
 
-    Every interval costs ``k + 1`` runs of ``interval``: the reference trajectory and one
-    per frame column, started at ``x + delta·scale·Q[:, j]`` (or at ``x - ...`` with the
-    sign of the difference reversed when the + side would penetrate a barrier).
+    Every interval costs ``k + 1`` runs of ``interval`` (forward differences): the
+    reference trajectory and one per frame column, started at ``x + delta·scale·Q[:, j]``
+    (or at ``x - ...`` with the sign of the difference reversed when the + side would
+    penetrate a barrier); ``2k + 1`` with central differences (both sides).
 
     Parameters
     ----------
@@ -210,7 +217,10 @@ def lyapunov_spectrum(scene: mo.Scene, q0, v0, h: float, *, interval: float, n_i
         Number of exponents (default all, 2n).
     delta : float
         Finite-difference perturbation in the scaled norm (see :func:`largest_lyapunov`
-        for its choice with impacts).
+        for its choice with impacts). Error O(delta) forward, O(delta²) central, plus
+        O(h·|v| / delta) with impacts.
+    scheme : {"forward", "central"}
+        Finite differences.
     Other parameters
         As in :func:`largest_lyapunov`.
 
@@ -225,19 +235,27 @@ def lyapunov_spectrum(scene: mo.Scene, q0, v0, h: float, *, interval: float, n_i
     k = dim if k is None else int(k)
     if not 1 <= k <= dim:
         raise ValueError(f"k must be in [1, {dim}], got {k}")
+    if scheme not in ("forward", "central"):
+        raise ValueError(f"scheme must be 'forward' or 'central', got {scheme!r}")
     t = float(t0)
     x, t = _transient(fmap, x, t, n_transient)
     Q = np.eye(dim)[:, :k]
-    logs = np.empty((n_intervals, k))
-    times = np.empty(n_intervals)
+    n_all = n_align + n_intervals
+    logs = np.empty((n_all, k))
+    times = np.empty(n_all)
     n_imp = 0
     from tqdm import tqdm
-    for i in tqdm(range(n_intervals), disable=not progress, desc="Lyapunov spectrum"):
+    for i in tqdm(range(n_all), disable=not progress, desc="Lyapunov spectrum"):
         traj = fmap.run(x, t)
         x1 = join_state(traj.q[-1], traj.v[-1])
-        n_imp += len(traj.impacts)
+        n_imp += len(traj.impacts) if i >= n_align else 0
         Z = np.empty((dim, k))
         for j in range(k):
+            if scheme == "central":
+                yp, ym = x + delta * W * Q[:, j], x - delta * W * Q[:, j]
+                if _admissible(scene, yp, x) and _admissible(scene, ym, x):
+                    Z[:, j] = (fmap(yp, t) - fmap(ym, t)) / (2 * W * delta)
+                    continue
             sgn = 1.0
             y = x + delta * W * Q[:, j]
             if not _admissible(scene, y, x):
@@ -252,6 +270,7 @@ def lyapunov_spectrum(scene: mo.Scene, q0, v0, h: float, *, interval: float, n_i
         logs[i] = np.log(np.abs(d))
         x, t = x1, t + fmap.T
         times[i] = t
+    logs, times = logs[n_align:], times[n_align:]
     exps, err, running = _stats(logs, fmap.T, n_blocks)
     return LyapunovResult(exps, err, times, running, logs, n_imp, x, "fd-qr",
-                          {"h": fmap.h, "interval": fmap.T, "delta": delta})
+                          {"h": fmap.h, "interval": fmap.T, "delta": delta, "scheme": scheme})
