@@ -92,3 +92,29 @@ def test_ueda_oscillator_largest_exponent_within_5_percent_of_published():
     r = largest_lyapunov(ueda(), [2.5], [0.0], T / 400, interval=T, n_intervals=3000, n_transient=100, d0=1e-7)
     print("Ueda largest exponent", r.exponents[0], "+-", r.stderr[0])
     assert abs(r.exponents[0] / 0.1034 - 1) < 0.05
+
+
+@pytest.mark.slow
+def test_two_methods_agree_on_the_chaotic_triple_pendulum():
+    """Triple pendulum with a wall, torque 3 sin(6 t) N m (notebooks/triple_pendulum.py):
+    the two-trajectory estimate and the largest exponent of the FD-QR spectrum agree within
+    two combined standard errors, both clearly positive. Measured: 2.23 ± 0.16 and
+    2.48 ± 0.23 1/s (T/h = 400, d0 = delta = 1e-4). Caveat (see the report in the
+    notebook): at this step the perturbation is below h·|v|, so both measure the exponent
+    of the scheme's discrete map; the sum of the FD-QR spectrum there (+0.03) is not the
+    flow's mean contraction (-2.83)."""
+    from moreau.dynamics.benchmarks import forced_triple_pendulum
+
+    w = 6.0
+    T = 2 * np.pi / w
+    scene = forced_triple_pendulum(w, 3.0)
+    tr = mo.simulate(scene, (0.0, 100 * T), [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], T / 400, solver="enum",
+                     record_every=400, progress=False)
+    q0, v0, t0 = tr.q[-1], tr.v[-1], tr.t[-1]
+    two = largest_lyapunov(scene, q0, v0, T / 400, interval=T, n_intervals=200, n_align=5, t0=t0, d0=1e-4)
+    spec = lyapunov_spectrum(scene, q0, v0, T / 400, interval=T, n_intervals=100, n_align=5, t0=t0, delta=1e-4)
+    a, sa = two.exponents[0], two.stderr[0]
+    b, sb = spec.exponents[0], spec.stderr[0]
+    print(f"two-trajectory {a:.3f} ± {sa:.3f}, FD-QR {b:.3f} ± {sb:.3f}, spectrum {spec.exponents.round(3)}")
+    assert a > 3 * sa and b > 3 * sb
+    assert abs(a - b) < 2 * np.hypot(sa, sb)

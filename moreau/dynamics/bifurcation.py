@@ -54,8 +54,9 @@ def bifurcation_point(*, make_scene: Callable, param: str, value: float, q0, v0,
         Sample times ``phase_time + k·period``.
     lyapunov : dict, optional
         Keyword arguments of :func:`~moreau.dynamics.lyapunov.largest_lyapunov`
-        (``interval``, ``n_intervals``, ``d0``, ``scale``, ...), started from the end of
-        the sampled run; adds ``lyapunov`` and ``lyapunov_err``.
+        (``n_intervals``, ``d0``, ``n_align``, ``scale``; ``interval`` defaults to the
+        period), started from the end of the sampled run; adds ``lyapunov`` and
+        ``lyapunov_err``.
     max_period, rtol : int, float
         Period detection on the section (:func:`~moreau.dynamics.floquet.detect_period`).
     simulate_kwargs : dict, optional
@@ -91,6 +92,7 @@ def bifurcation_point(*, make_scene: Callable, param: str, value: float, q0, v0,
     }
     if lyapunov:
         lk = dict(lyapunov)
+        lk.setdefault("interval", T)
         res = largest_lyapunov(scene, traj.q[-1], traj.v[-1], hh, t0=float(traj.t[-1]),
                                **lk, **{k: v for k, v in (simulate_kwargs or {}).items()})
         out["lyapunov"] = float(res.exponents[0])

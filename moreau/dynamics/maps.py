@@ -102,7 +102,7 @@ def _tolerant(integrator: type) -> type:
     """A subclass of ``integrator`` that accepts a slightly penetrating initial state."""
     if integrator not in _TOLERANT:
         def __init__(self, *args, **kwargs):
-            kwargs.setdefault("penetration_tol", np.inf)
+            kwargs.setdefault("penetration_tol", 1e300)
             integrator.__init__(self, *args, **kwargs)
         _TOLERANT[integrator] = type(f"Restart{integrator.__name__}", (integrator,), {"__init__": __init__})
     return _TOLERANT[integrator]
