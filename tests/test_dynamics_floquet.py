@@ -43,6 +43,7 @@ def test_floquet_multipliers_of_a_forced_linear_oscillator():
     assert np.allclose(x, [X * np.sin(-delta), X * w * np.cos(-delta)], rtol=0, atol=1e-4)
 
 
+@pytest.mark.slow  # 17 s on an idle core
 @pytest.mark.parametrize("n_steps", [64000])
 def test_bouncing_ball_period1_multipliers_within_1_percent(n_steps):
     """Ball on a vibrating table (e = 0.5, A = 1.49, g = ω = 1): multipliers of the period-1

@@ -45,6 +45,7 @@ def test_sum_of_exponents_is_the_phase_space_contraction_without_impacts():
     assert np.all(np.diff(r.exponents) <= 0)
 
 
+@pytest.mark.slow  # 14 s on an idle core
 def test_sum_of_exponents_with_impacts_includes_2_ln_e_per_impact():
     """Damped ball on the vibrating table (c = 0.05, e = 0.5), period-1 motion: the sum of
     the two exponents is -c + 2 ln(e) × (impacts per unit time) to 1 % (measured
