@@ -140,8 +140,11 @@ def _point(value, **kwargs):
     return bifurcation_point(value=value, **kwargs)
 
 
-def plot_bifurcation(df, param: str, component: int = 0, ax=None, **scatter_kwargs):
-    """Scatter the section values of a diagram table against the parameter; returns the axes."""
+def plot_bifurcation(df, param: str, component: int = 0, ax=None, transform=None, **scatter_kwargs):
+    """Scatter the section values of a diagram table against the parameter; returns the axes.
+
+    ``transform`` (callable on an array) maps the values first, e.g. wraps an angle.
+    """
     import matplotlib.pyplot as plt
 
     ax = ax or plt.gca()
@@ -150,6 +153,8 @@ def plot_bifurcation(df, param: str, component: int = 0, ax=None, **scatter_kwar
         if sec is None or (isinstance(sec, float) and np.isnan(sec)):
             continue
         s = np.asarray(sec, float)[:, component]
+        if transform is not None:
+            s = np.asarray(transform(s), float)
         xs.append(np.full(s.shape, p))
         ys.append(s)
     kw = {"s": 1.0, "c": "k", "alpha": 0.6, "linewidths": 0}
