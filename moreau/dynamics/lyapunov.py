@@ -12,7 +12,7 @@ Two methods, both on :func:`moreau.simulate` (any scene, impacts included):
   two impacting trajectories — which tends to the saltation (transition) matrix of
   Müller (1995) when ``h·|v| << delta << 1``, and the sum of the exponents contains the
   contraction ``2 ln e`` of every impact. Checked on the ball on a vibrating table
-  (``tests/test_dynamics_lyapunov.py``: the sum matches -c + 2 ln e per impact to 0.17 %).
+  (``tests/test_dynamics_lyapunov.py``: the sum matches -c + 2 ln e per impact to 0.3 %).
   Known limit: near grazing impacts (normal velocity → 0) the saltation matrix grows
   like 1 / velocity and finite differences of size delta cannot follow it; on the
   chaotic triple pendulum of ``notebooks/triple_pendulum.py`` the spectrum's sum does not
