@@ -64,14 +64,14 @@ if SMALL:
     AMPS = [1.5, 2.25, 3.0]
     N = 200                     # steps per forcing period
     BIF = dict(n_transient=20, n_points=10)
-    LYAP = dict(n_intervals=10, n_align=2, d0=1e-4)
+    LYAP = dict(n_intervals=10, n_align=2, d0=3e-2, interval=T / 2)
     N_TRANSIENT, N_PORTRAIT, N_CLOUD, N_LYAP = 20, 5, 30, 10
 else:
     AMPS = [round(float(a), 4) for a in np.linspace(1.0, 3.5, 26)]
-    N = 400
+    N = 1600
     BIF = dict(n_transient=100, n_points=60)
-    LYAP = dict(n_intervals=100, n_align=5, d0=1e-4)
-    N_TRANSIENT, N_PORTRAIT, N_CLOUD, N_LYAP = 100, 10, 1000, 200
+    LYAP = dict(n_intervals=120, n_align=6, d0=3e-2, interval=T / 2)
+    N_TRANSIENT, N_PORTRAIT, N_CLOUD, N_LYAP = 100, 10, 500, 200
 h = T / N
 print(f"omega = {OMEGA} rad/s, T = {T:.4f} s, h = T/{N} = {h:.3e} s, amplitudes {AMPS[0]}..{AMPS[-1]} N m")
 
@@ -80,7 +80,8 @@ print(f"omega = {OMEGA} rad/s, T = {T:.4f} s, h = T/{N} = {h:.3e} s, amplitudes 
 #
 # For every amplitude: start at rest, discard the transient periods, sample the state once
 # per forcing period (at t = kT), then estimate the largest Lyapunov exponent by two nearby
-# trajectories (d0 = 1e-4 in the state norm, renormalized every period). The points run on
+# trajectories (d0 = 3e-2 in the state norm — rad and rad/s —, renormalized every half
+# period; d0 must be large compared with h·|v|, see the Floquet ladder below). The points run on
 # a process pool through `moreau.sweeps.sweep` and are recorded in `data/`, so the diagram
 # resumes where it stopped.
 
@@ -89,7 +90,7 @@ t0 = time.perf_counter()
 df = bifurcation_diagram(
     functools.partial(forced_triple_pendulum, OMEGA), "amplitude", AMPS,
     q0=[0.0, 0.0, 0.0], v0=[0.0, 0.0, 0.0], h=h, period=T, components=(0, 1, 2),
-    lyapunov=LYAP, out=os.path.join(DATA_DIR, f"triple_pendulum_bifurcation_{tag}.csv"),
+    lyapunov=LYAP, out=os.path.join(DATA_DIR, f"triple_pendulum_bifurcation_{tag}_N{N}.csv"),
     workers=2, progress=False, **BIF)
 print(f"{len(df)} amplitudes in {time.perf_counter() - t0:.1f} s")
 print(df[["amplitude", "period_detected", "n_impacts", "lyapunov", "lyapunov_err", "error"]].to_string())
@@ -201,10 +202,10 @@ print("multipliers (finest h, largest eps):", np.round(mu, 4))
 
 # %%
 r = runs[A_CHAOTIC]
-two = largest_lyapunov(r["scene"], r["q"], r["v"], h, interval=T, n_intervals=N_LYAP, n_align=5,
-                       t0=r["t"], d0=1e-4)
-spec = lyapunov_spectrum(r["scene"], r["q"], r["v"], h, interval=T, n_intervals=N_LYAP // 2, n_align=5,
-                         t0=r["t"], delta=1e-4)
+two = largest_lyapunov(r["scene"], r["q"], r["v"], h, interval=T / 2, n_intervals=N_LYAP, n_align=6,
+                       t0=r["t"], d0=3e-2)
+spec = lyapunov_spectrum(r["scene"], r["q"], r["v"], h, interval=T / 2, n_intervals=N_LYAP // 2, n_align=6,
+                         t0=r["t"], delta=3e-2)
 print(f"two trajectories: {two.exponents[0]:.3f} ± {two.stderr[0]:.3f} 1/s")
 print(f"FD-QR spectrum  : {np.round(spec.exponents, 3)} ± {np.round(spec.stderr, 3)} 1/s")
 cl = r["section"]
@@ -272,7 +273,7 @@ cyc = np.floor(traj.impacts.t / (4 * np.pi)).astype(int)
 per_cycle = np.bincount(cyc[cyc >= 1] - 1, minlength=CYCLES)[:CYCLES]
 E_cycle = np.bincount(cyc[cyc >= 1] - 1, weights=traj.impacts.energy_lost[cyc >= 1], minlength=CYCLES)[:CYCLES]
 print("impacts per cycle:", per_cycle.tolist())
-print("energy lost at impacts per cycle (model units):", np.round(E_cycle, 6).tolist())
+print("energy lost at impacts per cycle (model units):", [f"{x:.4g}" for x in E_cycle])
 
 q_p, v_p = traj.q[-1], traj.v[-1]
 res_p = largest_lyapunov(model.scene, q_p, v_p, H_P, interval=4 * np.pi / 8, n_intervals=8 * LYAP_CYCLES,
