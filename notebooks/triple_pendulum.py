@@ -108,20 +108,17 @@ fig.tight_layout()
 fig.savefig(os.path.join(FIG_DIR, "triple_pendulum_bifurcation.png"), dpi=110)
 
 # %% [markdown]
-# **What is seen** (full run: 26 amplitudes, 100 transient + 60 sampled periods, T/h = 400).
-# Up to A = 1.6 N m the largest exponent is negative (−0.09 to −0.03 1/s) and the tip hits
-# the wall once per period: a stable period-1 impacting motion, whose exponent climbs
-# towards zero as A grows. At A = 1.7 N m the motion turns irregular — 2.2–2.3 impacts per
-# period, exponent +0.10 ± 0.04 1/s, a section that no longer repeats — and from about
-# A = 2.3 N m link 3 goes over the top (its wrapped angle fills [−π, π]) with exponents of
-# 1 to 2.5 1/s. The period detector (rtol 1e-4) reports no period from A = 1.6 on; below,
-# the periods 5–16 it reports for A = 1.0–1.4 are the slow approach of a weakly damped
-# orbit (multiplier ≈ 0.9 per period) to its fixed point, not long periods: the sign of
-# the exponent is the better indicator. Caveat: d0 = 1e-4 is below h·|v| at T/h = 400, so
-# these are exponents of the scheme's discrete map (see the spectrum below); their sign
-# is robust, their values are not converged in h.
-
-
+# **What is seen** (full run: 26 amplitudes, 100 transient + 60 sampled periods,
+# T/h = 1600, d0 = 3e-2). Up to A = 1.5 N m the tip hits the wall once per period and the
+# section repeats: a stable period-1 impacting motion, largest exponent −0.30 to −0.40 1/s
+# (± 0.03), as its Floquet multipliers say below. At A = 1.6 N m the exponent is zero
+# within its error (−0.015 ± 0.064) and the impacts per period rise to 1.6: the orbit
+# loses stability there. From A = 1.7 N m the motion is chaotic: 2.2–2.3 impacts per
+# period, exponents 0.35–0.55 1/s up to A = 2.1, then a jump to 1.6–3.4 1/s from
+# A = 2.2 N m where link 3 starts going over the top (its wrapped angle fills [−π, π]).
+# The period detector (rtol 1e-4) finds period 1 for A = 1.1–1.5 and none from 1.6 on;
+# its "period 4" at A = 1.0 is the slow approach of the weakly damped orbit to its fixed
+# point within the tolerance — the exponent is the better indicator.
 # %% [markdown]
 # ## A periodic and a chaotic regime
 #
@@ -193,6 +190,17 @@ for n_steps in ((200, 800) if SMALL else (1600, 6400, 25600)):
 mu = rows[0 if SMALL else -3][2]
 print("multipliers (finest h, largest eps):", np.round(mu, 4))
 
+# %% [markdown]
+# **What is seen** (full run). The exact determinant of the monodromy is known:
+# exp(−∫trace(M⁻¹C)dt) × e² for the one impact per period = 0.0101. With eps = 3e-2
+# (≫ h·|v|) the multipliers converge over the ladder — the leading complex pair has
+# |μ| = 0.741, 0.740, 0.717 at T/h = 1600, 6400, 25600, the determinant 0.0108, 0.0104,
+# 0.0097 — and eps = 1e-2 joins them at the finest step (0.713, det 0.0093). With
+# eps = 1e-3, below h·|v|, the "multipliers" are those of the scheme's sawtooth map and
+# scatter (0.84 to 1.19, det 0.025–0.08): the perturbation must resolve the step, or the
+# answer is wrong. The period-1 orbit at A = 1.5 N m is stable with |μ|max ≈ 0.72, a
+# largest exponent ln 0.72 / T ≈ −0.31 1/s; the two-trajectory method gives −0.36 ± 0.03
+# 1/s in the diagram above (−0.36 ± 0.04 at T/h = 6400).
 # %% [markdown]
 # ### Lyapunov exponents of the chaotic regime by both methods
 #
