@@ -231,21 +231,21 @@ fig.tight_layout()
 fig.savefig(os.path.join(FIG_DIR, "triple_pendulum_lyapunov.png"), dpi=110)
 
 # %% [markdown]
-# **What is seen** (full run). The two methods agree within their error bars: 2.23 ± 0.16
-# 1/s from two trajectories, 2.48 ± 0.23 1/s for the largest exponent of the FD-QR
-# spectrum. But the *sum* of that spectrum (about 0) is not the flow's mean phase-space
-# contraction, −⟨trace(M⁻¹C)⟩ + 2 ln(e) × impact rate ≈ −2.8 1/s: with d0 = delta = 1e-4
-# far below h·|v| both methods measure the discrete map of the scheme, whose Jacobian at
-# an impact step is not Müller's saltation matrix. On the ball on the table, where
-# delta ≫ h·|v| is affordable, the same code gets the sum right to 0.17 %
-# (`tests/test_dynamics_lyapunov.py`). On this pendulum, runs outside the notebook
-# (T/h = 1600 and 6400, delta = 1e-2 and 3e-2, renormalizing every T/2 or T/4) kept the
-# largest exponent positive (1.6 to 3.7 1/s) and did not bring the sum to −2.8: in the
-# chaotic regime grazing impacts (saltation ∝ 1/normal velocity) defeat finite
-# differences. Conclusion: chaotic — the sign is robust — but the exponent's value is
-# not converged here; a tangent integration with saltation matrices at the logged impacts
-# is the method that would converge, and is not built yet.
-
+# **What is seen** (full run, T/h = 1600, d0 = delta = 3e-2, renormalized every half
+# period). The two methods agree within their error bars: 2.82 ± 0.22 1/s from two
+# trajectories, 3.10 ± 0.34 1/s for the largest exponent of the FD-QR spectrum (at
+# T/h = 400 and d0 = delta = 1e-4, below h·|v|: 2.23 ± 0.16 and 2.48 ± 0.23 1/s, the slow
+# test). The motion is chaotic. But the rest of the spectrum is not trustworthy here: its
+# *sum* (+4.4 1/s; ≈ 0 at T/h = 400) should be the flow's mean phase-space contraction,
+# −⟨trace(M⁻¹C)⟩ + 2 ln(e) × impact rate ≈ −2.8 1/s. On the periodic orbit above and on
+# the ball on the table (`tests/test_dynamics_lyapunov.py`, 0.3 %) the same finite
+# differences get the contraction right; in this chaotic regime grazing impacts (the
+# saltation matrix grows like 1 / normal velocity) and trajectories that hit where their
+# neighbours miss defeat finite differences of any size we can afford on the Python path.
+# Conclusion: chaotic, with a largest exponent of about 2.5–3 1/s, consistent between the
+# two methods and across h (2.2 ± 0.4 and 2.7 ± 0.3 1/s at T/h = 1600 and 6400, runs
+# outside this notebook); the full spectrum of this regime needs tangent dynamics with
+# saltation matrices at the logged impacts (Müller 1995), which is not built yet.
 # %% [markdown]
 # ## The piston at e = 0.9: periodic in 720°, or chaotic?
 #
