@@ -18,12 +18,12 @@ speed up with the simulation backend.
 from .bifurcation import bifurcation_diagram, bifurcation_point, plot_bifurcation
 from .floquet import FloquetResult, detect_period, find_fixed_point, floquet_multipliers
 from .lyapunov import LyapunovResult, largest_lyapunov, lyapunov_spectrum
-from .maps import TimeMap, jacobian_fd, join_state, split_state
+from .maps import PoincareMap, TimeMap, jacobian_fd, join_state, split_state
 from .sections import Section, poincare, poincare_on_the_fly, stroboscopic
 
 __all__ = [
     "Section", "stroboscopic", "poincare", "poincare_on_the_fly",
-    "TimeMap", "jacobian_fd", "join_state", "split_state",
+    "TimeMap", "PoincareMap", "jacobian_fd", "join_state", "split_state",
     "FloquetResult", "detect_period", "find_fixed_point", "floquet_multipliers",
     "LyapunovResult", "largest_lyapunov", "lyapunov_spectrum",
     "bifurcation_diagram", "bifurcation_point", "plot_bifurcation",

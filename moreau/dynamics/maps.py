@@ -16,7 +16,7 @@ import numpy as np
 import moreau as mo
 from moreau._validation import as_positive, as_vector
 
-__all__ = ["TimeMap", "jacobian_fd", "join_state", "split_state", "restart"]
+__all__ = ["TimeMap", "PoincareMap", "jacobian_fd", "join_state", "split_state", "restart"]
 
 log = logging.getLogger(__name__)
 
@@ -163,3 +163,68 @@ def jacobian_fd(fun: Callable[[np.ndarray], np.ndarray], x, eps: float | np.ndar
 def steps_for(T: float, h: float) -> int:
     """Number of steps ``round(T / h)`` (at least one)."""
     return max(1, int(math.floor(T / h + 0.5)))
+
+
+class PoincareMap:
+    """The return map to a section ``s(q, v) = 0`` of an autonomous scene (e.g. an engine
+    at a crank angle), on the coordinates ``free`` of the state.
+
+    Each call integrates from the section point with :func:`moreau.simulate` over
+    ``t_max`` (recording every step) and returns the state at the first crossing after
+    ``t_min`` (linear interpolation between steps, as :func:`moreau.dynamics.poincare`).
+
+    Parameters
+    ----------
+    scene : Scene
+        The system (autonomous, or with a period that the section respects).
+    surface : callable ``s(q, v) -> float``
+        The section.
+    h : float
+        Step size.
+    x_ref : array_like, shape (2n,)
+        A full state on the section: the coordinates not in ``free`` are taken from it.
+    free : sequence of int
+        Indices into ``x = (q, v)`` that the map acts on (all but one coordinate fixed by
+        the section).
+    t_min, t_max : float
+        The return is searched in ``(t_min, t_max]`` after the start (time units).
+    direction : {1, -1, 0}
+        Crossing direction.
+    t0 : float
+        Start time of every run.
+    **simulate_kwargs
+        Passed to :func:`moreau.simulate`.
+    """
+
+    def __init__(self, scene: mo.Scene, surface, h: float, x_ref, free, *, t_min: float, t_max: float,
+                 direction: int = 1, t0: float = 0.0, **simulate_kwargs) -> None:
+        self.scene, self.surface, self.direction = scene, surface, int(direction)
+        self.h = as_positive(h, "PoincareMap.h")
+        self.x_ref = as_vector(x_ref, "PoincareMap.x_ref", 2 * scene.ndof).copy()
+        self.free = np.asarray(free, dtype=int)
+        self.t_min, self.t_max, self.t0 = float(t_min), float(t_max), float(t0)
+        if not 0 <= self.t_min < self.t_max:
+            raise ValueError(f"PoincareMap: need 0 <= t_min < t_max, got {t_min}, {t_max}")
+        kw = {"progress": False, "energy": False}
+        kw.update(simulate_kwargs)
+        kw["record_every"] = 1
+        self.simulate_kwargs = kw
+        self.last_return_time = np.nan
+
+    def full_state(self, y) -> np.ndarray:
+        """The full state (2n,) with the free coordinates ``y``."""
+        x = self.x_ref.copy()
+        x[self.free] = y
+        return x
+
+    def __call__(self, y) -> np.ndarray:
+        """The free coordinates at the next crossing, shape (len(free),)."""
+        from .sections import poincare
+
+        q, v = split_state(self.full_state(y))
+        traj = restart(self.scene, (self.t0, self.t0 + self.t_max), q, v, self.h, **self.simulate_kwargs)
+        sec = poincare(traj, self.surface, self.direction, t_start=self.t0 + self.t_min)
+        if len(sec) == 0:
+            raise RuntimeError(f"PoincareMap: no crossing within t_max = {self.t_max}")
+        self.last_return_time = float(sec.t[0] - self.t0)
+        return np.concatenate([sec.q[0], sec.v[0]])[self.free]
