@@ -283,6 +283,20 @@ E_cycle = np.bincount(cyc[cyc >= 1] - 1, weights=traj.impacts.energy_lost[cyc >=
 print("impacts per cycle:", per_cycle.tolist())
 print("energy lost at impacts per cycle (model units):", [f"{x:.4g}" for x in E_cycle])
 
+# Multipliers of the 720° map: the return map to firing TDC on (φ2, φ3, φ1', φ2', φ3'),
+# by central differences with perturbations scaled to each coordinate.
+from moreau.dynamics import PoincareMap
+
+x_sec = join_state(sec.q[-1], sec.v[-1])
+x_sec[0] = np.round(x_sec[0] / (4 * np.pi)) * 4 * np.pi  # exactly on the section
+P = PoincareMap(model.scene, lambda q, v: np.sin(q[0] / 4.0), H_P, x_ref=x_sec, free=[1, 2, 3, 4, 5],
+                t_min=2 * np.pi, t_max=6 * np.pi, direction=0, solver="enum")
+eps_p = np.array([1e-4, 1e-6, 1e-3, 1e-3, 1e-3])
+t0 = time.perf_counter()
+fl = floquet_multipliers(P, x_sec[[1, 2, 3, 4, 5]], eps=eps_p)
+print(f"720-degree map multipliers ({time.perf_counter() - t0:.0f} s): {np.round(fl.multipliers, 4)}")
+print(f"|mu| = {np.round(np.abs(fl.multipliers), 4)}")
+
 q_p, v_p = traj.q[-1], traj.v[-1]
 res_p = largest_lyapunov(model.scene, q_p, v_p, H_P, interval=4 * np.pi / 8, n_intervals=8 * LYAP_CYCLES,
                          n_align=2, t0=float(traj.t[-1]), d0=1e-6, solver="enum")
