@@ -260,7 +260,6 @@ fig.savefig(os.path.join(FIG_DIR, "triple_pendulum_lyapunov.png"), dpi=110)
 # section leaves free) say how stable a periodic engine cycle is.
 
 # %%
-from problems.piston.analysis import lateral_position
 from problems.piston.model import piston_model
 from problems.piston.params import PistonParameters
 
