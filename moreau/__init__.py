@@ -20,7 +20,7 @@ except PackageNotFoundError:  # running from a source tree that is not installed
 
 from .barriers import Barrier, FunctionBarrier, LinearBarrier, check_jacobian
 from .errors import SimulationError, SolverError
-from .forces import ConstantForce, Effect, FourierLoad, FunctionForce, LinearDamping, LinearSpring
+from .forces import ConstantForce, Effect, FourierLoad, FunctionForce, HarmonicForce, LinearDamping, LinearSpring
 from .drift import PositionProjection
 from .integrator import MoreauJeanMidpoint, MoreauJeanTheta, OneStepIntegrator
 from .laws import NewtonImpact
@@ -36,7 +36,7 @@ __all__ = [
     "__version__",
     "Barrier", "FunctionBarrier", "LinearBarrier", "check_jacobian",
     "SimulationError", "SolverError",
-    "ConstantForce", "Effect", "FourierLoad", "FunctionForce", "LinearDamping", "LinearSpring",
+    "ConstantForce", "Effect", "FourierLoad", "FunctionForce", "HarmonicForce", "LinearDamping", "LinearSpring",
     "MoreauJeanMidpoint", "MoreauJeanTheta", "OneStepIntegrator", "PositionProjection",
     "NewtonImpact",
     "OneStepProblem", "Residuals",

@@ -21,9 +21,9 @@ from collections.abc import Callable
 import numpy as np
 
 from . import kernels as _k
-from ._validation import as_matrix, as_vector
+from ._validation import as_matrix, as_positive, as_vector
 
-__all__ = ["Effect", "ConstantForce", "LinearDamping", "LinearSpring", "FunctionForce"]
+__all__ = ["Effect", "ConstantForce", "LinearDamping", "LinearSpring", "FunctionForce", "HarmonicForce", "FourierLoad"]
 
 
 class Effect(ABC):
@@ -268,3 +268,40 @@ class FourierLoad:
     def __call__(self, t, q, v) -> np.ndarray:
         """F(q), shape (2,)."""
         return self.direction * self.series(q[self.coordinate])
+
+
+class HarmonicForce(Effect):
+    """A harmonic generalized force ``f(t) = amplitude * sin(omega t + phase)``.
+
+    Parameters
+    ----------
+    amplitude : array_like, shape (n,)
+        Amplitude per coordinate (generalized force units: N, or N m for angles).
+    omega : float
+        Angular frequency (rad per time unit), > 0.
+    phase : float
+        Phase (rad) at t = 0.
+    name : str
+        Label (``"harmonic"`` by default).
+    """
+
+    time_dependent = True
+
+    def __init__(self, amplitude, omega: float, phase: float = 0.0, name: str = "harmonic") -> None:
+        self.amplitude = as_vector(amplitude, "HarmonicForce.amplitude")
+        self.amplitude.setflags(write=False)
+        self.omega = as_positive(omega, "HarmonicForce.omega")
+        phase = as_vector(phase, "HarmonicForce.phase", 1)
+        self.phase = float(phase[0])
+        self._p = _k.flat(self.amplitude, [self.omega, self.phase])  # layout of kernels.add_harmonic
+        self.name = name
+
+    def force(self, t, q, v):
+        return _k.force_of(_k.add_harmonic, self.amplitude.shape[0], self._p, 0, float(t))
+
+    def kernel(self):
+        return _k.HARMONIC, (self._p,)
+
+    def describe(self):
+        return {**super().describe(), "amplitude": self.amplitude.tolist(), "omega": self.omega,
+                "phase": self.phase}

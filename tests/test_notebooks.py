@@ -41,7 +41,7 @@ def execute(path: Path, env: dict[str, str], timeout: int = 600) -> tuple[float,
 
 
 def test_there_are_notebooks():
-    assert {p.stem for p in NOTEBOOKS} >= {"restitution", "clearance", "paper_figures"}
+    assert {p.stem for p in NOTEBOOKS} >= {"restitution", "clearance", "paper_figures", "triple_pendulum"}
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
