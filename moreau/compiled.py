@@ -88,7 +88,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     # the inverse of a constant M, as the reference path uses it for free steps
     Minv = np.linalg.inv(scene.system.mass_matrix(q0)) if scene.system.constant_mass else np.zeros((n, n))
 
-    status, message, error, interrupt = "completed", "", None, None
+    status, message, interrupt = "completed", "", None
     chunk = 2000
     wall0 = time.perf_counter()
     code = lp.DONE
@@ -118,6 +118,31 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
         status, message = "interrupted", f"interrupted by the user at step {k} (t = {t0 + k * h:.9g})"
         interrupt = exc
     wall = time.perf_counter() - wall0
+    while True:  # an interrupt arriving while the result is assembled waits for it
+        try:
+            traj, error = _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE, IMP,
+                                    q, v, P_acc, act_acc, pen, cnt, acc, fail, cs, t0, h, stride, solver,
+                                    fallback, energy, wall)
+            break
+        except KeyboardInterrupt as exc:
+            if interrupt is None:
+                interrupt, status = exc, "interrupted"
+                message = "interrupted by the user while the result was assembled"
+    if interrupt is not None:
+        log.warning("%s; %d records computed so far are attached to the KeyboardInterrupt", traj.message, len(traj))
+        interrupt.trajectory = traj
+        raise interrupt
+    if error is not None:
+        error.trajectory = traj
+        raise error
+    return traj
+
+
+def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE, IMP, q, v, P_acc, act_acc,
+              pen, cnt, acc, fail, cs, t0, h, stride, solver, fallback, energy, wall):
+    """The Trajectory (and the error to raise, if any) from the loop's buffers."""
+    n, m = scene.ndof, scene.nrows
+    error = None
     k = int(cnt[lp.C_K])
     t_now = t0 + k * h
     if code != lp.DONE and status == "completed":
@@ -158,14 +183,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
         status=status, message=message, version=__version__, max_penetration=pen.copy(),
         work={"forces": float(acc[lp.A_WORK_F]), "contacts": float(acc[lp.A_WORK_C])},
     )
-    if interrupt is not None:
-        log.warning("%s; %d records computed so far are attached to the KeyboardInterrupt", message, rec)
-        interrupt.trajectory = traj
-        raise interrupt
-    if error is not None:
-        error.trajectory = traj
-        raise error
-    return traj
+    return traj, error
 
 
 def _error(code, scene, k, t, q, v, h, fail, cs):

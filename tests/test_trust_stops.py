@@ -88,7 +88,7 @@ def summary(path) -> list[dict]:
 @linux
 def test_sigterm_to_piston_saves_partials_lists_every_case_and_leaves_no_worker(tmp_path):
     # three cases on two workers: the third has not started when SIGTERM arrives
-    proc, err = start_command(["piston", "--cycles", "40", "--transient", "0", "--h", "1e-3", "--workers", "2",
+    proc, err = start_command(["piston", "--cycles", "400", "--transient", "0", "--h", "1e-3", "--workers", "2",
                                "--out", "out"], tmp_path)
     wait_for(err, b"step/s]", proc)
     time.sleep(1.0)
@@ -115,7 +115,7 @@ def test_sigterm_to_piston_saves_partials_lists_every_case_and_leaves_no_worker(
 
 @linux
 def test_workers_end_when_the_parent_is_killed(tmp_path):
-    proc, err = start_command(["piston", "--cycles", "40", "--transient", "0", "--h", "1e-3", "--workers", "2",
+    proc, err = start_command(["piston", "--cycles", "400", "--transient", "0", "--h", "1e-3", "--workers", "2",
                                "--out", "out"], tmp_path)
     wait_for(err, b"step/s]", proc)
     workers = children(proc.pid)
@@ -157,7 +157,7 @@ def test_sigterm_to_sweep_keeps_the_record_lists_every_point_and_leaves_no_worke
 
 @linux
 def test_sigterm_to_ball_saves_the_partial_trajectory(tmp_path):
-    proc, err = start_command(["ball", "--t-end", "100", "--h", "1e-5", "--out", "out"], tmp_path)
+    proc, err = start_command(["ball", "--t-end", "3000", "--h", "1e-5", "--record-every", "1000", "--out", "out"], tmp_path)
     wait_for(err, b"step/s]", proc)
     os.kill(proc.pid, signal.SIGTERM)
     rc = finish(proc)

@@ -83,7 +83,7 @@ def last_line(stderr):
 
 
 def test_ball_command_interrupted_saves_a_partial_trajectory(tmp_path):
-    rc, err, _ = interrupt_command(["ball", "--t-end", "100", "--h", "1e-5", "--out", "out"], tmp_path)
+    rc, err, _ = interrupt_command(["ball", "--t-end", "3000", "--h", "1e-5", "--record-every", "1000", "--out", "out"], tmp_path)
     assert rc == 130 and "Traceback" not in err  # 128 + SIGINT, the same for every command
     line = last_line(err)
     assert line.startswith("moreau ball: interrupted: interrupted by the user at step")
