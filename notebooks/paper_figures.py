@@ -110,8 +110,9 @@ per_fig
 #   piston sliding along the cylinder surface per cycle". Most of the time the piston
 #   adjoins one wall with both corners (x_O3 = ±1) and it crosses over in flight with a
 #   small tilt (a fraction of a milliradian) — the paper's observation, against Sygniewicz
-#   (1999), that the piston loses contact while crossing. The steady speed is 2005.8 rpm,
-#   the paper's 2000 rpm.
+#   (1999), that the piston loses contact while crossing. The mean speed over the cycles is
+#   2005.8 rpm: the runs start at the paper's 2000 rpm, and the engine's own speed relaxes
+#   over thousands of cycles (README, "The piston engine").
 # * **Fig. 3 (e = 0.9, D = 80.04 mm).** Every sliding phase is preceded by a train of
 #   impacts on the same wall (about 80 in the last cycle), and there are ten side
 #   changes per cycle instead of six: the six stages plus two quick round trips across
