@@ -69,7 +69,7 @@ def _cmd_ball(args) -> int:
     scene = bouncing_ball(args.e)
     sol = BallSolution(args.h0, args.e)
     traj = _run(scene, (0.0, args.t_end), [args.h0], [0.0], args, out_stem=os.path.join(args.out, "ball"),
-                record_every=args.record_every)
+                record_every=args.record_every, penetration_limit=0.01 * args.h0)  # 1 % of the drop
     fig, ax = plt.subplots(figsize=(7, 3.5))
     ax.plot(traj.t, traj.q[:, 0], label=f"moreau, h = {args.h:g} s")
     ax.plot(traj.t, sol.position(traj.t), "--", lw=1, label="analytic")
@@ -88,10 +88,13 @@ def _cmd_ball(args) -> int:
         "zeno_time_analytic": sol.zeno_time,
         "max_penetration": mo.diagnostics.max_penetration(traj),
         "fallbacks": traj.stats.fallbacks, "wall_time_s": traj.stats.wall_time,
-        "us_per_step": traj.stats.us_per_step,
+        "us_per_step": traj.stats.us_per_step, "warnings": "; ".join(traj.warnings),
     }
     write_summary([row], os.path.join(args.out, "ball_summary.csv"))
     print(f"figure written to {fig_path}")
+    if traj.warnings:  # never reported as a clean run
+        print(f"moreau ball: completed WITH WARNINGS: {'; '.join(traj.warnings)}", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -148,6 +151,10 @@ def _cmd_piston(args) -> int:
     for r in bad:
         saved = "partial trajectory saved" if r["status"] in ("failed", "interrupted") else "nothing saved"
         print(f"case e={r['e']}, D={r['D_mm']} mm {r['status']}: {saved}", file=sys.stderr)
+    warned = [r for r in rows if r.get("warnings")]
+    for r in warned:  # never reported as clean
+        print(f"case e={r['e']}, D={r['D_mm']} mm completed WITH WARNINGS: {r['warnings']}", file=sys.stderr)
+    bad += [r for r in warned if r not in bad]
     if stopped is not None:
         raise Stopped(f"{sum(r['status'] == 'completed' for r in rows)} of {len(rows)} case(s) completed; "
                       f"summary in {os.path.join(args.out, 'summary.csv')}", interrupt_exit_code(stopped))
@@ -191,7 +198,7 @@ def build_parser() -> argparse.ArgumentParser:
     from . import __version__
 
     p = _Parser(prog="moreau", description="Non-smooth mechanics with the Moreau-Jean midpoint scheme.",
-                epilog="exit codes: 0 completed, 1 a run failed, 2 the command could not start "
+                epilog="exit codes: 0 completed, 1 a run failed or completed with warnings, 2 the command could not start "
                        "(options, --out, dependencies), 130/143 stopped by Ctrl-C/SIGTERM after saving")
     p.add_argument("--version", action="version", version=f"moreau {__version__}")
     p.add_argument("-v", "--verbose", action="store_true", help="log progress details")

@@ -159,6 +159,9 @@ class Trajectory:
         forces h fᵀ(v_k + v⁺)/2, and ``"contacts"``, the work of the contact impulses
         ½ Pᵀ(U⁻ + U⁺) (≤ 0 for e ≤ 1), in the scene's energy unit. They close the
         discrete balance ΔT = forces + contacts exactly for a constant mass matrix.
+    warnings : list of str
+        What the run-level checks found (a penetration beyond its limit, see
+        :mod:`moreau.trust`); empty for a clean run. Kept by ``save``/``load``.
     """
 
     t: np.ndarray
@@ -182,6 +185,7 @@ class Trajectory:
     extra: dict = field(default_factory=dict)
     max_penetration: np.ndarray | None = None
     work: dict = field(default_factory=dict)
+    warnings: list = field(default_factory=list)
 
     def __len__(self) -> int:
         return int(self.t.shape[0])
@@ -221,6 +225,7 @@ class Trajectory:
             "stats": {f.name: getattr(self.stats, f.name) for f in fields(self.stats)},
             "extra": self.extra,
             "work": self.work,
+            "warnings": self.warnings,
         }
         arrays = {
             "t": self.t, "q": self.q, "v": self.v, "gaps": self.gaps,
@@ -277,6 +282,7 @@ class Trajectory:
                 potential_energy=data.get("potential_energy"), status=meta["status"],
                 message=meta["message"], version=meta["version"], extra=meta.get("extra", {}),
                 max_penetration=data.get("max_penetration"), work=meta.get("work", {}),
+                warnings=list(meta.get("warnings", [])),
             )
         except (KeyError, TypeError) as exc:
             raise ValueError(f"trajectory file {path!r} is incomplete: missing {exc}") from None

@@ -16,6 +16,7 @@ from .integrator import (MoreauJeanMidpoint, MoreauJeanTheta, NonFiniteState, On
 from .result import ImpactLog, SolverStats, Trajectory
 from .scene import Scene
 from .solvers import ContactSolver
+from .trust import check_jacobians, penetration_warnings
 
 __all__ = ["simulate"]
 
@@ -42,6 +43,8 @@ def simulate(
     energy: bool = True,
     tol: float = 1e-6,
     drift_control=None,
+    check_jacobian: bool = True,
+    penetration_limit: float | None = None,
 ) -> Trajectory:
     """Integrate a scene with a fixed step from ``t_span[0]`` to ``t_span[1]``.
 
@@ -90,6 +93,13 @@ def simulate(
         Largest accepted scaled KKT residual of a contact solve.
     drift_control : PositionProjection or None
         Position correction after each step (see :mod:`moreau.drift`); default none.
+    check_jacobian : bool
+        Compare every barrier's Jacobian with finite differences of its gap at q0 and
+        refuse a mismatch (``ValueError`` naming the row); default True.
+    penetration_limit : float, optional
+        Largest acceptable penetration (gap units). Default: h·|U⁻| per row, the
+        distance its impacts travel in one step. A run beyond it warns
+        (``RuntimeWarning``) and says so in ``traj.warnings``.
 
     Returns
     -------
@@ -132,22 +142,33 @@ def simulate(
     if record_bytes > _MAX_RECORD_BYTES:
         raise ValueError(f"recording {n_rec} states (h = {h!r}, record_every = {stride}) needs "
                          f"{record_bytes / 2**30:.1f} GiB; raise record_every")
+    if penetration_limit is not None:
+        penetration_limit = as_positive(penetration_limit, "penetration_limit")
+    if not isinstance(check_jacobian, bool):
+        raise ValueError(f"check_jacobian must be True or False, got {check_jacobian!r}")
     path, cs, solver, fallback = _choose_backend(backend, scene, integrator, solver, fallback, drift_control)
     if path == "compiled":
         from .compiled import run_compiled
 
         t0, q0, v0 = checked_start(lambda: check_initial_state(scene, t0, q0, v0), scene, t0, q0, v0)
+        if check_jacobian and m:
+            check_jacobians(scene, q0)
         bar = _progress_bar(progress, n_steps, scene.name)
         try:
-            return run_compiled(scene, cs, t0, q0, v0, h, n_steps, theta=integrator is MoreauJeanTheta,
+            traj = run_compiled(scene, cs, t0, q0, v0, h, n_steps, theta=integrator is MoreauJeanTheta,
                                 solver=solver, fallback=fallback, stride=stride, bar=bar, energy=energy,
                                 tol=tol, drift_control=drift_control)
         finally:
             if bar is not None:
                 bar.close()
-    integ = integrator(scene, h, solver=solver, fallback=fallback, tol=tol, drift_control=drift_control)
-    checked_start(lambda: integ.init(t0, q0, v0), scene, t0, q0, v0)
-    return _run_python(scene, integ, h, n_steps, stride, n_rec, progress, energy)
+    else:
+        integ = integrator(scene, h, solver=solver, fallback=fallback, tol=tol, drift_control=drift_control)
+        checked_start(lambda: integ.init(t0, q0, v0), scene, t0, q0, v0)
+        if check_jacobian and m:
+            check_jacobians(scene, integ.q)
+        traj = _run_python(scene, integ, h, n_steps, stride, n_rec, progress, energy)
+    traj.warnings = penetration_warnings(scene, traj, h, penetration_limit)
+    return traj
 
 
 def _choose_backend(backend, scene, integrator, solver, fallback, drift_control):

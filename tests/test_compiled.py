@@ -202,3 +202,36 @@ def test_a_new_process_loads_the_loop_from_the_cache():
         assert out.returncode == 0, out.stderr[-2000:]
     hits, misses, seconds = out.stdout.split()
     assert int(hits) >= 1 and int(misses) == 0  # machine code loaded, nothing compiled
+
+
+# -- run-level checks (issue 11 A) ---------------------------------------------------------
+def floor_scene(jac):
+    return mo.Scene(mo.FunctionSystem(np.eye(1)), [mo.ConstantForce([-9.81])],
+                    [mo.Contact(mo.FunctionBarrier(lambda q: np.array([q[0]]), jac), 0.0, name="floor")])
+
+
+@pytest.mark.parametrize("backend", ["compiled", "python"])
+def test_a_jacobian_of_the_wrong_sign_is_refused_naming_the_row(backend):
+    scene = floor_scene(lambda q: np.array([[-1.0]]))  # the gap is +q: its Jacobian is +1
+    with pytest.raises(ValueError, match=r"Jacobian of contact row 'floor' \(row 0\) does not match"):
+        mo.simulate(scene, (0.0, 1.0), [1.0], [0.0], 1e-3, backend="python" if backend == "python" else "auto")
+    # opting out runs it, and the penetration check then reports what happened
+    with pytest.warns(RuntimeWarning, match="penetrated"):
+        traj = mo.simulate(scene, (0.0, 1.0), [1.0], [0.0], 1e-3, check_jacobian=False, penetration_limit=1e-3)
+    assert traj.warnings and -traj.gaps.min() > 1.0
+
+
+def test_a_penetration_beyond_the_limit_warns_and_is_kept_by_save_load(tmp_path):
+    with pytest.warns(RuntimeWarning, match="row 'floor' penetrated"):
+        traj = mo.simulate(bouncing_ball(0.5), (0.0, 1.0), [1.0], [0.0], 1e-2, penetration_limit=1e-3)
+    assert traj.completed and len(traj.warnings) == 1
+    assert traj.max_penetration[0] > 1e-3
+    back = mo.load(traj.save(tmp_path / "run.npz"))
+    assert back.warnings == traj.warnings
+    clean = mo.simulate(bouncing_ball(0.5), (0.0, 1.0), [1.0], [0.0], 1e-4)  # default: h·|U⁻|
+    assert clean.warnings == [] and 0 < clean.max_penetration[0] <= 1e-4 * 4.5
+
+
+def test_the_piston_within_its_clearance_has_no_warnings():
+    traj = piston_model(e=0.9).simulate(0.05, 1e-4, drift_control=mo.PositionProjection())
+    assert traj.warnings == [] and traj.max_penetration.max() > 0

@@ -138,6 +138,7 @@ def summary_row(case: Case, status: str, wall: float = float("nan")) -> dict:
         "rpm": nan, "side_changes_per_cycle": "", "side_change_angles_deg": "", "impacts_per_cycle": nan,
         "max_penetration_over_clearance": nan, "energy_lost_per_cycle_J": nan, "max_slap_impulse_Ns": nan,
         "drift_control": case.drift_control, "fallbacks": 0, "wall_time_s": round(wall, 2), "us_per_step": nan,
+        "warnings": "",
     }
 
 
@@ -160,6 +161,7 @@ def _figures_row(case: Case, params: PistonParameters, traj: mo.Trajectory, stat
         "fallbacks": traj.stats.fallbacks,
         "wall_time_s": round(wall, 2),
         "us_per_step": round(traj.stats.us_per_step, 1),
+        "warnings": "; ".join(traj.warnings),
     }
     return row, figs
 

@@ -102,6 +102,8 @@ class PistonModel:
                 stacklevel=2,
             )
         q0, v0 = self.initial_state(phi1)
+        # a corner deeper than the clearance is a contact the step does not resolve
+        kwargs.setdefault("penetration_limit", p.clearance / p.l1)  # gaps are in units of l1
         return mo.simulate(self.scene, (0.0, 4 * np.pi * cycles), q0, v0, h, **kwargs)
 
 
