@@ -305,9 +305,11 @@ def kkt_residuals_kernel(M, L, b, G, c, v, P, k, out, Gv, GtP, r, d, x, y):
                 t -= L[i, l] * y[l]
             y[i] = t / L[i, i]
             nrm += y[i] * y[i]
-        sj = abs(b[j]) + abs(GtP[j])
+        sj = abs(b[j])
         for l in range(n):
             sj += abs(M[j, l] * v[l])
+        for l in range(k):
+            sj += abs(G[l, j] * P[l])
         r[j] = math.sqrt(nrm)  # r is free now: √(M⁻¹)_jj
         total += r[j] * sj
     stat = 0.0
