@@ -58,8 +58,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     n_rec = n_steps // stride + 1 + (1 if n_steps % stride else 0)
     iset = np.array([int(theta), drift_on, drift_iter, stride, n_steps, method, fb, int(energy)],
                     dtype=np.int64)
-    pe0 = _potential_offset(scene, cs, q0) if energy else 0.0
-    fset = np.array([h, t0, tol, drift_tol, pe0])
+    fset = np.array([h, t0, tol, drift_tol, 0.0])
     T = np.empty(n_rec)
     Q = np.empty((n_rec, n))
     V = np.empty((n_rec, n))
@@ -95,6 +94,8 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", category=_experimental_warning())
+            if energy:  # inside the try: loading (or compiling) it may meet a Ctrl-C
+                fset[lp.F_PE0] = _potential_offset(scene, cs, q0)
             while cnt[lp.C_K] < n_steps:
                 k_before = int(cnt[lp.C_K])
                 c0 = time.perf_counter()
