@@ -169,10 +169,16 @@ class OSQPSolver(ContactSolver):
     def solve(self, M, b, G, c, rows):
         if self._solver is None:
             raise SolveFailed("OSQPSolver.solve called before setup()")
+        # the QP is homogeneous in (b, c): solve small data in units where they are O(1)
+        # and scale (v, P) back. OSQP's absolute tolerance would otherwise swamp the 1e-10 m
+        # corrections of a drift-control projection (b = 0, c = −g).
+        scale = min(1.0, max(float(np.abs(c[rows]).max()) if rows.size else 0.0,
+                             float(np.abs(b).max()) / float(np.abs(np.diag(M)).max())
+                             * float(np.abs(G[rows]).max()) if rows.size else 0.0, 1e-300))
         l = self._l
         l.fill(-np.inf)
-        l[rows] = c[rows]
-        kw = {"q": -b, "l": l}
+        l[rows] = c[rows] / scale
+        kw = {"q": -b / scale, "l": l}
         if not self._constant_mass:
             kw["Px"] = M[self._p_rows, self._p_cols]
         if G is not self._last_A:
@@ -195,7 +201,7 @@ class OSQPSolver(ContactSolver):
         if st != self._solved_status and not (self.refine and nearly):
             raise SolveFailed(f"OSQP status {res.info.status!r} after {res.info.iter} iterations")
         # OSQP: l <= Ax <= u with y < 0 on active lower bounds; P = -y.
-        v, P = res.x, -res.y[rows]
+        v, P = scale * res.x, -scale * res.y[rows]
         if self.refine:
             # also from an iterate ADMM stopped short of its tolerance (ill-scaled M): the
             # active set it found is usually right, and the KKT check judges the result
