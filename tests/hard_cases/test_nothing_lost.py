@@ -105,7 +105,7 @@ def test_ball_command_interrupted_saves_a_partial_trajectory(tmp_path):
 
 @pytest.mark.slow
 def test_piston_command_interrupted_saves_a_partial_trajectory(tmp_path):
-    rc, err, _ = interrupt_command(["piston", "--e", "0", "--D", "80.04", "--cycles", "50", "--transient", "0",
+    rc, err, _ = interrupt_command(["piston", "--e", "0", "--D", "80.04", "--cycles", "2000", "--transient", "0", "--record-every", "100",
                                     "--h", "1e-3", "--out", "out"], tmp_path)
     assert rc == 130 and "Traceback" not in err
     assert "partial trajectory saved" in err
@@ -118,7 +118,7 @@ def test_piston_command_interrupted_saves_a_partial_trajectory(tmp_path):
 @pytest.mark.slow
 def test_piston_command_with_workers_stops_promptly_on_interrupt(tmp_path):
     # three cases on two workers: the third is queued when Ctrl-C arrives
-    rc, err, t_exit = interrupt_command(["piston", "--cycles", "20", "--transient", "0", "--h", "1e-3",
+    rc, err, t_exit = interrupt_command(["piston", "--cycles", "1000", "--transient", "0", "--h", "1e-3", "--record-every", "100",
                                          "--workers", "2", "--out", "out"], tmp_path)
     out = tmp_path / "out"
     partial = sorted(p.name for p in out.glob("*.partial.npz"))
