@@ -107,7 +107,13 @@ def _watch_parent(parent_pid: int) -> None:
         time.sleep(_WATCH_INTERVAL)
     _worker["parent_gone"] = True
     if _worker["running"]:
-        log.warning("worker %d: the parent process is gone; stopping the job", os.getpid())
+        # no logging here: this thread must not wait for a lock (a logging handler's, a
+        # stream's) that the interrupted main thread may hold, or os._exit is never reached
+        # (seen: two sweep workers orphaned for 87 min, both threads in futex_wait)
+        try:
+            os.write(2, f"worker {os.getpid()}: the parent process is gone; stopping the job\n".encode())
+        except OSError:
+            pass
         os.kill(os.getpid(), signal.SIGTERM)  # the job stops as on Ctrl-C and saves what it has
         time.sleep(_ORPHAN_GRACE)
     os._exit(143)
