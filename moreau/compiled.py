@@ -68,11 +68,6 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     KE = np.full(n_rec, np.nan)
     PE = np.full(n_rec, np.nan)
     T[0], Q[0], V[0] = t0, q0, v0
-    if m:
-        GP[0] = scene.gaps(q0)
-    if energy:
-        KE[0] = scene.kinetic_energy(q0, v0)
-        PE[0] = scene.potential_energy(q0)
     q, v = q0.copy(), v0.copy()
     in_contact = np.zeros(m, dtype=np.bool_)
     P_acc = np.zeros(m)
@@ -84,17 +79,23 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     acc = np.zeros(3)
     fail = np.zeros((2, 4))
     model = cs.arrays()
-    # the inverse of a constant M, as the reference path uses it for free steps
-    Minv = np.linalg.inv(scene.system.mass_matrix(q0)) if scene.system.constant_mass else np.zeros((n, n))
 
     status, message, interrupt = "completed", "", None
     chunk = 2000
     wall0 = time.perf_counter()
     code = lp.DONE
-    try:
+    try:  # from here on a Ctrl-C (or SIGTERM) keeps what exists: the first call of each
+        # kernel in a new process loads its machine code, which takes a moment
+        if m:
+            GP[0] = scene.gaps(q0)
+        if energy:
+            KE[0] = scene.kinetic_energy(q0, v0)
+            PE[0] = scene.potential_energy(q0)
+        # the inverse of a constant M, as the reference path uses it for free steps
+        Minv = np.linalg.inv(scene.system.mass_matrix(q0)) if scene.system.constant_mass else np.zeros((n, n))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", category=_experimental_warning())
-            if energy:  # inside the try: loading (or compiling) it may meet a Ctrl-C
+            if energy:
                 fset[lp.F_PE0] = _potential_offset(scene, cs, q0)
             while cnt[lp.C_K] < n_steps:
                 k_before = int(cnt[lp.C_K])

@@ -153,11 +153,16 @@ def simulate(
         t0, q0, v0 = checked_start(lambda: check_initial_state(scene, t0, q0, v0), scene, t0, q0, v0)
         if check_jacobian and m:
             check_jacobians(scene, q0)
-        bar = _progress_bar(progress, n_steps, scene.name)
+        bar = None
         try:
+            bar = _progress_bar(progress, n_steps, scene.name)
             traj = run_compiled(scene, cs, t0, q0, v0, h, n_steps, theta=integrator is MoreauJeanTheta,
                                 solver=solver, fallback=fallback, stride=stride, bar=bar, energy=energy,
                                 tol=tol, drift_control=drift_control)
+        except KeyboardInterrupt as exc:  # before the loop took over: the initial state is the run
+            if getattr(exc, "trajectory", None) is None:
+                exc.trajectory = _initial_state_only(scene, t0, q0, v0, h, stride, solver, fallback)
+            raise
         finally:
             if bar is not None:
                 bar.close()
@@ -169,6 +174,21 @@ def simulate(
         traj = _run_python(scene, integ, h, n_steps, stride, n_rec, progress, energy)
     traj.warnings = penetration_warnings(scene, traj, h, penetration_limit)
     return traj
+
+
+def _initial_state_only(scene, t0, q0, v0, h, stride, solver, fallback) -> Trajectory:
+    """The trajectory of a run interrupted before its first step: the initial state."""
+    from . import __version__
+
+    m = scene.nrows
+    return Trajectory(
+        t=np.array([t0]), q=q0[None, :].copy(), v=v0[None, :].copy(),
+        gaps=np.full((1, m), np.nan), impulses=np.zeros((1, m)), active=np.zeros((1, m), dtype=bool),
+        impacts=ImpactLog(), stats=SolverStats(solver=str(solver), fallback=str(fallback or ""), backend="compiled"),
+        h=h, record_every=stride, row_names=list(scene.row_names), scene=scene.describe(),
+        status="interrupted", message=f"interrupted by the user at step 0 (t = {t0:.9g})", version=__version__,
+        max_penetration=np.zeros(m),
+    )
 
 
 def _choose_backend(backend, scene, integrator, solver, fallback, drift_control):

@@ -98,7 +98,7 @@ def test_ball_command_interrupted_saves_a_partial_trajectory(tmp_path):
     assert line.startswith("moreau ball: interrupted: interrupted by the user at step")
     assert line.endswith("are saved in out/ball.partial.npz")
     traj = mo.load(tmp_path / "out" / "ball.partial.npz")
-    assert traj.status == "interrupted" and 1000 < len(traj) < 10_000_001
+    assert traj.status == "interrupted" and 10 < len(traj) < 300_001  # one record per 1000 steps
     assert np.all(np.isfinite(traj.q)) and traj.t[-1] < 100
     assert not (tmp_path / "out" / "ball.npz").exists()
 
