@@ -180,6 +180,19 @@ class OneStepIntegrator(ABC):
             step=self.k, t=self.t, rows=names, residuals=failures,
         )
 
+    def _mass_at(self, q) -> np.ndarray:
+        """M(q), factorized (Cholesky) as the compiled step does: a matrix that stops being
+        symmetric positive definite raises :class:`NonFiniteState` at this step."""
+        from . import kernels as _k
+
+        M = np.ascontiguousarray(self.scene.system.mass_matrix(q), dtype=float)
+        n = self.scene.ndof
+        if M.shape != (n, n) or _k.symmetry_defect(M) > 1e-10 or _k.cholesky(M, np.empty((n, n)), n) >= 0:
+            raise NonFiniteState(
+                f"the mass matrix stopped being symmetric positive definite at step {self.k} "
+                f"(t = {self.t:.9g}): M = {M.tolist()}", self.k, self.t)
+        return M
+
     def _check_finite(self, q_new, v_new) -> None:
         s = float(v_new.sum()) + float(q_new.sum())
         if s - s != 0.0:  # NaN or inf
@@ -292,7 +305,7 @@ class MoreauJeanMidpoint(OneStepIntegrator):
         h = self.h
         v = self.v
         qm = self.q + (0.5 * h) * v
-        M = self._M if self._constant_mass else self.scene.system.mass_matrix(qm)
+        M = self._M if self._constant_mass else self._mass_at(qm)
         f = self.scene.force(self.t + 0.5 * h, qm, v)
         v_new, contact = self._velocity_update(qm, M, f, v)
         return self._finish(qm, v_new, contact, f)
@@ -376,7 +389,7 @@ class MoreauJeanTheta(MoreauJeanMidpoint):
         v = self.v
         qm = self.q + (0.5 * h) * v
         tm = self.t + 0.5 * h
-        M = self._M if self._constant_mass else self.scene.system.mass_matrix(qm)
+        M = self._M if self._constant_mass else self._mass_at(qm)
         force = self.scene.force
         v_pred, _ = self._velocity_update(qm, M, force(tm, qm, v), v)
         f = force(tm, qm, 0.5 * (v + v_pred))

@@ -235,3 +235,14 @@ def test_a_penetration_beyond_the_limit_warns_and_is_kept_by_save_load(tmp_path)
 def test_the_piston_within_its_clearance_has_no_warnings():
     traj = piston_model(e=0.9).simulate(0.05, 1e-4, drift_control=mo.PositionProjection())
     assert traj.warnings == [] and traj.max_penetration.max() > 0
+
+
+def test_python_path_raises_where_the_mass_matrix_stops_being_positive_definite():
+    scene = mo.Scene(mo.FunctionSystem(lambda q: np.array([[q[0] - 0.5]]), ndof=1), [mo.ConstantForce([-1.0])])
+    with pytest.raises(mo.SimulationError, match="stopped being symmetric positive definite at step") as info:
+        mo.simulate(scene, (0.0, 5.0), [1.0], [0.0], 1e-3)
+    traj = info.value.trajectory
+    assert traj.status == "failed" and traj.stats.backend == "python"
+    # every step kept used a positive M (at its midpoint); the last state is the failing step's start
+    assert np.all(traj.q[:-1, 0] > 0.5)
+    assert f"at step {traj.stats.steps} " in str(info.value)
