@@ -246,3 +246,13 @@ def test_python_path_raises_where_the_mass_matrix_stops_being_positive_definite(
     # every step kept used a positive M (at its midpoint); the last state is the failing step's start
     assert np.all(traj.q[:-1, 0] > 0.5)
     assert f"at step {traj.stats.steps} " in str(info.value)
+
+
+def test_ball_command_with_an_absurd_step_is_not_reported_clean(tmp_path):
+    """`moreau ball --h 1 --t-end 1` once exited 0 with the ball 3.9 m inside the floor."""
+    env = dict(os.environ, MPLBACKEND="Agg")
+    out = subprocess.run([sys.executable, "-m", "moreau", "ball", "--h", "1", "--t-end", "1", "--no-progress",
+                          "--out", str(tmp_path / "o")], capture_output=True, text=True, env=env, timeout=300)
+    assert out.returncode == 1, out.stderr[-500:]
+    assert "completed WITH WARNINGS" in out.stderr and "penetrated 3.9" in out.stderr
+    assert "penetrated" in (tmp_path / "o" / "ball_summary.csv").read_text()
