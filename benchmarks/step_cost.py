@@ -51,8 +51,11 @@ def piston_table(quick: bool) -> list[tuple]:
         model = piston_model(PistonParameters(e=e))
         q0, v0 = model.initial_state()
         dc = mo.PositionProjection() if drift else None
-        comp = us_per_step(model.scene, q0, v0, cycle_steps, backend="compiled", drift_control=dc)
-        py = us_per_step(model.scene, q0, v0, py_steps, backend="python", solver="enum", drift_control=dc)
+        lim = model.params.clearance / model.params.l1  # as PistonModel.simulate: the clearance
+        comp = us_per_step(model.scene, q0, v0, cycle_steps, backend="compiled", drift_control=dc,
+                           penetration_limit=lim)
+        py = us_per_step(model.scene, q0, v0, py_steps, backend="python", solver="enum", drift_control=dc,
+                         penetration_limit=lim)
         rows.append((f"piston e = {e:g}{' + drift control' if drift else ''}", cycle_steps, comp, py_steps, py))
     return rows
 

@@ -230,7 +230,6 @@ class PendulumChain(MechanicalSystem):
         # hot-path constants
         self._nu_c = np.array(nu)
         self._nu_s = np.array(nu_s)
-        self._neg_nu_c = -np.array(nu)
         self._pm = _k.flat(nu, nu_s)  # layout of kernels.chain_mass
         self.has_bias = n > 1
 

@@ -149,7 +149,7 @@ def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE,
     t_now = t0 + k * h
     if code != lp.DONE and status == "completed":
         status = "failed"
-        error = _error(code, scene, k, t_now, q, v, h, fail, cs)
+        error = _error(code, scene, k, t_now, q, v, h, fail)
         message = str(error)
     rec = int(cnt[lp.C_REC])
     if status != "completed" and T[rec - 1] != t_now and rec < n_rec + 1:
@@ -188,7 +188,7 @@ def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE,
     return traj, error
 
 
-def _error(code, scene, k, t, q, v, h, fail, cs):
+def _error(code, scene, k, t, q, v, h, fail):
     where = f"at step {k} (t = {t:.9g})"
     if code == lp.SOLVER_FAILED:
         qm = q + 0.5 * h * v

@@ -266,21 +266,6 @@ def cho_solve(L, b, out, k):
         out[i] = t / L[i, i]
 
 
-@_inline
-def cho_solve_row(L, G, r, out, k):
-    """out[:k] = M⁻¹ G[r, :k] (a row of a matrix as right-hand side, no view)."""
-    for i in range(k):
-        t = G[r, i]
-        for l in range(i):
-            t -= L[i, l] * out[l]
-        out[i] = t / L[i, i]
-    for i in range(k - 1, -1, -1):
-        t = out[i]
-        for l in range(i + 1, k):
-            t -= L[l, i] * out[l]
-        out[i] = t / L[i, i]
-
-
 @_jit
 def symmetry_defect(M):
     """max |M − Mᵀ| relative to max |M| (0 for a symmetric matrix)."""

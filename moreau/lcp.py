@@ -29,7 +29,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .kernels import cho_solve, cho_solve_row, cholesky
+from .kernels import cho_solve, cholesky
 
 __all__ = ["lcp_dual_active_set", "lcp_enumerate", "kkt_residuals_kernel", "solve_one_step", "workspace",
            "OK", "FAILED"]
@@ -64,11 +64,15 @@ def _solve_active(W, A, na, rhs, out, sub, fac):
 
 @_inline
 def _slacks(W, w, P, s, k):
+    """s = w + W P on the first k rows; returns min s."""
+    smin = math.inf
     for i in range(k):
         t = w[i]
         for j in range(k):
             t += W[i, j] * P[j]
         s[i] = t
+        smin = min(smin, t)
+    return smin
 
 
 @_inline
@@ -192,11 +196,7 @@ def lcp_enumerate(W, w, P, k, tol, s, A, rhs, x, sub, fac):
         P[i] = 0.0
     if k > 12:
         return FAILED
-    _slacks(W, w, P, s, k)
-    smin = math.inf
-    for i in range(k):
-        smin = min(smin, s[i])
-    if smin >= -tol:
+    if _slacks(W, w, P, s, k) >= -tol:
         return OK
     for size in range(1, k + 1):
         for mask in range(1, 1 << k):
@@ -221,11 +221,7 @@ def lcp_enumerate(W, w, P, k, tol, s, A, rhs, x, sub, fac):
                 P[i] = 0.0
             for i in range(na):
                 P[A[i]] = x[i]
-            _slacks(W, w, P, s, k)
-            smin = math.inf
-            for i in range(k):
-                smin = min(smin, s[i])
-            if smin >= -tol:
+            if _slacks(W, w, P, s, k) >= -tol:
                 return OK
     for i in range(k):
         P[i] = 0.0
@@ -332,7 +328,9 @@ def solve_one_step(M, L, b, G, c, P, v, k, method, tol, ws):
     MinvGt = ws[0]  # row j: M⁻¹ G_jᵀ
     row = ws[13]
     for j in range(k):
-        cho_solve_row(L, G, j, row, n)
+        for i in range(n):
+            row[i] = G[j, i]
+        cho_solve(L, row, row, n)
         for i in range(n):
             MinvGt[j, i] = row[i]
     vfree = ws[1]

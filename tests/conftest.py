@@ -12,3 +12,13 @@ def rng():
     import numpy as np
 
     return np.random.default_rng(12345)
+
+
+@pytest.fixture(scope="module")
+def compiled_loop_in_cache():
+    """Have the compiled loop in numba's cache before a test starts commands that are
+    interrupted a second after they begin stepping: they then load it, not compile it."""
+    import moreau as mo
+    from problems.bouncing_ball import bouncing_ball
+
+    mo.simulate(bouncing_ball(0.5), (0.0, 0.01), [1.0], [0.0], 1e-3, backend="compiled")

@@ -31,13 +31,7 @@ linux = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /
 
 
 
-@pytest.fixture(autouse=True, scope="module")
-def compiled_loop_in_cache():
-    """The commands below are interrupted a second after they start stepping: have the
-    compiled loop in numba's cache first, so that they load it instead of compiling it."""
-    from problems.bouncing_ball import bouncing_ball as _ball
-
-    mo.simulate(_ball(0.5), (0.0, 0.01), [1.0], [0.0], 1e-3, backend="compiled")
+pytestmark = pytest.mark.usefixtures("compiled_loop_in_cache")
 
 def children(pid: int) -> list[int]:
     """Process ids whose parent is ``pid`` (Linux /proc)."""

@@ -20,13 +20,7 @@ from problems.bouncing_ball import bouncing_ball
 
 
 
-@pytest.fixture(autouse=True, scope="module")
-def compiled_loop_in_cache():
-    """The commands below are interrupted a second after they start stepping: have the
-    compiled loop in numba's cache first, so that they load it instead of compiling it."""
-    from problems.bouncing_ball import bouncing_ball as _ball
-
-    mo.simulate(_ball(0.5), (0.0, 0.01), [1.0], [0.0], 1e-3, backend="compiled")
+pytestmark = pytest.mark.usefixtures("compiled_loop_in_cache")
 
 class InterruptingSolver(mo.EnumerationSolver):
     """The exact solver, with a Ctrl-C arriving during contact solve number ``at``."""
