@@ -27,7 +27,7 @@ def cycle_speeds(e: float, D_mm: float, rpm0: float, cycles: int, h: float) -> t
     per_cycle = 4 * np.pi / h
     p = model.params
     traj = mo.simulate(model.scene, (0.0, 4 * np.pi * cycles * 2000.0 / rpm0), q0, v0, h,
-                       drift_control=mo.PositionProjection(), record_every=max(1, int(round(per_cycle / 50))),
+                       drift_control=mo.CombinedProjection(), record_every=max(1, int(round(per_cycle / 50))),
                        energy=False, progress=True, penetration_limit=p.clearance / p.l1)  # as the piston job
     phi, t = traj.q[:, 0], traj.t
     ends = np.interp(4 * np.pi * np.arange(1, int(phi[-1] // (4 * np.pi)) + 1), phi, t)

@@ -21,7 +21,7 @@ except PackageNotFoundError:  # running from a source tree that is not installed
 from .barriers import Barrier, FunctionBarrier, LinearBarrier, check_jacobian
 from .errors import SimulationError, SolverError
 from .forces import ConstantForce, Effect, FourierLoad, FunctionForce, HarmonicForce, LinearDamping, LinearSpring
-from .drift import PositionProjection
+from .drift import CombinedProjection, PositionProjection
 from .integrator import MoreauJeanMidpoint, MoreauJeanTheta, OneStepIntegrator
 from .laws import NewtonImpact
 from .onestep import OneStepProblem, Residuals
@@ -37,7 +37,7 @@ __all__ = [
     "Barrier", "FunctionBarrier", "LinearBarrier", "check_jacobian",
     "SimulationError", "SolverError",
     "ConstantForce", "Effect", "FourierLoad", "FunctionForce", "HarmonicForce", "LinearDamping", "LinearSpring",
-    "MoreauJeanMidpoint", "MoreauJeanTheta", "OneStepIntegrator", "PositionProjection",
+    "MoreauJeanMidpoint", "MoreauJeanTheta", "OneStepIntegrator", "PositionProjection", "CombinedProjection",
     "NewtonImpact",
     "OneStepProblem", "Residuals",
     "ImpactLog", "SolverStats", "Trajectory", "load",

@@ -17,6 +17,7 @@ import numpy as np
 
 from . import loop as lp
 from .errors import SimulationError, SolverError
+from .flights import initial_flight
 from .lowering import CompiledScene, lower
 from .result import ImpactLog, SolverStats, Trajectory
 
@@ -42,7 +43,7 @@ def _methods(solver, fallback) -> tuple[int, int]:
 
 def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0: np.ndarray,
                  h: float, n_steps: int, *, theta: bool, solver: str, fallback, stride: int,
-                 bar, energy: bool, tol: float, drift_control) -> Trajectory:
+                 bar, energy: bool, tol: float, drift_control, flight_gap: np.ndarray) -> Trajectory:
     """Run ``n_steps`` steps compiled from a validated initial state (see
     :func:`moreau.simulate`, which calls this)."""
     if cs is None:
@@ -54,9 +55,12 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     if drift_control is not None and m:
         eligible = np.ascontiguousarray(drift_control.eligible_rows(scene))
         drift_iter, drift_tol = drift_control.max_iter, drift_control.tol
-    drift_on = int(drift_control is not None and m > 0 and bool(eligible.any()))
+    drift_mode = lp.DRIFT_NONE
+    if drift_control is not None and m > 0 and bool(eligible.any()):
+        drift_mode = lp.DRIFT_COMBINED if getattr(drift_control, "impacts_only", False) else lp.DRIFT_POSITION
+    memory = int(getattr(drift_control, "memory", 0))
     n_rec = n_steps // stride + 1 + (1 if n_steps % stride else 0)
-    iset = np.array([int(theta), drift_on, drift_iter, stride, n_steps, method, fb, int(energy)],
+    iset = np.array([int(theta), drift_mode, drift_iter, stride, n_steps, method, fb, int(energy), memory],
                     dtype=np.int64)
     fset = np.array([h, t0, tol, drift_tol, 0.0])
     T = np.empty(n_rec)
@@ -72,7 +76,11 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     in_contact = np.zeros(m, dtype=np.bool_)
     P_acc = np.zeros(m)
     act_acc = np.zeros(m, dtype=np.bool_)
-    IMP = np.empty((max(64, 16 * m), 7))
+    IMP = np.empty((max(64, 16 * m), 9))
+    last_imp = np.full(m, -(1 << 62), dtype=np.int64)
+    gmax = np.full(m, -np.inf)
+    fgap = np.ascontiguousarray(flight_gap, dtype=float)
+    rs = np.zeros((m, 4))  # CombinedProjection's per-row state (gap at q_k, flags)
     pen = np.zeros(m)
     cnt = np.zeros(8, dtype=np.int64)
     cnt[lp.C_REC] = 1
@@ -88,6 +96,8 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
         # kernel in a new process loads its machine code, which takes a moment
         if m:
             GP[0] = scene.gaps(q0)
+            gmax[:] = initial_flight(scene, q0, v0)
+            rs[:, lp.R_GAP] = GP[0]
         if energy:
             KE[0] = scene.kinetic_energy(q0, v0)
             PE[0] = scene.potential_energy(q0)
@@ -102,7 +112,8 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
                 c0 = time.perf_counter()
                 code = lp.run_chunk(model, cs.user, iset, fset, Minv, eligible, q, v,
                                     min(n_steps, k_before + chunk), in_contact, P_acc, act_acc,
-                                    T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail)
+                                    T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax,
+                                    fgap, rs)
                 if bar is not None:
                     bar.update(int(cnt[lp.C_K]) - k_before)
                 if code == lp.IMPACTS_FULL:
@@ -166,9 +177,10 @@ def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE,
         PE[:rec] = [scene.potential_energy(Q[i]) for i in range(rec)]
     nimp = int(cnt[lp.C_NIMP])
     I = IMP[:nimp]
-    impacts = ImpactLog(t=I[:, 0].copy(), step=I[:, 1].astype(int), row=I[:, 2].astype(int),
-                        U_before=I[:, 3].copy(), U_after=I[:, 4].copy(), impulse=I[:, 5].copy(),
-                        energy_lost=I[:, 6].copy())
+    onsets = ImpactLog(t=I[:, lp.I_T].copy(), step=I[:, lp.I_STEP].astype(int), row=I[:, lp.I_ROW].astype(int),
+                       U_before=I[:, lp.I_UB].copy(), U_after=I[:, lp.I_UA].copy(), impulse=I[:, lp.I_P].copy(),
+                       energy_lost=I[:, lp.I_LOST].copy(), flight=I[:, lp.I_FLIGHT] != 0.0,
+                       fast=I[:, lp.I_FAST] != 0.0)
     stats = SolverStats(
         solver=solver, fallback=fallback or "", steps=k, contact_steps=int(cnt[lp.C_CONTACT]),
         solves=int(cnt[lp.C_SOLVES]), fallbacks=int(cnt[lp.C_FALLBACKS]),
@@ -179,7 +191,7 @@ def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE,
 
     traj = Trajectory(
         t=T[:rec], q=Q[:rec], v=V[:rec], gaps=GP[:rec], impulses=PS[:rec], active=ACT[:rec],
-        impacts=impacts, stats=stats, h=h, record_every=stride, row_names=list(scene.row_names),
+        onsets=onsets, stats=stats, h=h, record_every=stride, row_names=list(scene.row_names),
         scene=scene.describe(), energy=(KE[:rec] + PE[:rec]) if energy else None,
         kinetic_energy=KE[:rec] if energy else None, potential_energy=PE[:rec] if energy else None,
         status=status, message=message, version=__version__, max_penetration=pen.copy(),

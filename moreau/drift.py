@@ -3,14 +3,24 @@
 The midpoint scheme imposes the contact condition on velocities with the Jacobian at
 the midpoint, so a contact pressed against a curved barrier drifts into it by about
 h²/2 · vᵀ∇²g v per step, an O(h) penetration over a sliding phase (on the piston ≈ 10 %
-of the clearance at h = 1e-4). :class:`PositionProjection` removes it after each step.
+of the clearance at h = 1e-4). Two corrections:
+
+- :class:`CombinedProjection` (the default of the bundled piston): every row, whatever
+  its restitution, is projected back onto ``g >= 0``, and Newton's restitution acts only
+  at impacts, so that a row in persistent contact gets no spurious bounce.
+- :class:`PositionProjection`: positions only, plastic rows (e = 0) only by default.
 """
 
 from __future__ import annotations
 
+import logging
+import warnings
+
 import numpy as np
 
-__all__ = ["PositionProjection"]
+__all__ = ["PositionProjection", "CombinedProjection"]
+
+log = logging.getLogger(__name__)
 
 
 class PositionProjection:
@@ -55,9 +65,22 @@ class PositionProjection:
         self.max_restitution = float(max_restitution)
         self._scene = self._eligible = None
 
+    #: restitution acts at impacts only (see :class:`CombinedProjection`); False here
+    impacts_only = False
+    #: steps a row stays in persistent contact after its last impulse (CombinedProjection)
+    memory = 0
+
     def eligible_rows(self, scene) -> np.ndarray:
-        """Rows this projection may move, shape (m,) of bool."""
-        return scene.restitution <= self.max_restitution
+        """Rows this projection may move, shape (m,) of bool. Warns (``RuntimeWarning``)
+        when a scene has contact rows but none is eligible: the projection then does
+        nothing (use :class:`CombinedProjection` for rows with e > 0)."""
+        eligible = scene.restitution <= self.max_restitution
+        if scene.nrows and not eligible.any():
+            warnings.warn(
+                f"{type(self).__name__}(max_restitution={self.max_restitution:g}) projects no row of scene "
+                f"{scene.name!r}: every row has e > {self.max_restitution:g}; use CombinedProjection() for "
+                "drift control of bouncing rows", RuntimeWarning, stacklevel=4)
+        return eligible
 
     def project(self, integ, q: np.ndarray) -> np.ndarray:
         """The projected q⁺ for the integrator ``integ`` (its scene, solver and last step)."""
@@ -65,23 +88,104 @@ class PositionProjection:
         if self._scene is not scene:  # rows this projection may move, once per scene
             self._scene, self._eligible = scene, self.eligible_rows(scene)
         eligible = self._eligible
+        integ.pinned[:] = False
         if not eligible.any():
             return q
         g = scene.gaps(q)
-        if not (eligible & (g < -self.tol)).any():
+        if not (self._rows(integ, g, eligible) & (g < -self.tol)).any():
             return q
         zero = np.zeros(scene.ndof)
         for _ in range(self.max_iter):
-            rows = np.flatnonzero(((g < 0.0) | integ.active) & eligible)
+            rows = np.flatnonzero(self._rows(integ, g, eligible))
             M = integ._M if integ._constant_mass else scene.system.mass_matrix(q)
-            dq, _ = integ._solve_contact(M, zero, scene.jacobian(q), -g, rows, kind="projection")
+            dq, mu = integ._solve_contact(M, zero, scene.jacobian(q), -g, rows, kind="projection")
+            integ.pinned[rows[mu > 0.0]] = True
             q = q + dq
             g = scene.gaps(q)
-            if not (eligible & (g < -self.tol)).any():
+            if not (self._rows(integ, g, eligible) & (g < -self.tol)).any():
                 break
         integ.n_projections += 1
         return q
 
+    @staticmethod
+    def _rows(integ, g: np.ndarray, eligible: np.ndarray) -> np.ndarray:
+        """Rows of the projection QP: eligible rows that penetrate or were closed."""
+        return ((g < 0.0) | integ.active) & eligible
+
     def describe(self) -> dict:
         return {"type": "PositionProjection", "max_iter": self.max_iter, "tol": self.tol,
                 "max_restitution": self.max_restitution}
+
+
+class CombinedProjection(PositionProjection):
+    """Drift control for every restitution: positions projected onto ``g >= 0`` and
+    velocities kept consistent with the contacts that persist.
+
+    Two parts, both after the ideas of the projected Moreau–Jean schemes of Acary (2013),
+    which Siconos implements as ``MoreauJeanDirectProjectionOSI`` and
+    ``MoreauJeanCombinedProjectionOSI`` [1]_ [2]_:
+
+    1. **Positions.** After every step, the rows that penetrate at q⁺ or were closed in
+       the step are projected back onto ``g >= 0`` in the metric of M (the QP of
+       :class:`PositionProjection`), whatever their restitution coefficient.
+    2. **Velocities.** The rows the projection held on ``g = 0`` (a positive multiplier)
+       take part in the next step's contact problem even when the midpoint opens them,
+       so their velocities are made consistent with the contact (``U⁺ >= 0``) instead of
+       a rising corner being pulled back by the next projection with its velocity kept
+       (measured on a block pressed flat on a wall: without this a period-2 rocking
+       that the pressing force pumps, 0.09 rad/s left after the pressed phase). And
+       Newton's restitution acts only at an *impact*: a closed row whose
+       normal velocity U⁻ = G v_k approaches faster than the smooth forces change it in
+       one step (``−U⁻ > h |G M⁻¹ f|``, the test of the impact log) and that carried no
+       impulse in the last ``memory`` steps. Every other closed row is a contact that
+       persists (pressed, sliding, or re-closing after the drift or the projection opened
+       it for a step) and takes e = 0, i.e. ``U⁺ >= 0``: no approach velocity is left for
+       the next step and none is turned into a bounce.
+
+    Without part 2, projecting a bouncing row (e > 0) out of the barrier leaves its
+    velocity as it was and the next step turns the drift's approach velocity into a
+    bounce of size ~ h |a_n|: measured, ×19 impacts on the e = 0.9 piston in its first
+    cycle (2 721 against 139 flights), a ball with e = 0.8 bouncing at ~h g for ever.
+    With it, a persistent contact of a row with e > 0 behaves as a plastic one, which is
+    the limit of Newton's law as the approach velocity goes to 0 relative to h |a_n|; the
+    difference to the plain scheme is O(h). For rows with e = 0 it is
+    :class:`PositionProjection` exactly.
+
+    Parameters
+    ----------
+    max_iter : int
+        Projection passes per step (default 2).
+    tol : float
+        Accept a remaining penetration up to ``tol`` (gap units; default 0).
+    memory : int
+        Steps after its last impulse during which a row counts as in persistent contact
+        (default 2: a contact that opens for a single step and closes again is the same
+        contact). 0 applies restitution at every fast approach.
+
+    References
+    ----------
+    .. [1] V. Acary, "Projected event-capturing time-stepping schemes for nonsmooth
+       mechanical systems with unilateral contact and Coulomb's friction", Computer
+       Methods in Applied Mechanics and Engineering 256 (2013) 224–250.
+    .. [2] V. Acary and B. Brogliato, *Numerical Methods for Nonsmooth Dynamical
+       Systems*, Lecture Notes in Applied and Computational Mechanics 35, Springer (2008).
+    """
+
+    impacts_only = True
+
+    def __init__(self, max_iter: int = 2, tol: float = 0.0, memory: int = 2) -> None:
+        super().__init__(max_iter=max_iter, tol=tol, max_restitution=1.0)
+        if isinstance(memory, bool) or not isinstance(memory, (int, np.integer)) or memory < 0:
+            raise ValueError(f"CombinedProjection.memory must be an integer >= 0, got {memory!r}")
+        self.memory = int(memory)
+
+    def eligible_rows(self, scene) -> np.ndarray:
+        return np.ones(scene.nrows, dtype=bool)
+
+    @staticmethod
+    def _rows(integ, g: np.ndarray, eligible: np.ndarray) -> np.ndarray:
+        """Rows of the projection QP: the persistent contacts of the step (closed, no bounce)."""
+        return integ.active & ~integ.bounced
+
+    def describe(self) -> dict:
+        return {"type": "CombinedProjection", "max_iter": self.max_iter, "tol": self.tol, "memory": self.memory}

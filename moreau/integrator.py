@@ -73,6 +73,8 @@ class OneStepIntegrator(ABC):
         Rows closed at the last step's midpoint.
     P : ndarray, shape (m,)
         Contact impulses of the last step (zero on open rows).
+    last_impulse_step : ndarray of int, shape (m,)
+        Per row, the index of the last step in which it carried an impulse.
     contact_step : bool
         True when the last step solved a contact problem.
     n_solves, n_fallbacks, n_contact_steps : int
@@ -126,6 +128,8 @@ class OneStepIntegrator(ABC):
         else:
             self._M = self._Minv = None
         self._e = scene.restitution
+        self._impacts_only = bool(getattr(self.drift_control, "impacts_only", False))
+        self._memory = int(getattr(self.drift_control, "memory", 0))
         self.solver.setup(n, m, self._M if self._constant_mass else None)
         if self.fallback is not None:
             self.fallback.setup(n, m, self._M if self._constant_mass else None)
@@ -135,6 +139,9 @@ class OneStepIntegrator(ABC):
         self._no_contact = self.active.copy()
         self._no_contact.setflags(write=False)
         self.P = np.zeros(m)
+        self.last_impulse_step = np.full(m, -(1 << 62), dtype=np.int64)
+        self.pinned = np.zeros(m, dtype=bool)
+        self.bounced = np.zeros(m, dtype=bool)
         self.contact_step = False
         self.n_solves = self.n_fallbacks = self.n_contact_steps = self.n_projections = 0
         self.worst_residual = 0.0
@@ -323,10 +330,22 @@ class MoreauJeanMidpoint(OneStepIntegrator):
                     f"gaps became non-finite at step {self.k} (t = {self.t:.9g}): g = {g.tolist()}",
                     self.k, self.t)
             active = g <= scene.activation_tol  # g <= 0 up to the gap's own round-off
+            if self._impacts_only:  # CombinedProjection: a persistent contact stays in the problem,
+                # and a row that reaches the barrier by the end of the step enters it now
+                g_start = scene.gaps(self.q)
+                active = active | self.pinned | (self.P > 0.0) | (2.0 * g - g_start <= 0.0)
             if active.any():
                 rows = np.flatnonzero(active)
                 G = scene.jacobian(qm)
-                c = -self._e * (G @ v)
+                U = G @ v
+                e = self._e
+                if self._impacts_only:  # restitution at impacts only (CombinedProjection)
+                    a = self._Minv @ f if self._constant_mass else np.linalg.solve(M, f)
+                    impact = (-U > np.abs(h * (G @ a))) & (self.k - self.last_impulse_step > self._memory)
+                    e = np.where(impact, e, 0.0)
+                    self.bounced = np.zeros(scene.nrows, dtype=bool)
+                    self.bounced[rows] = e[rows] > 0.0
+                c = -e * U
                 b = M @ v + h * f
                 v_new, PA = self._solve_contact(M, b, G, c, rows)
                 P = np.zeros(scene.nrows)
@@ -354,6 +373,8 @@ class MoreauJeanMidpoint(OneStepIntegrator):
             self.active = self._no_contact
             self.P = np.zeros(self.scene.nrows)
         self.contact_step = contact
+        if contact:
+            self.last_impulse_step[self.P > 0.0] = self.k
         if self.drift_control is not None and self.scene.nrows:
             q_new = self.drift_control.project(self, q_new)
         self.q = q_new

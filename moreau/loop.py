@@ -23,7 +23,14 @@ from .lcp import kkt_residuals_kernel, solve_one_step, workspace
 # status codes
 DONE, IMPACTS_FULL, SOLVER_FAILED, NONFINITE, NOT_SPD, NONFINITE_GAP = 0, 1, 2, 3, 4, 5
 # settings (int array)
-S_THETA, S_DRIFT, S_DRIFT_ITER, S_STRIDE, S_NSTEPS, S_METHOD, S_FALLBACK, S_ENERGY = range(8)
+S_THETA, S_DRIFT, S_DRIFT_ITER, S_STRIDE, S_NSTEPS, S_METHOD, S_FALLBACK, S_ENERGY, S_MEMORY = range(9)
+# drift control modes (S_DRIFT)
+DRIFT_NONE, DRIFT_POSITION, DRIFT_COMBINED = 0, 1, 2
+# per-row state of CombinedProjection (float array (m, 4)): gap at q_k, carried an impulse
+# in the last step, held by the last projection, restitution applied in this step
+R_GAP, R_CONTACT, R_PINNED, R_BOUNCED = range(4)
+# impact-log columns
+I_T, I_STEP, I_ROW, I_UB, I_UA, I_P, I_LOST, I_FLIGHT, I_FAST = range(9)
 # settings (float array)
 F_H, F_T0, F_TOL, F_DRIFT_TOL, F_PE0 = range(5)
 # counters (int array)
@@ -66,32 +73,56 @@ def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail
 
 
 @_inline
+def _free_acceleration(n, const_mass, Minv, L, f, out):
+    """M⁻¹ f into ``out`` (with the inverse of a constant M, as the reference path)."""
+    if const_mass:
+        for i in range(n):
+            t = 0.0
+            for j in range(n):
+                t += Minv[i, j] * f[j]
+            out[i] = t
+    else:
+        _k.cho_solve(L, f, out, n)
+
+
+@_inline
 def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, v_new, P, active,
-                     GA_all, cnt, acc, fail, ws, lw):
+                     GA_all, cnt, acc, fail, ws, lw, last_imp, rs):
     """v⁺ with the contacts closed at qm (gaps ``gm``); returns 1 (contact), 0 (free) or
-    −1 (solve failed). ``P`` (m,) and ``active`` (m,) are set for the step."""
+    −1 (solve failed). ``P`` (m,) and ``active`` (m,) are set for the step.
+
+    With combined drift control, a row's restitution acts only at an impact (see
+    :class:`moreau.drift.CombinedProjection`): it approaches faster than the smooth forces
+    change its normal velocity in one step, and it carried no impulse in the last
+    ``S_MEMORY`` steps; other closed rows take e = 0 (a persistent contact). A row is
+    then also closed when it carried an impulse in the last step, when the last
+    projection held it, or when it reaches the barrier by the end of the step
+    (2 g(q_m) − g(q_k) <= 0). ``rs`` (m, 4) holds per row the gap at q_k and the
+    in-contact, pinned and bounced flags (columns ``R_GAP`` ... ``R_BOUNCED``)."""
     ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e, atol = model
     n, m = ints[0], ints[1]
     h = fset[F_H]
+    combined = iset[S_DRIFT] == DRIFT_COMBINED
     na = 0
     for r in range(m):
         active[r] = gm[r] <= atol[r]
+        if combined:
+            active[r] = (active[r] or rs[r, R_CONTACT] != 0.0 or rs[r, R_PINNED] != 0.0
+                         or 2.0 * gm[r] - rs[r, R_GAP] <= 0.0)
+            rs[r, R_BOUNCED] = 0.0
         P[r] = 0.0
         if active[r]:
             na += 1
+    rhs = lw[2]
     if na == 0:
-        rhs = lw[2]
-        if ints[2] == _k.MASS_CONST:  # M⁻¹ f with the inverse of the constant M, as the reference path
-            for i in range(n):
-                t = 0.0
-                for j in range(n):
-                    t += Minv[i, j] * f[j]
-                rhs[i] = t
-        else:
-            _k.cho_solve(L, f, rhs, n)
+        _free_acceleration(n, ints[2] == _k.MASS_CONST, Minv, L, f, rhs)
         for i in range(n):
             v_new[i] = v[i] + h * rhs[i]
         return 0
+    if combined:
+        _free_acceleration(n, ints[2] == _k.MASS_CONST, Minv, L, f, rhs)
+        k_now = cnt[C_K]
+        memory = iset[S_MEMORY]
     cnt[C_SOLVES] += 1
     ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, GA_all)
     GA = lw[0]
@@ -103,7 +134,16 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
             for i in range(n):
                 GA[j, i] = GA_all[r, i]
                 u += GA_all[r, i] * v[i]
-            cA[j] = -e[r] * u
+            er = e[r]
+            if combined and er != 0.0:
+                du = 0.0
+                for i in range(n):
+                    du += GA_all[r, i] * rhs[i]
+                if not (-u > abs(h * du) and k_now - last_imp[r] > memory):
+                    er = 0.0
+                else:
+                    rs[r, R_BOUNCED] = 1.0
+            cA[j] = -er * u
             j += 1
     b = lw[3]
     for i in range(n):
@@ -123,14 +163,25 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
 
 
 @_inline
-def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw):
-    """Drift control: move q onto g >= 0 for eligible rows (see PositionProjection)."""
+def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw, rs):
+    """Drift control: move q onto g >= 0 (see PositionProjection and CombinedProjection).
+
+    The rows of the projection QP: with PositionProjection the eligible rows that
+    penetrate or were closed; with CombinedProjection the persistent contacts of the
+    step (closed, no restitution applied). Those held on g = 0 are marked pinned."""
     ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e, atol = model
     n, m = ints[0], ints[1]
     dtol = fset[F_DRIFT_TOL]
+    combined = iset[S_DRIFT] == DRIFT_COMBINED
+    sel = lw[8]
     need = False
     for r in range(m):
-        if eligible[r] and gq[r] < -dtol:
+        if combined:
+            rs[r, R_PINNED] = 0.0
+            sel[r] = active[r] and rs[r, R_BOUNCED] == 0.0
+        else:
+            sel[r] = eligible[r] and (gq[r] < 0.0 or active[r])
+        if sel[r] and gq[r] < -dtol:
             need = True
     if not need:
         return True
@@ -140,7 +191,9 @@ def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fai
     for _ in range(iset[S_DRIFT_ITER]):
         na = 0
         for r in range(m):
-            if (gq[r] < 0.0 or active[r]) and eligible[r]:
+            if not combined:
+                sel[r] = eligible[r] and (gq[r] < 0.0 or active[r])
+            if sel[r]:
                 na += 1
         ev.mass(ints, pool, user, q, cq, sq, M)
         if _k.cholesky(M, L, n) >= 0:
@@ -151,7 +204,7 @@ def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fai
         cA = lw[1]
         j = 0
         for r in range(m):
-            if (gq[r] < 0.0 or active[r]) and eligible[r]:
+            if sel[r]:
                 for i in range(n):
                     GA[j, i] = G[r, i]
                 cA[j] = -gq[r]
@@ -162,12 +215,21 @@ def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fai
             return False
         for i in range(n):
             q[i] += dq[i]
+        if combined:
+            j = 0
+            for r in range(m):
+                if sel[r]:
+                    if PA[j] > 0.0:
+                        rs[r, R_PINNED] = 1.0
+                    j += 1
         if ints[8]:
             _k.trig(q, cq, sq)
         ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, gq)
         done = True
         for r in range(m):
-            if eligible[r] and gq[r] < -dtol:
+            if not combined:
+                sel[r] = eligible[r] and (gq[r] < 0.0 or active[r])
+            if sel[r] and gq[r] < -dtol:
                 done = False
         if done:
             break
@@ -177,11 +239,14 @@ def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fai
 
 @_jit
 def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
-              T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail):
+              T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs):
     """Advance the run to step ``k_end`` (see the module docstring); returns a status.
 
-    State (q, v, step ``cnt[C_K]``, contact flags, impulse accumulators) is updated in
-    place, so a chunk resumes where the previous one stopped.
+    State (q, v, step ``cnt[C_K]``, contact flags, impulse accumulators, per row the
+    step of its last impulse ``last_imp`` and its largest gap since then ``gmax``) is
+    updated in place, so a chunk resumes where the previous one stopped. ``fgap`` (m,)
+    is each row's flight gap: a contact onset after the gap exceeded it is an impact.
+    ``rs`` (m, 4) is the per-row state of CombinedProjection (see :func:`_velocity_update`).
     """
     ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e, atol = model
     n, m = ints[0], ints[1]
@@ -213,7 +278,7 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
     ws = workspace(n, m)
     mm = max(m, 1)
     lw = (np.empty((mm, n)), np.empty(mm), np.empty(n), np.empty(n), np.empty(mm),
-          np.empty((mm, n)), np.empty(n), np.zeros(n))
+          np.empty((mm, n)), np.empty(n), np.zeros(n), np.zeros(mm, dtype=np.bool_))
     cap = IMP.shape[0]
     while cnt[C_K] < k_end:
         if m > 0 and cnt[C_NIMP] + m > cap:
@@ -247,7 +312,7 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
                     vbar[i] = 0.5 * (v[i] + v_new[i])
                 ev.force(ints, ekind, eoff, pool, user, t + 0.5 * h, qm, cm, sm, vbar, f)
             code = _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, v_new, P,
-                                    active, G, cnt, acc, fail, ws, lw)
+                                    active, G, cnt, acc, fail, ws, lw, last_imp, rs)
             if code < 0:
                 return SOLVER_FAILED
         # smooth-force work of the step, h fᵀ (v + v⁺)/2
@@ -284,18 +349,24 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
                             ub += G[r, i] * v[i]
                             ua += G[r, i] * v_new[i]
                             uf += G[r, i] * vfree[i]
-                        if -ub > abs(uf - ub):  # an impact, not a sliding contact closing again
+                        fast = -ub > abs(uf - ub)  # faster than the smooth forces alone
+                        flight = gmax[r] > fgap[r]  # after the gap opened by more than fgap
+                        if fast or flight:
                             j = cnt[C_NIMP]
-                            IMP[j, 0] = t
-                            IMP[j, 1] = k
-                            IMP[j, 2] = r
-                            IMP[j, 3] = ub
-                            IMP[j, 4] = ua
-                            IMP[j, 5] = P[r]
-                            IMP[j, 6] = -0.5 * P[r] * (ua + ub)
+                            IMP[j, I_T] = t
+                            IMP[j, I_STEP] = k
+                            IMP[j, I_ROW] = r
+                            IMP[j, I_UB] = ub
+                            IMP[j, I_UA] = ua
+                            IMP[j, I_P] = P[r]
+                            IMP[j, I_LOST] = -0.5 * P[r] * (ua + ub)
+                            IMP[j, I_FLIGHT] = 1.0 if flight else 0.0
+                            IMP[j, I_FAST] = 1.0 if fast else 0.0
                             cnt[C_NIMP] = j + 1
             for r in range(m):
                 in_contact[r] = P[r] > 0.0
+                if P[r] > 0.0:
+                    last_imp[r] = k
         else:
             for r in range(m):
                 in_contact[r] = False
@@ -310,13 +381,19 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
             _k.trig(q_new, cq, sq)
         if m > 0:
             ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, q_new, cq, sq, gq)
-            if iset[S_DRIFT] == 1:
+            if iset[S_DRIFT] != DRIFT_NONE:
                 if not _project(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc,
-                                fail, eligible, ws, lw):
+                                fail, eligible, ws, lw, rs):
                     return cnt[C_FAILKIND]
             for r in range(m):
                 if -gq[r] > pen[r]:
                     pen[r] = -gq[r]
+                if in_contact[r]:
+                    gmax[r] = -math.inf
+                elif gq[r] > gmax[r]:
+                    gmax[r] = gq[r]
+                rs[r, R_GAP] = gq[r]
+                rs[r, R_CONTACT] = 1.0 if in_contact[r] else 0.0
         q[:] = q_new
         v[:] = v_new
         k += 1

@@ -11,6 +11,7 @@ import numpy as np
 
 from ._validation import as_positive, as_record_every, as_time_span, checked_start
 from .errors import SimulationError, SolverError
+from .flights import flight_gaps, initial_flight
 from .integrator import (MoreauJeanMidpoint, MoreauJeanTheta, NonFiniteState, OneStepIntegrator,
                          check_initial_state)
 from .result import ImpactLog, SolverStats, Trajectory
@@ -45,6 +46,7 @@ def simulate(
     drift_control=None,
     check_jacobian: bool = True,
     penetration_limit: float | None = None,
+    flight_gap=0.0,
 ) -> Trajectory:
     """Integrate a scene with a fixed step from ``t_span[0]`` to ``t_span[1]``.
 
@@ -66,7 +68,8 @@ def simulate(
         (numba; :mod:`moreau.loop`), for scenes whose every part has a compiled kernel
         (all built-in systems, effects and barriers, and user callables decorated with
         ``@numba.njit``), the integrators :class:`MoreauJeanMidpoint` and
-        :class:`MoreauJeanTheta`, drift control :class:`PositionProjection`, and the
+        :class:`MoreauJeanTheta`, drift control :class:`CombinedProjection` and
+        :class:`PositionProjection`, and the
         compiled solvers ``"exact"`` and ``"enum"``; it raises ``ValueError`` naming
         what does not compile. ``"python"``: the readable reference path, with any
         solver. ``"auto"`` (default): compiled when everything compiles, else Python
@@ -91,8 +94,8 @@ def simulate(
         Compute the mechanical energy at the records.
     tol : float
         Largest accepted scaled KKT residual of a contact solve.
-    drift_control : PositionProjection or None
-        Position correction after each step (see :mod:`moreau.drift`); default none.
+    drift_control : CombinedProjection or PositionProjection or None
+        Drift control after each step (see :mod:`moreau.drift`); default none.
     check_jacobian : bool
         Compare every barrier's Jacobian with finite differences of its gap at q0 and
         refuse a mismatch (``ValueError`` naming the row); default True.
@@ -100,6 +103,13 @@ def simulate(
         Largest acceptable penetration (gap units). Default: h·|U⁻| per row, the
         distance its impacts travel in one step. A run beyond it warns
         (``RuntimeWarning``) and says so in ``traj.warnings``.
+    flight_gap : float or array_like, shape (m,)
+        The flight gap of each row (gap units, >= 0; default 0): a contact onset is an
+        *impact* (``traj.impacts``) when, since the row last carried an impulse, its gap
+        exceeded this at the end of some step. Set it to a small fraction of the
+        problem's length scale to count only bounces that lift the contact visibly (the
+        bundled piston uses 2 % of the clearance); with 0 every bounce the step
+        resolves counts. See :class:`moreau.ImpactLog`.
 
     Returns
     -------
@@ -146,6 +156,7 @@ def simulate(
         penetration_limit = as_positive(penetration_limit, "penetration_limit")
     if not isinstance(check_jacobian, bool):
         raise ValueError(f"check_jacobian must be True or False, got {check_jacobian!r}")
+    flight_gap = flight_gaps(flight_gap, m)
     path, cs, solver, fallback = _choose_backend(backend, scene, integrator, solver, fallback, drift_control)
     if path == "compiled":
         from .compiled import run_compiled
@@ -158,7 +169,7 @@ def simulate(
             bar = _progress_bar(progress, n_steps, scene.name)
             traj = run_compiled(scene, cs, t0, q0, v0, h, n_steps, theta=integrator is MoreauJeanTheta,
                                 solver=solver, fallback=fallback, stride=stride, bar=bar, energy=energy,
-                                tol=tol, drift_control=drift_control)
+                                tol=tol, drift_control=drift_control, flight_gap=flight_gap)
         except KeyboardInterrupt as exc:  # before the loop took over: the initial state is the run
             if getattr(exc, "trajectory", None) is None:
                 exc.trajectory = _initial_state_only(scene, t0, q0, v0, h, stride, solver, fallback)
@@ -171,7 +182,7 @@ def simulate(
         checked_start(lambda: integ.init(t0, q0, v0), scene, t0, q0, v0)
         if check_jacobian and m:
             check_jacobians(scene, integ.q)
-        traj = _run_python(scene, integ, h, n_steps, stride, n_rec, progress, energy)
+        traj = _run_python(scene, integ, h, n_steps, stride, n_rec, progress, energy, flight_gap)
     traj.warnings = penetration_warnings(scene, traj, h, penetration_limit)
     return traj
 
@@ -184,7 +195,7 @@ def _initial_state_only(scene, t0, q0, v0, h, stride, solver, fallback) -> Traje
     return Trajectory(
         t=np.array([t0]), q=q0[None, :].copy(), v=v0[None, :].copy(),
         gaps=np.full((1, m), np.nan), impulses=np.zeros((1, m)), active=np.zeros((1, m), dtype=bool),
-        impacts=ImpactLog(), stats=SolverStats(solver=str(solver), fallback=str(fallback or ""), backend="compiled"),
+        onsets=ImpactLog(), stats=SolverStats(solver=str(solver), fallback=str(fallback or ""), backend="compiled"),
         h=h, record_every=stride, row_names=list(scene.row_names), scene=scene.describe(),
         status="interrupted", message=f"interrupted by the user at step 0 (t = {t0:.9g})", version=__version__,
         max_penetration=np.zeros(m),
@@ -194,7 +205,7 @@ def _initial_state_only(scene, t0, q0, v0, h, stride, solver, fallback) -> Traje
 def _choose_backend(backend, scene, integrator, solver, fallback, drift_control):
     """``(path, compiled scene or None, solver, fallback)`` for :func:`simulate`."""
     from .compiled import COMPILED_SOLVERS
-    from .drift import PositionProjection
+    from .drift import CombinedProjection, PositionProjection
     from .lowering import NotCompilable, lower
     from .solvers import ContactSolver
 
@@ -207,7 +218,7 @@ def _choose_backend(backend, scene, integrator, solver, fallback, drift_control)
     if backend != "python":
         if integrator not in (MoreauJeanMidpoint, MoreauJeanTheta):
             reason = f"integrator {integrator.__name__} has no compiled form"
-        elif drift_control is not None and type(drift_control) is not PositionProjection:
+        elif drift_control is not None and type(drift_control) not in (PositionProjection, CombinedProjection):
             reason = f"drift control {type(drift_control).__name__} has no compiled form"
         elif solver is not None and solver not in COMPILED_SOLVERS:
             reason = f"solver {solver!r} does not run in compiled code (compiled: {sorted(COMPILED_SOLVERS)})"
@@ -244,7 +255,7 @@ def _progress_bar(progress, n_steps: int, desc: str):
     return tqdm(total=n_steps, **bar_kw)
 
 
-def _run_python(scene, integ, h, n_steps, stride, n_rec, progress, energy) -> Trajectory:
+def _run_python(scene, integ, h, n_steps, stride, n_rec, progress, energy, flight_gap) -> Trajectory:
     """The reference loop: one :meth:`OneStepIntegrator.step` call per step."""
     n, m = scene.ndof, scene.nrows
     t0 = integ.t
@@ -260,6 +271,7 @@ def _run_python(scene, integ, h, n_steps, stride, n_rec, progress, energy) -> Tr
     act_acc = np.zeros(m, dtype=bool)
     in_contact = np.zeros(m, dtype=bool)
     has_contacts = m > 0
+    gmax = initial_flight(scene, integ.q, integ.v)
 
     bar = _progress_bar(progress, n_steps, scene.name)
     pen = np.zeros(m)
@@ -280,11 +292,13 @@ def _run_python(scene, integ, h, n_steps, stride, n_rec, progress, energy) -> Tr
                     now = P > 0.0
                     new = now & ~in_contact
                     if new.any():
-                        _log_impacts(integ, np.flatnonzero(new), impacts)
+                        _log_impacts(integ, np.flatnonzero(new), gmax > flight_gap, impacts)
                     in_contact = now
                 elif in_contact.any():
                     in_contact = np.zeros(m, dtype=bool)
-                np.maximum(pen, -scene.gaps(integ.q), out=pen)
+                g_end = scene.gaps(integ.q)
+                np.maximum(pen, -g_end, out=pen)
+                gmax = np.where(in_contact, -np.inf, np.maximum(gmax, g_end))
             if k % stride == 0 or k == n_steps:
                 T[rec], Q[rec], V[rec] = integ.t, integ.q, integ.v
                 if has_contacts:
@@ -330,21 +344,22 @@ def _run_python(scene, integ, h, n_steps, stride, n_rec, progress, energy) -> Tr
     return traj
 
 
-def _log_impacts(integ: OneStepIntegrator, rows: np.ndarray, out: list[tuple]) -> None:
-    """Log the contact onsets of the last step that are impacts.
+def _log_impacts(integ: OneStepIntegrator, rows: np.ndarray, after_flight: np.ndarray, out: list[tuple]) -> None:
+    """Log the contact onsets of the last step (``rows``) that are impacts by the flight
+    test (``after_flight``, shape (m,)) or the velocity test (see :class:`ImpactLog`).
 
-    A row whose impulse turns positive is an *impact* when it approaches faster than the
-    smooth forces alone change its normal velocity in one step: ``−U_before > h |a_n|``
-    with ``h a_n = U_free − U_before``. Slower onsets are a sliding contact closing again
-    after the midpoint drift opened it for a step (on a curved barrier the scheme does
-    that), not impacts.
+    Velocity test: ``−U_before > h |a_n|`` with ``h a_n = U_free − U_before``; slower
+    onsets are a sliding contact closing again after the midpoint drift opened it for a
+    step (on a curved barrier the scheme does that).
     """
     d = integ.last_contact_details(rows)
     t_start = integ.t - integ.h
     for j, r in enumerate(rows):
-        if -d.U_before[j] > abs(d.U_free[j] - d.U_before[j]):
+        fast = bool(-d.U_before[j] > abs(d.U_free[j] - d.U_before[j]))
+        flight = bool(after_flight[r])
+        if fast or flight:
             out.append((t_start, integ.k - 1, int(r), float(d.U_before[j]), float(d.U_after[j]),
-                        float(integ.P[r]), float(d.energy_lost[j])))
+                        float(integ.P[r]), float(d.energy_lost[j]), flight, fast))
 
 
 def _assemble(scene, integ, h, stride, T, Q, V, PS, ACT, impacts, wall, status, message, energy) -> Trajectory:
@@ -378,7 +393,7 @@ def _assemble(scene, integ, h, stride, T, Q, V, PS, ACT, impacts, wall, status, 
     )
     return Trajectory(
         t=T, q=Q, v=V, gaps=gaps, impulses=PS, active=ACT,
-        impacts=ImpactLog.from_rows(impacts), stats=stats, h=h, record_every=stride,
+        onsets=ImpactLog.from_rows(impacts), stats=stats, h=h, record_every=stride,
         row_names=list(scene.row_names), scene=scene.describe(), energy=E,
         kinetic_energy=KE, potential_energy=PE, status=status, message=message,
         version=__version__, work={"forces": integ.work_forces, "contacts": integ.work_contacts},

@@ -31,10 +31,14 @@ from moreau.chain import (
 from .params import PistonParameters
 from .pressure import EngineGeometry, FourierPressure, calibrate
 
-__all__ = ["EFFECTS", "CORNERS", "PistonModel", "piston_model"]
+__all__ = ["EFFECTS", "CORNERS", "FLIGHT_FRACTION", "PistonModel", "piston_model"]
 
 EFFECTS = ("gravity", "damping", "gas", "brake")
 CORNERS = ("top-right", "bottom-right", "top-left", "bottom-left")
+#: A corner's contact onset is an impact when, since it last touched, it left the wall by
+#: more than this fraction of the clearance D − d (the flight gap, see moreau.ImpactLog).
+#: Measured: the flight counts per cycle then agree within a few % from h = 1e-3 to 1e-5.
+FLIGHT_FRACTION = 0.02
 
 
 @dataclass
@@ -75,7 +79,11 @@ class PistonModel:
 
     def simulate(self, cycles: float, h: float = 1e-4, *, phi1: float = 0.0, **kwargs) -> mo.Trajectory:
         """Run ``cycles`` engine cycles (4π of non-dimensional time each, at speed 1) from
-        :meth:`initial_state`; ``kwargs`` go to :func:`moreau.simulate`.
+        :meth:`initial_state`; ``kwargs`` go to :func:`moreau.simulate`. Defaults set
+        here: ``penetration_limit`` = the clearance and ``flight_gap`` =
+        :data:`FLIGHT_FRACTION` × the clearance (both in units of l1, the gaps' unit), so
+        ``traj.impacts`` counts the onsets after a corner left the wall by 2 % of the
+        clearance.
 
         Warns (``RuntimeWarning``, naming h and the clearance) when the step is too coarse
         for the clearance: when ``h > (D − d) / l1``. In non-dimensional units the crank
@@ -104,6 +112,8 @@ class PistonModel:
         q0, v0 = self.initial_state(phi1)
         # a corner deeper than the clearance is a contact the step does not resolve
         kwargs.setdefault("penetration_limit", p.clearance / p.l1)  # gaps are in units of l1
+        # an impact is a contact onset after the corner left the wall by 2 % of the clearance
+        kwargs.setdefault("flight_gap", FLIGHT_FRACTION * p.clearance / p.l1)
         return mo.simulate(self.scene, (0.0, 4 * np.pi * cycles), q0, v0, h, **kwargs)
 
 

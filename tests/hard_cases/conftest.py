@@ -23,7 +23,7 @@ def energy_scale(traj: mo.Trajectory) -> float:
     scale = 0.0
     if traj.kinetic_energy is not None and len(traj.kinetic_energy):
         scale = float(np.nanmax(np.abs(traj.kinetic_energy)))
-    imp = traj.impacts
+    imp = traj.velocity_impacts
     if len(imp):
         scale = max(scale, float(np.max(imp.impulse * np.maximum(np.abs(imp.U_before), np.abs(imp.U_after)))))
     return max(scale, np.finfo(float).tiny)
@@ -37,12 +37,17 @@ def newton_dissipation(traj: mo.Trajectory) -> np.ndarray:
     ``ΔT = f(q_m)·(q⁺ − q_k) + ½ Pᵀ G (v_k + v⁺)``, so this is the impulse's share of ΔT;
     with Newton's law (P > 0 ⇒ U⁺ = −e U⁻) it equals ½ P (1 − e) |U⁻| >= 0 for e <= 1.
     """
-    imp = traj.impacts
+    imp = traj.velocity_impacts
     return -0.5 * imp.impulse * (imp.U_after + imp.U_before)
 
 
 def audit_impacts(traj: mo.Trajectory, scale: float | None = None) -> float:
     """Assert that no logged impact of the run gained kinetic energy (e <= 1).
+
+    The audit covers the onsets that pass the velocity test (``traj.velocity_impacts``:
+    the row approaches, U⁻ < −h|a_n| < 0), where Newton's law dissipates. An onset after
+    a flight may close with U⁻ > 0 (a row pulled back while still moving away): there the
+    impulse's work ½ P (U⁻ + U⁺) is positive and is not an impact loss.
 
     Checks, for every impact: finite values, impulse P >= 0, the logged
     ``impacts.energy_lost >= −AUDIT_RTOL × scale``, and that it is the Newton dissipation
@@ -50,7 +55,7 @@ def audit_impacts(traj: mo.Trajectory, scale: float | None = None) -> float:
 
     Returns the smallest logged ``energy_lost / scale`` (for reporting).
     """
-    imp = traj.impacts
+    imp = traj.velocity_impacts
     if len(imp) == 0:
         return 0.0
     scale = energy_scale(traj) if scale is None else float(scale)
