@@ -47,8 +47,9 @@ def energy_ledger(traj: Trajectory, scene) -> dict:
     """Energy balance of a run: the work of each effect, the impact losses, ΔKE, ΔPE.
 
     Every effect's work is the integral of its power ``vᵀ f(t, q, v)`` over the recorded
-    states (composite trapezoid), the impact losses are ``traj.impacts.energy_lost``
-    summed, and the ledger closes when
+    states (composite trapezoid), the impact losses are the ``energy_lost`` of every
+    onset that passes the velocity test (``traj.velocity_impacts``, not only the impacts
+    after a flight) summed, and the ledger closes when
 
     .. math:: \\sum_e W_e = \\Delta T + E_{\\mathrm{impacts}} + \\text{residual},
 
@@ -90,7 +91,7 @@ def energy_ledger(traj: Trajectory, scene) -> dict:
         ``work`` : dict name -> float, integrated work of each effect (energy units of
         the scene, e.g. J; positive = energy put into the system);
         ``potential_change`` : dict name -> float, ΔV of the effects with a potential;
-        ``impact_loss`` : float, kinetic energy dissipated at the logged impacts;
+        ``impact_loss`` : float, kinetic energy dissipated at the velocity-test onsets;
         ``kinetic_change`` : float, T(end) − T(start);
         ``residual`` : float, Σ work − kinetic_change − impact_loss;
         ``scale`` : float, Σ |work| + |kinetic_change| + impact_loss (for a relative
@@ -130,7 +131,8 @@ def energy_ledger(traj: Trajectory, scene) -> dict:
         dT = float(traj.kinetic_energy[-1] - traj.kinetic_energy[0])
     else:
         dT = scene.kinetic_energy(q[-1], v[-1]) - scene.kinetic_energy(q[0], v[0])
-    loss = float(np.sum(traj.impacts.energy_lost)) if len(traj.impacts) else 0.0
+    vi = traj.velocity_impacts  # every fast onset: the ledger's impact term (not only those after a flight)
+    loss = float(np.sum(vi.energy_lost)) if len(vi) else 0.0
     total = float(sum(work.values()))
     return {
         "work": work,

@@ -141,6 +141,7 @@ class OneStepIntegrator(ABC):
         self.P = np.zeros(m)
         self.last_impulse_step = np.full(m, -(1 << 62), dtype=np.int64)
         self.pinned = np.zeros(m, dtype=bool)
+        self.pin_gap = np.zeros(m)
         self.bounced = np.zeros(m, dtype=bool)
         self.contact_step = False
         self.n_solves = self.n_fallbacks = self.n_contact_steps = self.n_projections = 0
@@ -333,7 +334,7 @@ class MoreauJeanMidpoint(OneStepIntegrator):
             if self._impacts_only:  # CombinedProjection: a persistent contact stays in the problem,
                 # and a row that reaches the barrier by the end of the step enters it now
                 g_start = scene.gaps(self.q)
-                active = active | self.pinned | (self.P > 0.0) | (2.0 * g - g_start <= 0.0)
+                active = active | self.pinned | (2.0 * g - g_start <= 0.0)
             if active.any():
                 rows = np.flatnonzero(active)
                 G = scene.jacobian(qm)

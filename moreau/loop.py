@@ -26,9 +26,9 @@ DONE, IMPACTS_FULL, SOLVER_FAILED, NONFINITE, NOT_SPD, NONFINITE_GAP = 0, 1, 2, 
 S_THETA, S_DRIFT, S_DRIFT_ITER, S_STRIDE, S_NSTEPS, S_METHOD, S_FALLBACK, S_ENERGY, S_MEMORY = range(9)
 # drift control modes (S_DRIFT)
 DRIFT_NONE, DRIFT_POSITION, DRIFT_COMBINED = 0, 1, 2
-# per-row state of CombinedProjection (float array (m, 4)): gap at q_k, carried an impulse
-# in the last step, held by the last projection, restitution applied in this step
-R_GAP, R_CONTACT, R_PINNED, R_BOUNCED = range(4)
+# per-row state of CombinedProjection (float array (m, 4)): gap at q_k, the gap where the
+# projection last held the row, held (pinned), restitution applied in this step
+R_GAP, R_PINGAP, R_PINNED, R_BOUNCED = range(4)
 # impact-log columns
 I_T, I_STEP, I_ROW, I_UB, I_UA, I_P, I_LOST, I_FLIGHT, I_FAST = range(9)
 # settings (float array)
@@ -95,10 +95,10 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     :class:`moreau.drift.CombinedProjection`): it approaches faster than the smooth forces
     change its normal velocity in one step, and it carried no impulse in the last
     ``S_MEMORY`` steps; other closed rows take e = 0 (a persistent contact). A row is
-    then also closed when it carried an impulse in the last step, when the last
-    projection held it, or when it reaches the barrier by the end of the step
-    (2 g(q_m) − g(q_k) <= 0). ``rs`` (m, 4) holds per row the gap at q_k and the
-    in-contact, pinned and bounced flags (columns ``R_GAP`` ... ``R_BOUNCED``)."""
+    then also closed when the projection holds it, or when it reaches the barrier by the
+    end of the step (2 g(q_m) − g(q_k) <= 0). ``rs`` (m, 4) holds per row the gap at
+    q_k, the gap the projection left it at, and the pinned and bounced flags (columns
+    ``R_GAP`` ... ``R_BOUNCED``)."""
     ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e, atol = model
     n, m = ints[0], ints[1]
     h = fset[F_H]
@@ -107,8 +107,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     for r in range(m):
         active[r] = gm[r] <= atol[r]
         if combined:
-            active[r] = (active[r] or rs[r, R_CONTACT] != 0.0 or rs[r, R_PINNED] != 0.0
-                         or 2.0 * gm[r] - rs[r, R_GAP] <= 0.0)
+            active[r] = active[r] or rs[r, R_PINNED] != 0.0 or 2.0 * gm[r] - rs[r, R_GAP] <= 0.0
             rs[r, R_BOUNCED] = 0.0
         P[r] = 0.0
         if active[r]:
@@ -163,12 +162,15 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
 
 
 @_inline
-def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw, rs):
+def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw, rs,
+             in_contact):
     """Drift control: move q onto g >= 0 (see PositionProjection and CombinedProjection).
 
     The rows of the projection QP: with PositionProjection the eligible rows that
     penetrate or were closed; with CombinedProjection the persistent contacts of the
-    step (closed, no restitution applied). Those held on g = 0 are marked pinned."""
+    step (closed, no restitution applied). Those held on g = 0 are marked pinned, and
+    stay pinned while they carry an impulse without bouncing and their gap does not grow
+    beyond where the projection left them."""
     ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e, atol = model
     n, m = ints[0], ints[1]
     dtol = fset[F_DRIFT_TOL]
@@ -177,7 +179,8 @@ def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fai
     need = False
     for r in range(m):
         if combined:
-            rs[r, R_PINNED] = 0.0
+            if not (in_contact[r] and rs[r, R_BOUNCED] == 0.0 and gq[r] <= rs[r, R_PINGAP]):
+                rs[r, R_PINNED] = 0.0
             sel[r] = active[r] and rs[r, R_BOUNCED] == 0.0
         else:
             sel[r] = eligible[r] and (gq[r] < 0.0 or active[r])
@@ -215,16 +218,17 @@ def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fai
             return False
         for i in range(n):
             q[i] += dq[i]
+        if ints[8]:
+            _k.trig(q, cq, sq)
+        ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, gq)
         if combined:
             j = 0
             for r in range(m):
                 if sel[r]:
                     if PA[j] > 0.0:
                         rs[r, R_PINNED] = 1.0
+                        rs[r, R_PINGAP] = max(gq[r], 0.0)
                     j += 1
-        if ints[8]:
-            _k.trig(q, cq, sq)
-        ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, gq)
         done = True
         for r in range(m):
             if not combined:
@@ -383,7 +387,7 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
             ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, q_new, cq, sq, gq)
             if iset[S_DRIFT] != DRIFT_NONE:
                 if not _project(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc,
-                                fail, eligible, ws, lw, rs):
+                                fail, eligible, ws, lw, rs, in_contact):
                     return cnt[C_FAILKIND]
             for r in range(m):
                 if -gq[r] > pen[r]:
@@ -393,7 +397,6 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
                 elif gq[r] > gmax[r]:
                     gmax[r] = gq[r]
                 rs[r, R_GAP] = gq[r]
-                rs[r, R_CONTACT] = 1.0 if in_contact[r] else 0.0
         q[:] = q_new
         v[:] = v_new
         k += 1

@@ -37,9 +37,9 @@ def sub_trajectory(traj, i0, i1):
     """Records i0..i1 (inclusive) and the impacts between them, for a partial ledger."""
     sl = slice(i0, i1 + 1)
     t0, t1 = traj.t[i0], traj.t[i1]
-    imp = traj.impacts.select((traj.impacts.t >= t0) & (traj.impacts.t < t1))
+    on = traj.onsets.select((traj.onsets.t >= t0) & (traj.onsets.t < t1))
     return replace(traj, t=traj.t[sl], q=traj.q[sl], v=traj.v[sl], gaps=traj.gaps[sl],
-                   impulses=traj.impulses[sl], active=traj.active[sl], impacts=imp,
+                   impulses=traj.impulses[sl], active=traj.active[sl], onsets=on,
                    kinetic_energy=traj.kinetic_energy[sl], potential_energy=traj.potential_energy[sl],
                    energy=traj.energy[sl])
 
