@@ -13,8 +13,11 @@ The pieces, in the field's vocabulary:
 
 from importlib.metadata import PackageNotFoundError, version as _version
 
+#: the distribution's name on the package index; the import name is ``moreau``
+DISTRIBUTION = "moreau-jean"
+
 try:
-    __version__ = _version("moreau")
+    __version__ = _version(DISTRIBUTION)
 except PackageNotFoundError:  # running from a source tree that is not installed
     __version__ = "0+unknown"
 
