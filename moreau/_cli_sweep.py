@@ -66,7 +66,7 @@ def _sweep_out(path: str) -> str:
 
 def _cmd_sweep(args) -> int:
     from moreau.sweeps import sweep
-    from problems.piston.study import piston_cache_key, piston_point
+    from moreau.problems.piston.study import piston_cache_key, piston_point
 
     try:
         import pandas as pd

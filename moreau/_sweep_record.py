@@ -118,7 +118,7 @@ def source_digest(*modules: Any) -> str:
     Parameters
     ----------
     *modules : module or str
-        Modules, packages, or their import names (``"problems.piston"``).
+        Modules, packages, or their import names (``"moreau.problems.piston"``).
     """
     import importlib
 

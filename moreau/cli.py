@@ -60,7 +60,7 @@ def _cmd_ball(args) -> int:
     import numpy as np
 
     import moreau as mo
-    from problems.bouncing_ball import BallSolution, bouncing_ball
+    from moreau.problems.bouncing_ball import BallSolution, bouncing_ball
 
     output_dir(args.out)
     for name in ("ball.npz", "ball.partial.npz", "ball.png", "ball_summary.csv"):  # a rerun: nothing old left
@@ -126,7 +126,7 @@ def _run(scene, t_span, q0, v0, args, out_stem: str, **kw):
 
 # -- piston -------------------------------------------------------------------------------
 def _cmd_piston(args) -> int:
-    from problems.piston.job import PAPER_CASES, Case, run_cases
+    from moreau.problems.piston.job import PAPER_CASES, Case, run_cases
 
     if args.e is None and args.D is None:
         pairs = list(PAPER_CASES)

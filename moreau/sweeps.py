@@ -192,7 +192,7 @@ def sweep(
     cache_key : JSON-like value, optional
         Part of every record's key, for what the results depend on beyond the function's
         own source and arguments (the code it calls, data files): e.g.
-        ``source_digest("problems.piston")``. Records made with another ``cache_key`` are
+        ``source_digest("moreau.problems.piston")``. Records made with another ``cache_key`` are
         not reused.
     dask_timeout : float
         Seconds to wait for a Dask scheduler given by its address.

@@ -43,7 +43,7 @@ import matplotlib.pyplot as plt
 import pandas as pd
 
 from moreau.sweeps import sweep
-from problems.piston.study import (
+from moreau.problems.piston.study import (
     DEFAULT_ANGLES_DEG,
     piston_cache_key,
     piston_point,

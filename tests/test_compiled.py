@@ -15,8 +15,8 @@ import moreau as mo
 from moreau import kernels as K
 from moreau.chain import ChainGravity, JointDamping, Link, PendulumChain, PointLineBarrier, PointLineRow
 from moreau.lowering import NotCompilable, lower
-from problems.bouncing_ball import bouncing_ball
-from problems.piston import piston_model
+from moreau.problems.bouncing_ball import bouncing_ball
+from moreau.problems.piston import piston_model
 
 
 def triple_with_walls():
@@ -188,7 +188,7 @@ def test_a_new_process_loads_the_loop_from_the_cache():
     code = textwrap.dedent("""
         import time, moreau as mo
         from moreau import loop
-        from problems.piston import piston_model
+        from moreau.problems.piston import piston_model
         m = piston_model(e=0.9)
         t = time.perf_counter()
         traj = m.simulate(0.01, 1e-4, drift_control=mo.PositionProjection())

@@ -23,9 +23,9 @@ import pytest
 
 import moreau as mo
 import moreau.cli
-import problems.piston.job as job
+import moreau.problems.piston.job as job
 from moreau.cli import main
-from problems.bouncing_ball import bouncing_ball
+from moreau.problems.bouncing_ball import bouncing_ball
 
 linux = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc, sends POSIX signals")
 

@@ -2,7 +2,7 @@
 
 Built only from moreau's public API: a three-link inverted :class:`~moreau.chain.PendulumChain`
 in the paper's non-dimensional units (length l1, time 1/ω, M_11 = 1; see
-:mod:`problems.piston.params`), with the effects the scene asks for — any of
+:mod:`moreau.problems.piston.params`), with the effects the scene asks for — any of
 ``"gravity"``, ``"damping"`` (joint damping), ``"gas"`` (gas force on the pin),
 ``"brake"`` (brake moment on the crank) — and the four corner contacts of eq. (2.3).
 """

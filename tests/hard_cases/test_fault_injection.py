@@ -12,8 +12,8 @@ import pytest
 
 import moreau as mo
 from moreau.testing import FaultInjectingSolver
-from problems.bouncing_ball import bouncing_ball
-from problems.piston import PistonParameters, piston_model
+from moreau.problems.bouncing_ball import bouncing_ball
+from moreau.problems.piston import PistonParameters, piston_model
 
 from .conftest import assert_finite, audit_impacts
 

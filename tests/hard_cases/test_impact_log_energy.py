@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 import moreau as mo
-from problems.bouncing_ball import bouncing_ball
-from problems.pendulum_wall import pendulum_wall
-from problems.piston import PistonParameters, piston_model
+from moreau.problems.bouncing_ball import bouncing_ball
+from moreau.problems.pendulum_wall import pendulum_wall
+from moreau.problems.piston import PistonParameters, piston_model
 
 from .conftest import AUDIT_RTOL, audit_impacts, energy_scale, newton_dissipation
 

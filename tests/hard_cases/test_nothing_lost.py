@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import moreau as mo
-from problems.bouncing_ball import bouncing_ball
+from moreau.problems.bouncing_ball import bouncing_ball
 
 
 
