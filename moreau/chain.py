@@ -121,7 +121,7 @@ class Link:
             raise ValueError(f"Link.l (joint-to-joint length, m) must be >= 0, got {self.l!r}")
 
     @classmethod
-    def rod(cls, m: float, l: float) -> "Link":
+    def rod(cls, m: float, l: float) -> Link:
         """A uniform slender rod: J = m l²/12, centre of mass at l/2."""
         return cls(m=m, J=m * l * l / 12.0, l=l, com=0.5 * l)
 
@@ -235,7 +235,7 @@ class PendulumChain(MechanicalSystem):
 
     @classmethod
     def from_arrays(cls, m, J, l, com, com_lateral=None, pivot=(0.0, 0.0),
-                    orientation: str | tuple = "hanging") -> "PendulumChain":
+                    orientation: str | tuple = "hanging") -> PendulumChain:
         """A chain from per-link arrays of shape (N,) (same units as :class:`Link`).
 
         Raises ``ValueError`` naming the link index and the bad value.
@@ -290,7 +290,8 @@ class PendulumChain(MechanicalSystem):
         if isinstance(link, bool) or not isinstance(link, (int, np.integer)):
             raise ValueError(f"{what} index must be an integer, got {link!r}")
         if not 0 <= link < self.ndof:
-            raise ValueError(f"{what} index {link} is out of range for a chain of {self.ndof} links (0..{self.ndof - 1})")
+            raise ValueError(f"{what} index {link} is out of range for a chain of {self.ndof} links "
+                             f"(0..{self.ndof - 1})")
         return int(link)
 
     def levers(self, link: int, local) -> tuple[np.ndarray, np.ndarray]:
@@ -350,7 +351,7 @@ class PendulumChain(MechanicalSystem):
         return C * du + S * dw, C * dw - S * du
 
     # -- scaling ----------------------------------------------------------------------------
-    def nondimensional(self, length_scale: float | None = None, time_scale: float = 1.0) -> "Nondimensional":
+    def nondimensional(self, length_scale: float | None = None, time_scale: float = 1.0) -> Nondimensional:
         """The chain in the paper's non-dimensional units and its dimensionless groups.
 
         Lengths are divided by ``length_scale`` (default l_0, the paper's l_1), times by

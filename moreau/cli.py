@@ -151,8 +151,8 @@ def build_parser() -> argparse.ArgumentParser:
     from . import __version__
 
     p = _Parser(prog="moreau", description="Non-smooth mechanics with the Moreau-Jean midpoint scheme.",
-                epilog="exit codes: 0 completed, 1 a run failed or completed with warnings, 2 the command could not start "
-                       "(options, --out, dependencies), 130/143 stopped by Ctrl-C/SIGTERM after saving")
+                epilog="exit codes: 0 completed, 1 a run failed or completed with warnings, 2 the command could "
+                       "not start (options, --out, dependencies), 130/143 stopped by Ctrl-C/SIGTERM after saving")
     p.add_argument("--version", action="version", version=f"moreau {__version__}")
     p.add_argument("-v", "--verbose", action="store_true", help="log progress details")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser, metavar="COMMAND")

@@ -143,7 +143,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
 def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE, IMP, q, v, P_acc, act_acc,
               pen, cnt, acc, fail, cs, t0, h, stride, solver, fallback, energy, wall):
     """The Trajectory (and the error to raise, if any) from the loop's buffers."""
-    n, m = scene.ndof, scene.nrows
+    m = scene.nrows
     error = None
     k = int(cnt[lp.C_K])
     t_now = t0 + k * h

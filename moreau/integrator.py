@@ -203,7 +203,7 @@ class OneStepIntegrator(ABC):
             )
 
     # -- what the last step did at the contacts (computed on request only) --------------
-    def last_contact_details(self, rows: np.ndarray) -> "ContactDetails":
+    def last_contact_details(self, rows: np.ndarray) -> ContactDetails:
         """Normal velocities of the last step at the given rows (all must have been
         active) and the kinetic energy the contact impulses dissipated there.
 

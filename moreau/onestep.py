@@ -47,7 +47,7 @@ class OneStepProblem:
         sol = np.linalg.solve(self.M, np.column_stack([self.b, self.G.T]))
         return self.G @ sol[:, 1:], self.G @ sol[:, 0] - self.c
 
-    def residuals(self, v: np.ndarray, P: np.ndarray) -> "Residuals":
+    def residuals(self, v: np.ndarray, P: np.ndarray) -> Residuals:
         return kkt_residuals(self.M, self.b, self.G, self.c, v, P)
 
 

@@ -53,7 +53,7 @@ class ImpactLog:
         return int(self.t.shape[0])
 
     @classmethod
-    def from_rows(cls, rows: list[tuple]) -> "ImpactLog":
+    def from_rows(cls, rows: list[tuple]) -> ImpactLog:
         if not rows:
             return cls()
         cols = list(zip(*rows))
@@ -67,7 +67,7 @@ class ImpactLog:
             energy_lost=np.array(cols[6], dtype=float),
         )
 
-    def select(self, mask: np.ndarray) -> "ImpactLog":
+    def select(self, mask: np.ndarray) -> ImpactLog:
         """The entries where ``mask`` is True."""
         return ImpactLog(**{f.name: getattr(self, f.name)[mask] for f in fields(self)})
 
@@ -251,7 +251,7 @@ class Trajectory:
         return path
 
     @classmethod
-    def load(cls, path: str | os.PathLike) -> "Trajectory":
+    def load(cls, path: str | os.PathLike) -> Trajectory:
         """Read a trajectory written by :meth:`save`.
 
         Raises

@@ -11,8 +11,7 @@ import numpy as np
 
 from ._validation import as_positive, as_record_every, as_time_span, checked_start
 from .errors import SimulationError, SolverError
-from .integrator import (MoreauJeanMidpoint, MoreauJeanTheta, NonFiniteState, OneStepIntegrator,
-                         check_initial_state)
+from .integrator import MoreauJeanMidpoint, MoreauJeanTheta, NonFiniteState, OneStepIntegrator, check_initial_state
 from .result import ImpactLog, SolverStats, Trajectory
 from .scene import Scene
 from .solvers import ContactSolver

@@ -50,8 +50,6 @@ import time
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
-
-from moreau.sweeps import sweep
 from moreau.problems.piston.study import (
     DEFAULT_ANGLES_DEG,
     piston_cache_key,
@@ -61,6 +59,8 @@ from moreau.problems.piston.study import (
     plot_sweep,
     section_long,
 )
+
+from moreau.sweeps import sweep
 
 SMALL = os.environ.get("MOREAU_NOTEBOOK_SCALE", "full") == "small"
 HERE = "." if os.path.basename(os.getcwd()) == "notebooks" else "notebooks"

@@ -43,9 +43,18 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import moreau as mo
-from moreau.dynamics import (TimeMap, bifurcation_diagram, detect_period, floquet_multipliers,
-                             join_state, largest_lyapunov, lyapunov_spectrum, plot_bifurcation,
-                             poincare, stroboscopic)
+from moreau.dynamics import (
+    TimeMap,
+    bifurcation_diagram,
+    detect_period,
+    floquet_multipliers,
+    join_state,
+    largest_lyapunov,
+    lyapunov_spectrum,
+    plot_bifurcation,
+    poincare,
+    stroboscopic,
+)
 from moreau.dynamics.benchmarks import forced_triple_pendulum
 
 logging.basicConfig(level=logging.WARNING)

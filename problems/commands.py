@@ -60,9 +60,9 @@ def run_ball(args: argparse.Namespace) -> int:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
+    from moreau.problems.bouncing_ball import BallSolution, bouncing_ball
 
     import moreau as mo
-    from moreau.problems.bouncing_ball import BallSolution, bouncing_ball
 
     output_dir(args.out)
     for name in ("ball.npz", "ball.partial.npz", "ball.png", "ball_summary.csv"):  # a rerun: nothing old left

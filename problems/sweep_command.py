@@ -67,8 +67,9 @@ def _sweep_out(path: str) -> str:
 
 def run_sweep(args: argparse.Namespace) -> int:
     """Run the sweep and print its table; exit code 1 when a point failed."""
-    from moreau.sweeps import sweep
     from moreau.problems.piston.study import piston_cache_key, piston_point
+
+    from moreau.sweeps import sweep
 
     try:
         import pandas as pd

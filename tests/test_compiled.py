@@ -10,13 +10,13 @@ import textwrap
 import numba
 import numpy as np
 import pytest
+from moreau.problems.bouncing_ball import bouncing_ball
+from moreau.problems.piston import piston_model
 
 import moreau as mo
 from moreau import kernels as K
 from moreau.chain import ChainGravity, JointDamping, Link, PendulumChain, PointLineBarrier, PointLineRow
 from moreau.lowering import NotCompilable, lower
-from moreau.problems.bouncing_ball import bouncing_ball
-from moreau.problems.piston import piston_model
 
 
 def triple_with_walls():
@@ -109,7 +109,7 @@ def test_compiled_scene_parameters_are_the_objects_own():
     objects call are fed the very same numbers."""
     model = piston_model()
     cs = lower(model.scene)
-    for e, kind, off in zip(model.scene.effects, cs.ekind, cs.eoff):
+    for e, off in zip(model.scene.effects, cs.eoff):
         p = e.kernel()[1][0]
         np.testing.assert_array_equal(cs.pool[off:off + p.size], p)
 

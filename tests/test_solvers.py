@@ -2,11 +2,11 @@
 
 import numpy as np
 import pytest
+from moreau.problems.bouncing_ball import bouncing_ball
 
 import moreau as mo
 from moreau.onestep import OneStepProblem, kkt_residuals
 from moreau.solvers import SolveFailed
-from moreau.problems.bouncing_ball import bouncing_ball
 
 
 def random_problem(rng):

@@ -9,11 +9,11 @@ import sys
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
+from moreau.problems.bouncing_ball import bouncing_ball
 
 import moreau as mo
 import moreau.solvers
 from moreau.sweeps import sweep
-from moreau.problems.bouncing_ball import bouncing_ball
 
 RESTITUTIONS = (0.0, 0.3, 0.5, 0.8)
 

@@ -122,7 +122,7 @@ class PistonParameters:
         if self.l2 <= self.l1:
             raise ValueError(f"rod length l2 = {self.l2!r} m must exceed the crank radius l1 = {self.l1!r} m")
 
-    def with_(self, **changes) -> "PistonParameters":
+    def with_(self, **changes) -> PistonParameters:
         """A copy with some parameters changed (validated)."""
         return replace(self, **changes)
 

@@ -9,11 +9,11 @@ the ball and the piston, with drift control, and with the fallback failing too.
 
 import numpy as np
 import pytest
+from moreau.problems.bouncing_ball import bouncing_ball
+from moreau.problems.piston import PistonParameters, piston_model
 
 import moreau as mo
 from moreau.testing import FaultInjectingSolver
-from moreau.problems.bouncing_ball import bouncing_ball
-from moreau.problems.piston import PistonParameters, piston_model
 
 from .conftest import assert_finite, audit_impacts
 
