@@ -14,10 +14,10 @@ import argparse
 import time
 
 import numpy as np
-from moreau.problems.piston import PistonParameters, piston_model
 from scipy.optimize import curve_fit
 
 import moreau as mo
+from moreau.problems.piston import PistonParameters, piston_model
 
 
 def cycle_speeds(e: float, D_mm: float, rpm0: float, cycles: int, h: float) -> tuple[np.ndarray, mo.Trajectory]:

@@ -26,10 +26,10 @@ import tempfile
 import time
 
 import numpy as np
-from moreau.problems.piston import PistonParameters, piston_model
 
 import moreau as mo
 from moreau.chain import ChainGravity, Link, PendulumChain, PointLineBarrier, PointLineRow
+from moreau.problems.piston import PistonParameters, piston_model
 
 H = 1e-4
 CYCLE = 4 * np.pi  # one engine cycle in non-dimensional time

@@ -68,10 +68,9 @@ _ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 if _ROOT not in sys.path:  # `python benchmarks/work_precision.py` from anywhere
     sys.path.insert(0, _ROOT)
 
-from moreau.problems.event_driven import moreau_impact_times as impact_times  # noqa: E402
-
 import moreau as mo  # noqa: E402
 from moreau.diagnostics import convergence_order  # noqa: E402
+from moreau.problems.event_driven import moreau_impact_times as impact_times  # noqa: E402
 
 __all__ = [
     "SolverSpec", "Config", "Run", "Problem", "BallProblem", "PendulumWallProblem",
@@ -303,8 +302,9 @@ class SmoothPendulumProblem(Problem):
 
     def __init__(self, ladder, config_list, damping=0.5, t_end=2.0, y0=(1.0, 0.5)):
         super().__init__(ladder, config_list)
-        from moreau.problems.pendulum_wall import pendulum_rhs, pendulum_wall
         from scipy.integrate import solve_ivp
+
+        from moreau.problems.pendulum_wall import pendulum_rhs, pendulum_wall
 
         self.scene = pendulum_wall(wall_x=None, damping=damping)
         self.t_end, self.y0 = t_end, y0

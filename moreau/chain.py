@@ -408,15 +408,15 @@ def _orientation(spec) -> tuple[str, np.ndarray, np.ndarray]:
     if isinstance(spec, str):
         if spec not in _ORIENTATIONS:
             raise ValueError(f"orientation must be one of {sorted(_ORIENTATIONS)} or (axis, lateral), got {spec!r}")
-        u, w = _ORIENTATIONS[spec]
-        u, w, name = np.array(u), np.array(w), spec
+        u0, w0 = _ORIENTATIONS[spec]
+        u, w, name = np.array(u0), np.array(w0), spec
     else:
         try:
-            u, w = spec
+            u1, w1 = spec
         except (TypeError, ValueError):
             raise ValueError(f"orientation must be a name or a pair (axis, lateral), got {spec!r}") from None
-        u = as_vector(u, "orientation axis", 2)
-        w = as_vector(w, "orientation lateral", 2)
+        u = as_vector(u1, "orientation axis", 2)
+        w = as_vector(w1, "orientation lateral", 2)
         if abs(u @ u - 1.0) > 1e-9 or abs(w @ w - 1.0) > 1e-9 or abs(u @ w) > 1e-9:
             raise ValueError(f"orientation (axis, lateral) must be orthonormal, got {u.tolist()}, {w.tolist()}")
         name = "custom"
@@ -695,7 +695,7 @@ class LinkTorque(Effect):
         self.name = name
         if callable(torques):
             self.tau = None
-            self.force = torques  # bound directly: no extra call layer on the hot path
+            self.force = torques  # type: ignore[method-assign]  # bound directly: no extra call layer
             self.velocity_dependent = bool(velocity_dependent)
             self.time_dependent = bool(time_dependent)
             self.has_potential = False
@@ -760,7 +760,7 @@ class PointForce(Effect):
             self.velocity_dependent = bool(velocity_dependent)
             self.time_dependent = bool(time_dependent)
             self.has_potential = False
-            self.force = self._force_callable
+            self.force = self._force_callable  # type: ignore[method-assign]
             if isinstance(force, FourierLoad):  # layout of kernels.add_point_fourier
                 self._pf = _k.flat(self._X, self._Y, force.direction,
                                    [force.a0, force.omega, force.coordinate, force.a.shape[0]], force.a, force.b)
@@ -877,6 +877,7 @@ class PointLineBarrier(Barrier):
             g0[r] = float(nrm @ (chain.pivot - a))
             self.normals[r] = nrm
         self.nrows, self.ndof = m, n
+        self._n = n
         self._A, self._B, self._g0 = A, B, g0
         self._p = _k.flat(g0, A, B)  # layout of kernels.gaps_trig
         self.normals.setflags(write=False)
@@ -887,7 +888,7 @@ class PointLineBarrier(Barrier):
         return out
 
     def jacobian(self, q):
-        out = np.empty((self.nrows, self.ndof))
+        out = np.empty((self.nrows, self._n))
         _k.jacobian_trig(self._p, 0, self.nrows, *_k.cos_sin(q), out, 0)
         return out
 

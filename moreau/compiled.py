@@ -16,7 +16,7 @@ import warnings
 import numpy as np
 
 from . import loop as lp
-from .errors import SimulationError, SolverError
+from .errors import SimulationError, SolverError, attach_trajectory
 from .lowering import CompiledScene, lower
 from .result import ImpactLog, SolverStats, Trajectory
 
@@ -132,10 +132,10 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
                 message = "interrupted by the user while the result was assembled"
     if interrupt is not None:
         log.warning("%s; %d records computed so far are attached to the KeyboardInterrupt", traj.message, len(traj))
-        interrupt.trajectory = traj
+        attach_trajectory(interrupt, traj)
         raise interrupt
     if error is not None:
-        error.trajectory = traj
+        attach_trajectory(error, traj)
         raise error
     return traj
 

@@ -53,7 +53,8 @@ class PositionProjection:
         self.max_iter = int(max_iter)
         self.tol = float(tol)
         self.max_restitution = float(max_restitution)
-        self._scene = self._eligible = None
+        self._scene: object | None = None  # the scene _eligible was computed for
+        self._eligible = np.zeros(0, dtype=bool)
 
     def eligible_rows(self, scene) -> np.ndarray:
         """Rows this projection may move, shape (m,) of bool."""

@@ -88,7 +88,8 @@ class Residuals:
 
 
 
-def kkt_residuals(M, b, G, c, v, P) -> Residuals:
+def kkt_residuals(M: np.ndarray, b: np.ndarray, G: np.ndarray, c: np.ndarray, v: np.ndarray,
+                  P: np.ndarray) -> Residuals:
     """Scaled KKT residuals of the one-step QP (see module docstring), the same check
     the compiled loop runs (:func:`moreau.lcp.kkt_residuals_kernel`).
 

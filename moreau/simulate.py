@@ -6,13 +6,15 @@ import logging
 import math
 import sys
 import time
+from typing import Any, Protocol, cast
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ._validation import as_positive, as_record_every, as_time_span, checked_start
-from .errors import SimulationError, SolverError
+from .errors import SimulationError, SolverError, attach_trajectory
 from .integrator import MoreauJeanMidpoint, MoreauJeanTheta, NonFiniteState, OneStepIntegrator, check_initial_state
-from .result import ImpactLog, SolverStats, Trajectory
+from .result import ImpactLog, ImpactRow, SolverStats, Trajectory
 from .scene import Scene
 from .solvers import ContactSolver
 from .trust import check_jacobians, penetration_warnings
@@ -26,11 +28,20 @@ _MAX_STEPS = 1e11  # a guard against a mistyped h, far beyond any run that finis
 _MAX_RECORD_BYTES = 8 * 2**30
 
 
+
+class DriftControl(Protocol):
+    """What ``simulate(..., drift_control=...)`` accepts (:class:`moreau.PositionProjection`)."""
+
+    def project(self, integ: Any, q: np.ndarray) -> np.ndarray:
+        """The corrected end position q⁺ of the integrator's last step."""
+        ...
+
+
 def simulate(
     scene: Scene,
     t_span: tuple[float, float],
-    q0,
-    v0,
+    q0: ArrayLike,
+    v0: ArrayLike,
     h: float,
     *,
     backend: str = "auto",
@@ -38,10 +49,10 @@ def simulate(
     fallback: str | ContactSolver | None = "auto",
     integrator: type[OneStepIntegrator] = MoreauJeanMidpoint,
     record_every: int = 1,
-    progress: bool | dict | None = None,
+    progress: bool | dict[str, Any] | None = None,
     energy: bool = True,
     tol: float = 1e-6,
-    drift_control=None,
+    drift_control: DriftControl | None = None,
     check_jacobian: bool = True,
     penetration_limit: float | None = None,
 ) -> Trajectory:
@@ -156,11 +167,11 @@ def simulate(
         try:
             bar = _progress_bar(progress, n_steps, scene.name)
             traj = run_compiled(scene, cs, t0, q0, v0, h, n_steps, theta=integrator is MoreauJeanTheta,
-                                solver=solver, fallback=fallback, stride=stride, bar=bar, energy=energy,
+                                solver=cast(str, solver), fallback=fallback, stride=stride, bar=bar, energy=energy,
                                 tol=tol, drift_control=drift_control)
         except KeyboardInterrupt as exc:  # before the loop took over: the initial state is the run
             if getattr(exc, "trajectory", None) is None:
-                exc.trajectory = _initial_state_only(scene, t0, q0, v0, h, stride, solver, fallback)
+                attach_trajectory(exc, _initial_state_only(scene, t0, q0, v0, h, stride, solver, fallback))
             raise
         finally:
             if bar is not None:
@@ -175,7 +186,8 @@ def simulate(
     return traj
 
 
-def _initial_state_only(scene, t0, q0, v0, h, stride, solver, fallback) -> Trajectory:
+def _initial_state_only(scene: Scene, t0: float, q0: np.ndarray, v0: np.ndarray, h: float, stride: int,
+                        solver: str | ContactSolver | None, fallback: str | ContactSolver | None) -> Trajectory:
     """The trajectory of a run interrupted before its first step: the initial state."""
     from . import __version__
 
@@ -190,7 +202,10 @@ def _initial_state_only(scene, t0, q0, v0, h, stride, solver, fallback) -> Traje
     )
 
 
-def _choose_backend(backend, scene, integrator, solver, fallback, drift_control):
+def _choose_backend(backend: str, scene: Scene, integrator: type[OneStepIntegrator],
+                    solver: str | ContactSolver | None, fallback: str | ContactSolver | None,
+                    drift_control: DriftControl | None,
+                    ) -> tuple[str, Any, str | ContactSolver, str | ContactSolver | None]:
     """``(path, compiled scene or None, solver, fallback)`` for :func:`simulate`."""
     from .compiled import COMPILED_SOLVERS
     from .drift import PositionProjection
@@ -231,19 +246,20 @@ def _choose_backend(backend, scene, integrator, solver, fallback, drift_control)
     return path, (cs if path == "compiled" else None), solver, fallback
 
 
-def _progress_bar(progress, n_steps: int, desc: str):
+def _progress_bar(progress: bool | dict[str, Any] | None, n_steps: int, desc: str) -> Any:
     show = bool(progress) if progress is not None else (n_steps >= _PROGRESS_MIN_STEPS and sys.stderr.isatty())
     if not show:
         return None
     from tqdm.auto import tqdm
 
-    bar_kw = {"unit": "step", "desc": desc, "mininterval": 0.5, "leave": False}
+    bar_kw: dict[str, Any] = {"unit": "step", "desc": desc, "mininterval": 0.5, "leave": False}
     if isinstance(progress, dict):
         bar_kw.update(progress)
     return tqdm(total=n_steps, **bar_kw)
 
 
-def _run_python(scene, integ, h, n_steps, stride, n_rec, progress, energy) -> Trajectory:
+def _run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, stride: int, n_rec: int,
+                progress: bool | dict[str, Any] | None, energy: bool) -> Trajectory:
     """The reference loop: one :meth:`OneStepIntegrator.step` call per step."""
     n, m = scene.ndof, scene.nrows
     t0 = integ.t
@@ -254,7 +270,7 @@ def _run_python(scene, integ, h, n_steps, stride, n_rec, progress, energy) -> Tr
     ACT = np.zeros((n_rec, m), dtype=bool)
     T[0], Q[0], V[0] = t0, integ.q, integ.v
     rec = 1
-    impacts: list[tuple] = []
+    impacts: list[ImpactRow] = []
     P_acc = np.zeros(m)
     act_acc = np.zeros(m, dtype=bool)
     in_contact = np.zeros(m, dtype=bool)
@@ -262,9 +278,11 @@ def _run_python(scene, integ, h, n_steps, stride, n_rec, progress, energy) -> Tr
 
     bar = _progress_bar(progress, n_steps, scene.name)
     pen = np.zeros(m)
+    gaps_of = scene.gaps if scene.gaps is not None else _no_gaps
     chunk = max(1, min(10_000, n_steps // 200))
 
-    status, message, error = "completed", "", None
+    status, message = "completed", ""
+    error: BaseException | None = None
     wall0 = time.perf_counter()
     k = 0
     try:
@@ -283,7 +301,7 @@ def _run_python(scene, integ, h, n_steps, stride, n_rec, progress, energy) -> Tr
                     in_contact = now
                 elif in_contact.any():
                     in_contact = np.zeros(m, dtype=bool)
-                np.maximum(pen, -scene.gaps(integ.q), out=pen)
+                np.maximum(pen, -gaps_of(integ.q), out=pen)
             if k % stride == 0 or k == n_steps:
                 T[rec], Q[rec], V[rec] = integ.t, integ.q, integ.v
                 if has_contacts:
@@ -324,12 +342,12 @@ def _run_python(scene, integ, h, n_steps, stride, n_rec, progress, energy) -> Tr
                      impacts, wall, status, message, energy)
     traj.max_penetration = pen
     if error is not None:
-        error.trajectory = traj
+        attach_trajectory(error, traj)
         raise error
     return traj
 
 
-def _log_impacts(integ: OneStepIntegrator, rows: np.ndarray, out: list[tuple]) -> None:
+def _log_impacts(integ: OneStepIntegrator, rows: np.ndarray, out: list[ImpactRow]) -> None:
     """Log the contact onsets of the last step that are impacts.
 
     A row whose impulse turns positive is an *impact* when it approaches faster than the
@@ -346,7 +364,9 @@ def _log_impacts(integ: OneStepIntegrator, rows: np.ndarray, out: list[tuple]) -
                         float(integ.P[r]), float(d.energy_lost[j])))
 
 
-def _assemble(scene, integ, h, stride, T, Q, V, PS, ACT, impacts, wall, status, message, energy) -> Trajectory:
+def _assemble(scene: Scene, integ: OneStepIntegrator, h: float, stride: int, T: np.ndarray, Q: np.ndarray,
+              V: np.ndarray, PS: np.ndarray, ACT: np.ndarray, impacts: list[ImpactRow], wall: float, status: str,
+              message: str, energy: bool) -> Trajectory:
     from . import __version__
 
     m = scene.nrows
@@ -356,8 +376,9 @@ def _assemble(scene, integ, h, stride, T, Q, V, PS, ACT, impacts, wall, status, 
     # post-processing of what was computed: a user callable failing here must not lose
     # the trajectory (it may be why the run stopped), so failures leave NaN and a warning
     try:
+        gaps_of = scene.gaps if scene.gaps is not None else _no_gaps
         for i in range(N if m else 0):
-            gaps[i] = scene.gaps(Q[i])
+            gaps[i] = gaps_of(Q[i])
         if energy and N:
             KE = np.array([scene.kinetic_energy(Q[i], V[i]) for i in range(N)])
             PE = np.array([scene.potential_energy(Q[i]) for i in range(N)])
@@ -382,3 +403,8 @@ def _assemble(scene, integ, h, stride, T, Q, V, PS, ACT, impacts, wall, status, 
         kinetic_energy=KE, potential_energy=PE, status=status, message=message,
         version=__version__, work={"forces": integ.work_forces, "contacts": integ.work_contacts},
     )
+
+
+def _no_gaps(q: np.ndarray) -> np.ndarray:
+    """The gaps of a scene without contacts (none)."""
+    return np.zeros(0)

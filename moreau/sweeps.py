@@ -249,6 +249,7 @@ def sweep(
     todo = [(i, points[i]) for i in range(len(points)) if results[i] is None]
     n_done = len(points) - len(todo)
     if n_done:
+        assert record is not None  # points are only ever read back from a record
         log.info("%s: %d of %d points read from %s, %d to compute", name, n_done, len(points),
                  record.directory, len(todo))
 
@@ -299,7 +300,7 @@ def sweep(
         raise
     finally:
         bar.close()
-        if owned:
+        if owned and client is not None:
             client.close()
         if record is not None:
             record.unlock()

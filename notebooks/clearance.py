@@ -41,6 +41,7 @@ import time
 
 import matplotlib.pyplot as plt
 import pandas as pd
+
 from moreau.problems.piston.study import (
     DEFAULT_ANGLES_DEG,
     piston_cache_key,
@@ -51,7 +52,6 @@ from moreau.problems.piston.study import (
     section_long,
     step_for_clearance,
 )
-
 from moreau.sweeps import sweep
 
 SMALL = os.environ.get("MOREAU_NOTEBOOK_SCALE", "full") == "small"

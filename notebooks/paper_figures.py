@@ -35,13 +35,13 @@ import os
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
+
+import moreau as mo
 from moreau.problems.piston import PistonParameters, cycle_figures
 from moreau.problems.piston.analysis import sliding_phases
 from moreau.problems.piston.figures import plot_cycle
 from moreau.problems.piston.job import PAPER_CASES, Case, run_cases
 from moreau.problems.piston.study import SLAP_FRACTION
-
-import moreau as mo
 
 SMALL = os.environ.get("MOREAU_NOTEBOOK_SCALE", "full") == "small"
 HERE = "." if os.path.basename(os.getcwd()) == "notebooks" else "notebooks"

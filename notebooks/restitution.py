@@ -50,6 +50,7 @@ import time
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
+
 from moreau.problems.piston.study import (
     DEFAULT_ANGLES_DEG,
     piston_cache_key,
@@ -59,7 +60,6 @@ from moreau.problems.piston.study import (
     plot_sweep,
     section_long,
 )
-
 from moreau.sweeps import sweep
 
 SMALL = os.environ.get("MOREAU_NOTEBOOK_SCALE", "full") == "small"

@@ -18,8 +18,7 @@ def rng():
 def compiled_loop_in_cache():
     """Have the compiled loop in numba's cache before a test starts commands that are
     interrupted a second after they begin stepping: they then load it, not compile it."""
-    from moreau.problems.bouncing_ball import bouncing_ball
-
     import moreau as mo
+    from moreau.problems.bouncing_ball import bouncing_ball
 
     mo.simulate(bouncing_ball(0.5), (0.0, 0.01), [1.0], [0.0], 1e-3, backend="compiled")

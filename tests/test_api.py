@@ -2,10 +2,10 @@
 
 import numpy as np
 import pytest
-from moreau.problems.bouncing_ball import bouncing_ball
-from moreau.problems.pendulum_wall import pendulum_wall
 
 import moreau as mo
+from moreau.problems.bouncing_ball import bouncing_ball
+from moreau.problems.pendulum_wall import pendulum_wall
 
 
 def free_scene():

@@ -33,12 +33,12 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
-from moreau.problems.bouncing_ball import bouncing_ball
-from moreau.problems.piston import PistonParameters, piston_model
 
 import moreau as mo
 from moreau.chain import ChainGravity, JointDamping, Link, PendulumChain, PointForce
 from moreau.cli import main
+from moreau.problems.bouncing_ball import bouncing_ball
+from moreau.problems.piston import PistonParameters, piston_model
 
 DOCUMENTED = (ValueError, mo.SolverError, mo.SimulationError)
 

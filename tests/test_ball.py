@@ -2,9 +2,9 @@
 
 import numpy as np
 import pytest
-from moreau.problems.bouncing_ball import BallSolution, bouncing_ball
 
 import moreau as mo
+from moreau.problems.bouncing_ball import BallSolution, bouncing_ball
 
 
 def apexes(traj):

@@ -10,13 +10,13 @@ import textwrap
 import numba
 import numpy as np
 import pytest
-from moreau.problems.bouncing_ball import bouncing_ball
-from moreau.problems.piston import piston_model
 
 import moreau as mo
 from moreau import kernels as K
 from moreau.chain import ChainGravity, JointDamping, Link, PendulumChain, PointLineBarrier, PointLineRow
 from moreau.lowering import NotCompilable, lower
+from moreau.problems.bouncing_ball import bouncing_ball
+from moreau.problems.piston import piston_model
 
 
 def triple_with_walls():

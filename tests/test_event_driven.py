@@ -3,12 +3,12 @@ general mass matrix, and moreau's impact times converging to it at first order."
 
 import numpy as np
 import pytest
-from moreau.problems.bouncing_ball import BallSolution, bouncing_ball
-from moreau.problems.event_driven import event_driven, moreau_impact_times, pendulum_wall_reference
-from moreau.problems.pendulum_wall import pendulum_wall
 
 import moreau as mo
 from moreau.diagnostics import convergence_order
+from moreau.problems.bouncing_ball import BallSolution, bouncing_ball
+from moreau.problems.event_driven import event_driven, moreau_impact_times, pendulum_wall_reference
+from moreau.problems.pendulum_wall import pendulum_wall
 
 G = 9.81
 

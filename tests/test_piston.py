@@ -2,9 +2,9 @@
 
 import numpy as np
 import pytest
-from moreau.problems.piston import EFFECTS, PistonParameters, closed_form, groups, piston_model
 
 from moreau.barriers import finite_difference_jacobian
+from moreau.problems.piston import EFFECTS, PistonParameters, closed_form, groups, piston_model
 
 
 @pytest.fixture(scope="module")

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+
 from moreau.problems.piston import PistonParameters, cycle_figures, piston_model, steady_speed_rpm
 from moreau.problems.piston.analysis import sliding_phases
 

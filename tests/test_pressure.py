@@ -5,6 +5,7 @@ import time
 
 import numpy as np
 import pytest
+
 from moreau.problems.piston.pressure import (
     C1_CRANK,
     CALIBRATED_SOC_DEG,

@@ -2,10 +2,10 @@
 
 import numpy as np
 import pytest
-from moreau.problems.bouncing_ball import bouncing_ball
 
 import moreau as mo
 from moreau.onestep import OneStepProblem, kkt_residuals
+from moreau.problems.bouncing_ball import bouncing_ball
 from moreau.solvers import SolveFailed
 
 

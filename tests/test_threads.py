@@ -9,10 +9,10 @@ import sys
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
-from moreau.problems.bouncing_ball import bouncing_ball
 
 import moreau as mo
 import moreau.solvers
+from moreau.problems.bouncing_ball import bouncing_ball
 from moreau.sweeps import sweep
 
 RESTITUTIONS = (0.0, 0.3, 0.5, 0.8)

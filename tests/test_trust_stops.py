@@ -18,14 +18,14 @@ import sys
 import threading
 import time
 
-import moreau.problems.piston.job as job
 import numpy as np
 import pytest
-from moreau.problems.bouncing_ball import bouncing_ball
 
 import moreau as mo
 import moreau.cli
+import moreau.problems.piston.job as job
 from moreau.cli import main
+from moreau.problems.bouncing_ball import bouncing_ball
 
 linux = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc, sends POSIX signals")
 

@@ -8,12 +8,12 @@ import sys
 
 import numpy as np
 import pytest
-from moreau.problems.pendulum_wall import pendulum_rhs, pendulum_wall
 from scipy.integrate import solve_ivp
 
 import moreau as mo
 from moreau.chain import ChainGravity, Link, PendulumChain
 from moreau.diagnostics import convergence_order
+from moreau.problems.pendulum_wall import pendulum_rhs, pendulum_wall
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCRIPT = os.path.join(ROOT, "benchmarks", "work_precision.py")

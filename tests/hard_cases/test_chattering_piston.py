@@ -14,9 +14,9 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from moreau.problems.piston import PistonParameters, cycle_figures, piston_model
 
 from moreau.diagnostics import energy_ledger
+from moreau.problems.piston import PistonParameters, cycle_figures, piston_model
 
 from .conftest import assert_finite, audit_impacts
 

@@ -10,10 +10,10 @@ changes of the cycle count; see moreau.problems.piston.analysis).
 
 import numpy as np
 import pytest
-from moreau.problems.piston import PistonParameters, cycle_figures, piston_model
-from moreau.problems.piston.analysis import max_penetration_ratio
 
 import moreau as mo
+from moreau.problems.piston import PistonParameters, cycle_figures, piston_model
+from moreau.problems.piston.analysis import max_penetration_ratio
 
 from .conftest import assert_finite, audit_impacts
 

@@ -15,12 +15,12 @@ to its own tolerances — see the note in test_fault_injection.py.)
 
 import numpy as np
 import pytest
-from moreau.problems.piston import PistonParameters, piston_model
-from moreau.problems.piston.analysis import max_penetration_ratio
-from moreau.problems.piston.model import CORNERS
 
 import moreau as mo
 from moreau.chain import PointLineBarrier, PointLineRow
+from moreau.problems.piston import PistonParameters, piston_model
+from moreau.problems.piston.analysis import max_penetration_ratio
+from moreau.problems.piston.model import CORNERS
 
 from .conftest import assert_finite, audit_impacts
 

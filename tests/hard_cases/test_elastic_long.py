@@ -13,9 +13,9 @@ Cost: h0 = 5 cm, 50 steps per analytic period: 510 k steps, ~10–30 s.
 
 import numpy as np
 import pytest
-from moreau.problems.bouncing_ball import BallSolution, bouncing_ball
 
 import moreau as mo
+from moreau.problems.bouncing_ball import BallSolution, bouncing_ball
 
 from .conftest import assert_finite, audit_impacts, newton_dissipation
 

@@ -9,10 +9,10 @@ the ball and the piston, with drift control, and with the fallback failing too.
 
 import numpy as np
 import pytest
-from moreau.problems.bouncing_ball import bouncing_ball
-from moreau.problems.piston import PistonParameters, piston_model
 
 import moreau as mo
+from moreau.problems.bouncing_ball import bouncing_ball
+from moreau.problems.piston import PistonParameters, piston_model
 from moreau.testing import FaultInjectingSolver
 
 from .conftest import assert_finite, audit_impacts

@@ -5,9 +5,9 @@ pendulum that just reaches a wall. No spurious impulse beyond O(h), no NaN, no i
 
 import numpy as np
 import pytest
-from moreau.problems.pendulum_wall import pendulum_wall
 
 import moreau as mo
+from moreau.problems.pendulum_wall import pendulum_wall
 
 from .conftest import assert_finite, audit_impacts
 

@@ -9,11 +9,11 @@ m g h |U| per bounce, the e = 0.9 piston logged gains); these tests keep that fi
 """
 
 import numpy as np
+
+import moreau as mo
 from moreau.problems.bouncing_ball import bouncing_ball
 from moreau.problems.pendulum_wall import pendulum_wall
 from moreau.problems.piston import PistonParameters, piston_model
-
-import moreau as mo
 
 from .conftest import AUDIT_RTOL, audit_impacts, energy_scale, newton_dissipation
 

@@ -8,10 +8,10 @@ resolved by the first step's impact.
 
 import numpy as np
 import pytest
-from moreau.problems.bouncing_ball import bouncing_ball
-from moreau.problems.piston import PistonParameters, piston_model
 
 import moreau as mo
+from moreau.problems.bouncing_ball import bouncing_ball
+from moreau.problems.piston import PistonParameters, piston_model
 
 from .conftest import assert_finite, audit_impacts
 

@@ -14,9 +14,9 @@ import time
 
 import numpy as np
 import pytest
-from moreau.problems.bouncing_ball import bouncing_ball
 
 import moreau as mo
+from moreau.problems.bouncing_ball import bouncing_ball
 
 pytestmark = pytest.mark.usefixtures("compiled_loop_in_cache")
 

@@ -7,10 +7,10 @@ through the whole Zeno accumulation and the resting contact that follows.)
 
 import numpy as np
 import pytest
-from moreau.problems.bouncing_ball import BallSolution, bouncing_ball
-from moreau.problems.piston import PistonParameters, piston_model
 
 import moreau as mo
+from moreau.problems.bouncing_ball import BallSolution, bouncing_ball
+from moreau.problems.piston import PistonParameters, piston_model
 
 from .conftest import assert_finite, audit_impacts
 

@@ -12,12 +12,12 @@ moreau detects it (no check of h·λ_max(M⁻¹C) exists; see the report).
 
 import numpy as np
 import pytest
-from moreau.problems.piston import PistonParameters, piston_model
-from moreau.problems.piston.analysis import max_penetration_ratio
 from scipy.linalg import eigh
 
 import moreau as mo
 from moreau.chain import ChainGravity, JointStop, Link, LinkTorque, PendulumChain
+from moreau.problems.piston import PistonParameters, piston_model
+from moreau.problems.piston.analysis import max_penetration_ratio
 
 from .conftest import assert_finite, audit_impacts
 

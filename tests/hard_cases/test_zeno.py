@@ -9,9 +9,9 @@ import math
 
 import numpy as np
 import pytest
-from moreau.problems.bouncing_ball import BallSolution, bouncing_ball
 
 import moreau as mo
+from moreau.problems.bouncing_ball import BallSolution, bouncing_ball
 
 from .conftest import assert_finite, audit_impacts, rest_time
 
