@@ -4,6 +4,16 @@ Each ``register_*`` function is a ``moreau.commands`` entry point (``pyproject.t
 protocol is described in :mod:`moreau.cli`): it adds its parser to the ``moreau`` command
 and names its handler. Registration only describes options; the handlers import the
 problems and plotting when they run.
+
+Units
+-----
+Every option names its unit in ``--help``. A step ``--h`` is in the time unit of the
+model it runs: seconds for the ball; for the piston (``piston`` and ``sweep`` alike) the
+non-dimensional crank-angle time τ = ω t of the paper's model, ω = 2π·2000/60 rad/s, so
+that h = 1e-4 is 1e-4 rad of crank angle (0.48 µs) at the reference speed — the model is
+integrated in τ because its mass matrix and forces are O(1) there. Lengths on the command
+line and in the tables are in mm (``--D``, ``D_mm``); the Python API takes SI (``Case.D``,
+``PistonParameters.D`` in m).
 """
 
 from __future__ import annotations
@@ -40,14 +50,18 @@ def _solver_option(parser: argparse.ArgumentParser, help: str) -> None:
 def register_ball(subparsers: Any) -> None:
     """``moreau ball``: the bouncing ball against its analytic solution."""
     b = subparsers.add_parser("ball", help="bouncing ball against its analytic solution")
-    b.add_argument("--e", type=float_in(0.0, 1.0), default=0.5, help="restitution in [0, 1] (default 0.5)")
-    b.add_argument("--h0", type=float_in(0.0, None, lo_open=True), default=1.0, help="drop height (m)")
-    b.add_argument("--h", type=float_in(0.0, None, lo_open=True), default=1e-4, help="time step (s)")
-    b.add_argument("--t-end", type=float_in(0.0, None, lo_open=True), default=2.0, help="end time (s)")
+    b.add_argument("--e", type=float_in(0.0, 1.0), default=0.5,
+                   help="restitution in [0, 1] (dimensionless; default 0.5)")
+    b.add_argument("--h0", type=float_in(0.0, None, lo_open=True), default=1.0, metavar="METRES",
+                   help="drop height (m; default 1)")
+    b.add_argument("--h", type=float_in(0.0, None, lo_open=True), default=1e-4, metavar="SECONDS",
+                   help="time step (s; default 1e-4)")
+    b.add_argument("--t-end", type=float_in(0.0, None, lo_open=True), default=2.0, metavar="SECONDS",
+                   help="end time (s; default 2)")
     _solver_option(b, "contact solver (default exact, compiled)")
     add_backend_option(b)
     b.add_argument("--record-every", type=positive_int, default=1, metavar="K",
-                   help="keep every K-th step (default 1; raise it for long runs)")
+                   help="keep every K-th step (steps; default 1; raise it for long runs)")
     b.add_argument("--out", default="ball-out", help="output directory")
     b.add_argument("--no-progress", action="store_true", help="no progress bar")
     b.set_defaults(func=run_ball)
@@ -60,9 +74,9 @@ def run_ball(args: argparse.Namespace) -> int:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
-    from moreau.problems.bouncing_ball import BallSolution, bouncing_ball
 
     import moreau as mo
+    from moreau.problems.bouncing_ball import BallSolution, bouncing_ball
 
     output_dir(args.out)
     for name in ("ball.npz", "ball.partial.npz", "ball.png", "ball_summary.csv"):  # a rerun: nothing old left
@@ -105,11 +119,14 @@ def run_ball(args: argparse.Namespace) -> int:
 # -- piston -------------------------------------------------------------------------------
 def _engine_run_args(parser: argparse.ArgumentParser, cycles: int, h: float) -> None:
     """The options of a piston run shared by ``piston`` and ``sweep``."""
-    parser.add_argument("--cycles", type=positive_int, default=cycles,
-                        help=f"engine cycles analyzed (default {cycles})")
-    parser.add_argument("--transient", type=int_at_least(0), default=1, help="cycles discarded first (default 1)")
-    parser.add_argument("--h", type=float_in(0.0, 0.05, lo_open=True), default=h,
-                        help=f"time step in non-dimensional time τ = ωt (default {h:g})")
+    parser.add_argument("--cycles", type=positive_int, default=cycles, metavar="N",
+                        help=f"engine cycles analyzed (cycles of 720° crank angle; default {cycles})")
+    parser.add_argument("--transient", type=int_at_least(0), default=1, metavar="N",
+                        help="engine cycles discarded first (cycles of 720° crank angle; default 1)")
+    parser.add_argument("--h", type=float_in(0.0, 0.05, lo_open=True), default=h, metavar="TAU",
+                        help=f"time step (τ: the model's non-dimensional crank-angle time τ = ω t, "
+                             f"ω = 2π·2000/60 rad/s, so 1e-4 τ = 1e-4 rad of crank angle = 0.48 µs; "
+                             f"default {h:g})")
     _solver_option(parser, "contact solver (default exact: the dual active-set method, which runs "
                            "compiled; osqp, daqp and quadprog run on the Python path)")
     add_backend_option(parser)
@@ -122,15 +139,22 @@ def register_piston(subparsers: Any) -> None:
     pi = subparsers.add_parser("piston", help="the paper's piston engine: figures, summary, trajectories",
                                description="Simulate the piston - connecting rod - crankshaft engine (the paper's "
                                            "three cases, or the one given by --e/--D), discard the transient, and "
-                                           "write figures, summary.csv and the trajectories into --out.")
-    pi.add_argument("--e", type=float_in(0.0, 1.0), default=None, help="restitution in [0, 1]")
-    pi.add_argument("--D", type=float_in(80.0, 100.0, lo_open=True), default=None,
-                    help="cylinder diameter in mm, > 80 (the piston's); paper: 80.04 and 80.2")
+                                           "write figures, summary.csv and the trajectories into --out.",
+                               epilog="summary.csv: e, D_mm (mm), h (τ), rpm (rev/min, mean over the analyzed "
+                                      "cycles), side_change_angles_deg (crank angle, °), energy_lost_per_cycle_J "
+                                      "(J), max_slap_impulse_Ns (N s), max_penetration_over_clearance "
+                                      "(dimensionless), wall_time_s (s), us_per_step (µs). The trajectories "
+                                      "(.npz) are in the model's non-dimensional units; traj.units names them and "
+                                      "gives the scales to SI.")
+    pi.add_argument("--e", type=float_in(0.0, 1.0), default=None,
+                    help="restitution in [0, 1] (dimensionless)")
+    pi.add_argument("--D", type=float_in(80.0, 100.0, lo_open=True), default=None, metavar="MM",
+                    help="cylinder diameter (mm), > 80 (the piston's); paper: 80.04 and 80.2")
     _engine_run_args(pi, cycles=3, h=1e-4)
     pi.add_argument("--workers", type=positive_int, default=None,
                     help="parallel processes (default: one per case, up to the cores)")
     pi.add_argument("--record-every", type=positive_int, default=None, metavar="K",
-                    help="keep every K-th step (default: about one record per 0.1 degree of crank angle)")
+                    help="keep every K-th step (steps; default: about one record per 0.1° of crank angle)")
     pi.add_argument("--out", default="piston-out", help="output directory (default piston-out); "
                     "a rerun first removes the files an earlier run left there for the same cases")
     pi.add_argument("--no-progress", action="store_true", help="no progress bars")
@@ -151,7 +175,8 @@ def run_piston(args: argparse.Namespace) -> int:
              for e, D in pairs]
     output_dir(args.out)
     print(f"moreau piston: {len(cases)} case(s), {args.transient} transient + {args.cycles} analyzed "
-          f"cycles each, h = {args.h:g} (non-dimensional time), solver {args.solver}; output in {args.out}/")
+          f"cycles each, h = {args.h:g} τ (non-dimensional crank-angle time), solver {args.solver}; "
+          f"output in {args.out}/")
     stopped = None
     try:
         rows = run_cases(cases, args.out, progress=not args.no_progress, workers=args.workers)
@@ -184,11 +209,15 @@ def register_sweep(subparsers: Any) -> None:
                                description="Run the piston engine over a grid of restitutions e and cylinder "
                                            "diameters D (cartesian product) on a local process pool or a Dask "
                                            "cluster; one row per point in --out. An interrupted sweep resumes: "
-                                           "run the same command again.")
+                                           "run the same command again.",
+                               epilog="table columns: e, D_mm (mm), clearance_um (µm), rpm (rev/min), "
+                                      "energy_lost_J_mean (J per cycle), max_impulse_Ns (N s), wall_time_s (s); "
+                                      "counts per cycle (side_changes_mean, slaps_mean, impacts_mean); h is in τ "
+                                      "(see --h). See moreau.problems.piston.study.piston_point.")
     sw.add_argument("problem", choices=["piston"], help="the system to sweep")
     sw.add_argument("--param", type=param_spec, action="append", metavar="NAME=VALUES",
-                    help="e=start:stop:num (numpy.linspace), e=0,0.5,0.9 or e=0.9; names: e, D (mm); "
-                         "defaults e=0, D=80.04")
+                    help="e=start:stop:num (numpy.linspace), e=0,0.5,0.9 or e=0.9; names: e (restitution, "
+                         "dimensionless), D (cylinder diameter, mm); defaults e=0, D=80.04")
     _engine_run_args(sw, cycles=5, h=3e-4)
     sw.add_argument("--out", default="sweep-out/piston_sweep.parquet", help="table, .parquet or .csv "
                     "(default sweep-out/piston_sweep.parquet)")

@@ -68,7 +68,6 @@ def _sweep_out(path: str) -> str:
 def run_sweep(args: argparse.Namespace) -> int:
     """Run the sweep and print its table; exit code 1 when a point failed."""
     from moreau.problems.piston.study import piston_cache_key, piston_point
-
     from moreau.sweeps import sweep
 
     try:
@@ -91,7 +90,7 @@ def run_sweep(args: argparse.Namespace) -> int:
     n = len(grid["e"]) * len(grid["D_mm"])
     where = f"Dask scheduler {args.dask}" if args.dask else f"{args.workers or os.cpu_count()} processes"
     print(f"moreau sweep piston: {n} point(s), {args.transient} transient + {args.cycles} analyzed cycles "
-          f"each, h = {args.h:g}, on {where}; table {args.out} (finished points kept in {args.out}.parts/)")
+          f"each, h = {args.h:g} τ, on {where}; table {args.out} (finished points kept in {args.out}.parts/)")
     try:
         df = sweep(piston_point, grid, executor=args.dask or "processes", workers=args.workers,
                    out=args.out, progress=not args.no_progress, cache_key=piston_cache_key())

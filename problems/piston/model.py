@@ -30,6 +30,7 @@ from moreau.chain import (
 
 from .params import PistonParameters
 from .pressure import EngineGeometry, FourierPressure, calibrate
+from .units import scene_units
 
 __all__ = ["EFFECTS", "CORNERS", "PistonModel", "piston_model"]
 
@@ -173,5 +174,5 @@ def piston_model(
     ]
     law = p.e if e is None else e
     contact = mo.Contact(PointLineBarrier(chain, rows), law, name="cylinder")
-    scene = mo.Scene(chain, fx, [contact], name="piston")
+    scene = mo.Scene(chain, fx, [contact], name="piston", units=scene_units(p, u))
     return PistonModel(params=p, pressure=pressure, chain=chain, units=u, scene=scene, effects=effects)
