@@ -25,7 +25,7 @@ import time
 import numpy as np
 
 import moreau as mo
-from problems.piston import PistonParameters, cycle_figures, piston_model
+from moreau.problems.piston import PistonParameters, cycle_figures, piston_model
 
 log = logging.getLogger("piston_convergence")
 

@@ -17,7 +17,7 @@ import numpy as np
 from scipy.optimize import curve_fit
 
 import moreau as mo
-from problems.piston import PistonParameters, piston_model
+from moreau.problems.piston import PistonParameters, piston_model
 
 
 def cycle_speeds(e: float, D_mm: float, rpm0: float, cycles: int, h: float) -> tuple[np.ndarray, mo.Trajectory]:

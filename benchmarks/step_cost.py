@@ -29,7 +29,7 @@ import numpy as np
 
 import moreau as mo
 from moreau.chain import ChainGravity, Link, PendulumChain, PointLineBarrier, PointLineRow
-from problems.piston import PistonParameters, piston_model
+from moreau.problems.piston import PistonParameters, piston_model
 
 H = 1e-4
 CYCLE = 4 * np.pi  # one engine cycle in non-dimensional time
@@ -89,7 +89,7 @@ _PROBE = """
 import time
 t0 = time.perf_counter()
 import moreau as mo
-from problems.piston import piston_model
+from moreau.problems.piston import piston_model
 t1 = time.perf_counter()
 m = piston_model(e=0.9)
 t2 = time.perf_counter()

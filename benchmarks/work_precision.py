@@ -11,18 +11,18 @@ Problems and their references (the *primary* error, plotted against wall time, f
 
 ``ball``
     Ball dropped from 1 m, e = 0.8, over 4.5 s, against the analytic solution
-    (:class:`problems.bouncing_ball.BallSolution`): impact times of the first 6 impacts,
+    (:class:`moreau.problems.bouncing_ball.BallSolution`): impact times of the first 6 impacts,
     apex heights between them, the Zeno time, position in L∞ over the run.
 ``pendulum``
     Pendulum hitting the wall x = 0.5 with e = 0.9 and pivot damping c = 0.05, from
     θ = 0, θ̇ = 4 rad/s, over 12 s (8 impacts), against the event-driven reference
-    (:func:`problems.event_driven.pendulum_wall_reference`): impact times (mean over the
+    (:func:`moreau.problems.event_driven.pendulum_wall_reference`): impact times (mean over the
     impacts), θ in L∞ over the run.
 ``pendulum-smooth``
     The same pendulum with damping c = 0.5 and no wall, against DOP853: the smooth-phase
     order (1 for the midpoint, 2 for the θ variant).
 ``piston-e0``, ``piston-e0.9``
-    The engine of :mod:`problems.piston` over 2 cycles from its standard start, against a
+    The engine of :mod:`moreau.problems.piston` over 2 cycles from its standard start, against a
     run at a much smaller step (h = 3e-5; midpoint, exact solver; drift control for
     e = 0 only, see :class:`PistonProblem`): structural figures of the last cycle, not
     pointwise states — the crank angles of the side changes (largest distance between
@@ -70,7 +70,7 @@ if _ROOT not in sys.path:  # `python benchmarks/work_precision.py` from anywhere
 
 import moreau as mo  # noqa: E402
 from moreau.diagnostics import convergence_order  # noqa: E402
-from problems.event_driven import moreau_impact_times as impact_times  # noqa: E402
+from moreau.problems.event_driven import moreau_impact_times as impact_times  # noqa: E402
 
 __all__ = [
     "SolverSpec", "Config", "Run", "Problem", "BallProblem", "PendulumWallProblem",
@@ -93,7 +93,7 @@ class SolverSpec:
     """
 
     label: str
-    make: Callable[[], "mo.ContactSolver | str"]
+    make: Callable[[], mo.ContactSolver | str]
     checked: bool = True
 
     def simulate_kwargs(self) -> dict:
@@ -212,7 +212,7 @@ class Problem:
 
 
 class BallProblem(Problem):
-    """Bouncing ball against :class:`~problems.bouncing_ball.BallSolution`."""
+    """Bouncing ball against :class:`~moreau.problems.bouncing_ball.BallSolution`."""
 
     name = "ball"
     primary = "impact_time"
@@ -220,7 +220,7 @@ class BallProblem(Problem):
 
     def __init__(self, ladder, config_list, e=0.8, h0=1.0, t_end=4.5, n_impacts=6):
         super().__init__(ladder, config_list)
-        from problems.bouncing_ball import BallSolution, bouncing_ball
+        from moreau.problems.bouncing_ball import BallSolution, bouncing_ball
 
         self.e, self.h0, self.t_end, self.K = e, h0, t_end, n_impacts
         self.exact = BallSolution(h0, e)
@@ -259,14 +259,14 @@ class PendulumWallProblem(Problem):
 
     def __init__(self, ladder, config_list, e=0.9, wall_x=0.5, damping=0.05, omega0=4.0, t_end=12.0):
         super().__init__(ladder, config_list)
-        from problems.pendulum_wall import pendulum_wall
+        from moreau.problems.pendulum_wall import pendulum_wall
 
         self.e, self.wall_x, self.damping, self.omega0, self.t_end = e, wall_x, damping, omega0, t_end
         self.scene = pendulum_wall(e=e, wall_x=wall_x, damping=damping)
         self.ref = None
 
     def prepare(self):
-        from problems.event_driven import pendulum_wall_reference
+        from moreau.problems.event_driven import pendulum_wall_reference
 
         if self.ref is None:
             self.ref = pendulum_wall_reference(self.e, self.wall_x, self.t_end + 1.0, 0.0, self.omega0,
@@ -304,7 +304,7 @@ class SmoothPendulumProblem(Problem):
         super().__init__(ladder, config_list)
         from scipy.integrate import solve_ivp
 
-        from problems.pendulum_wall import pendulum_rhs, pendulum_wall
+        from moreau.problems.pendulum_wall import pendulum_rhs, pendulum_wall
 
         self.scene = pendulum_wall(wall_x=None, damping=damping)
         self.t_end, self.y0 = t_end, y0
@@ -352,8 +352,8 @@ class PistonProblem(Problem):
             # in a cycle of the e = 0.9 piston at h = 3e-5, against ~500 without it); the
             # penetration it would remove is ~0.1 % of the clearance at h = 3e-5.
             ref_config = Config("mid", "enum", e == 0.0)
-        from problems.piston.model import piston_model
-        from problems.piston.params import PistonParameters
+        from moreau.problems.piston.model import piston_model
+        from moreau.problems.piston.params import PistonParameters
 
         self.e, self.cycles, self.h_ref, self.record_dt = e, cycles, h_ref, record_dt
         self.name = f"piston-e{e:g}"
@@ -378,7 +378,7 @@ class PistonProblem(Problem):
     def figures(self, traj) -> dict:
         """Figures of the last complete cycle: side-change angles, mean speed, impacts,
         penetration (fraction of the clearance), side changes."""
-        from problems.piston.analysis import cycle_figures
+        from moreau.problems.piston.analysis import cycle_figures
 
         figs = cycle_figures(traj, self.params)
         if not figs:

@@ -11,24 +11,28 @@ The pieces, in the field's vocabulary:
 * the front door :func:`simulate`, which returns a :class:`Trajectory`.
 """
 
-from importlib.metadata import PackageNotFoundError, version as _version
+from importlib.metadata import PackageNotFoundError
+from importlib.metadata import version as _version
+
+#: the distribution's name on the package index; the import name is ``moreau``
+DISTRIBUTION = "moreau-jean"
 
 try:
-    __version__ = _version("moreau")
+    __version__ = _version(DISTRIBUTION)
 except PackageNotFoundError:  # running from a source tree that is not installed
     __version__ = "0+unknown"
 
+from . import diagnostics
 from .barriers import Barrier, FunctionBarrier, LinearBarrier, check_jacobian
+from .drift import CombinedProjection, PositionProjection
 from .errors import SimulationError, SolverError
 from .forces import ConstantForce, Effect, FourierLoad, FunctionForce, HarmonicForce, LinearDamping, LinearSpring
-from .drift import CombinedProjection, PositionProjection
 from .integrator import MoreauJeanMidpoint, MoreauJeanTheta, OneStepIntegrator
 from .laws import NewtonImpact
 from .onestep import OneStepProblem, Residuals
 from .result import ImpactLog, SolverStats, Trajectory, load
 from .scene import Contact, Scene
 from .simulate import simulate
-from . import diagnostics
 from .solvers import ContactSolver, EnumerationSolver, ExactSolver, OSQPSolver, QpsolversSolver, make_solver
 from .system import FunctionSystem, MechanicalSystem
 
@@ -45,4 +49,5 @@ __all__ = [
     "simulate",
     "ContactSolver", "EnumerationSolver", "ExactSolver", "OSQPSolver", "QpsolversSolver", "make_solver",
     "FunctionSystem", "MechanicalSystem",
+    "diagnostics",
 ]

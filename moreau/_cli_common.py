@@ -1,14 +1,26 @@
-"""Helpers of the ``moreau`` command: exit codes, one-line errors, option parsers, output
-paths and the summary table."""
+"""Helpers of the ``moreau`` command and of the commands registered with it: exit codes,
+one-line errors, option parsers, output paths, the summary table and a run that saves its
+trajectory whatever happens. Re-exported by :mod:`moreau.cli`, which documents them."""
 
 from __future__ import annotations
 
 import argparse
 import csv
+import logging
 import os
 import tempfile
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any
+
+from ._pool import interrupt_exit_code
+
+if TYPE_CHECKING:
+    from .result import Trajectory
+    from .scene import Scene
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
+
+log = logging.getLogger("moreau.cli")
 
 
 class CLIError(Exception):
@@ -42,7 +54,10 @@ def output_dir(path: str, option: str = "--out") -> str:
     return path
 
 
-def _float_in(lo: float | None = None, hi: float | None = None, lo_open: bool = False):
+def float_in(lo: float | None = None, hi: float | None = None, lo_open: bool = False) -> Callable[[str], float]:
+    """An argparse ``type`` for a float in [lo, hi] ((lo, hi] with ``lo_open``); a value
+    outside, NaN or a non-number is an error naming it (``2 is outside [0, 1]``)."""
+
     def parse(text: str) -> float:
         try:
             x = float(text)
@@ -57,7 +72,8 @@ def _float_in(lo: float | None = None, hi: float | None = None, lo_open: bool = 
     return parse
 
 
-def _positive_int(text: str) -> int:
+def positive_int(text: str) -> int:
+    """An argparse ``type`` for an integer >= 1."""
     try:
         x = int(text)
     except ValueError:
@@ -67,7 +83,9 @@ def _positive_int(text: str) -> int:
     return x
 
 
-def _int_at_least(lo: int):
+def int_at_least(lo: int) -> Callable[[str], int]:
+    """An argparse ``type`` for an integer >= ``lo``."""
+
     def parse(text: str) -> int:
         try:
             x = int(text)
@@ -80,7 +98,7 @@ def _int_at_least(lo: int):
     return parse
 
 
-def write_summary(rows: list[dict], path: str) -> None:
+def write_summary(rows: list[dict[str, Any]], path: str) -> None:
     """Write rows of a summary to CSV and print them as a table."""
     if not rows:
         return
@@ -103,7 +121,52 @@ def write_summary(rows: list[dict], path: str) -> None:
     print(f"summary written to {path}")
 
 
-def _fmt(x) -> str:
+def _fmt(x: object) -> str:
     if isinstance(x, float):
         return f"{x:.6g}"
     return str(x)
+
+
+def add_backend_option(parser: argparse.ArgumentParser) -> None:
+    """``--backend auto|compiled|python`` (see :func:`moreau.simulate`)."""
+    parser.add_argument("--backend", choices=("auto", "compiled", "python"), default="auto",
+                        help="where the time loop runs: compiled (numba), python (the reference "
+                             "path, to compare), auto (compiled when the scene and solver allow; default)")
+
+
+def simulate_and_save(scene: Scene, t_span: tuple[float, float], q0: Sequence[float], v0: Sequence[float],
+                      h: float, out_stem: str, **kwargs: Any) -> Trajectory:
+    """:func:`moreau.simulate` that saves the trajectory in every case: ``out_stem.npz``
+    when it completed, ``out_stem.partial.npz`` otherwise.
+
+    Raises
+    ------
+    CLIError
+        The run failed (solver or simulation error, or it stopped early); what it computed
+        is saved and the message says where.
+    Stopped
+        Ctrl-C or SIGTERM stopped it (exit code 130 or 143), after saving.
+    """
+    import moreau as mo
+
+    try:
+        traj = mo.simulate(scene, t_span, q0, v0, h, **kwargs)
+    except (mo.SolverError, mo.SimulationError) as exc:
+        if exc.trajectory is None:
+            raise CLIError(f"{exc} (nothing computed to save)") from None
+        path = exc.trajectory.save(out_stem + ".partial.npz")
+        raise CLIError(f"{exc} (the {len(exc.trajectory)} records computed are saved in {path})") from None
+    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM, the partial run attached (or None)
+        partial: Trajectory | None = getattr(exc, "trajectory", None)
+        if partial is None:
+            raise Stopped("nothing computed to save", interrupt_exit_code(exc)) from None
+        path = partial.save(out_stem + ".partial.npz")
+        raise Stopped(f"{partial.message or 'interrupted'}; the {len(partial)} records computed are saved in {path}",
+                      interrupt_exit_code(exc)) from None
+    path = traj.save(out_stem + (".npz" if traj.completed else ".partial.npz"))
+    if traj.status == "interrupted":
+        raise Stopped(f"{traj.message}; the {len(traj)} records computed are saved in {path}", interrupt_exit_code())
+    if not traj.completed:
+        raise CLIError(f"{traj.message}; the {len(traj)} records computed are saved in {path}")
+    log.info("trajectory saved to %s", path)
+    return traj

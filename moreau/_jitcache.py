@@ -41,7 +41,7 @@ def _cache_dirs() -> list[str]:
     if env:  # numba mirrors the package path under NUMBA_CACHE_DIR
         dirs.append(os.path.join(env, os.path.splitdrive(here)[1].lstrip(os.sep)))
     try:  # the user-wide fallback numba uses when the package is not writable
-        from numba.core.caching import _UserWideCacheLocator
+        from numba.core.caching import _UserWideCacheLocator  # type: ignore[attr-defined]
 
         loc = _UserWideCacheLocator(os.path.join(here, "loop.py"), os.path.join(here, "loop.py"))
         dirs.append(loc.get_cache_path())

@@ -1,4 +1,4 @@
-"""One local process-pool scheduler, used by ``moreau piston`` (:mod:`problems.piston.job`)
+"""One local process-pool scheduler, used by ``moreau piston`` (:mod:`moreau.problems.piston.job`)
 and by :func:`moreau.sweeps.sweep`.
 
 Stopping

@@ -17,7 +17,7 @@ import socket
 import time
 import uuid
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -118,7 +118,7 @@ def source_digest(*modules: Any) -> str:
     Parameters
     ----------
     *modules : module or str
-        Modules, packages, or their import names (``"problems.piston"``).
+        Modules, packages, or their import names (``"moreau.problems.piston"``).
     """
     import importlib
 
@@ -126,7 +126,7 @@ def source_digest(*modules: Any) -> str:
     for mod in modules:
         if isinstance(mod, str):
             mod = importlib.import_module(mod)
-        paths = []
+        paths: list[str] = []
         if hasattr(mod, "__path__"):
             for root in mod.__path__:
                 for dirpath, dirnames, filenames in os.walk(root):
@@ -154,6 +154,7 @@ class _Record:
 
     directory: str
     fun_id: str = ""
+    _locked: str | None = field(default=None, init=False, repr=False, compare=False)  # the lock this holds
 
     def lock(self) -> None:
         """Take the lock, or ``SweepLockedError`` naming the process that holds it."""

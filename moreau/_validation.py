@@ -8,7 +8,9 @@ numbers are refused, not converted (``h=True`` is not a step of 1, ``"0.1"`` is 
 from __future__ import annotations
 
 import numbers
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from functools import partial
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -108,7 +110,10 @@ def start_integrator(integ, scene, t0: float, q0, v0) -> None:
     checked_start(lambda: integ.init(t0, q0, v0), scene, t0, q0, v0)
 
 
-def checked_start(start, scene, t0: float, q0, v0):
+_T = TypeVar("_T")
+
+
+def checked_start(start: Callable[[], _T], scene: Any, t0: float, q0: Any, v0: Any) -> _T:
     """``start()`` (the validation of an initial state), with a user callable of the scene
     that raises at the initial state reported as a ``ValueError`` naming the part, the
     exception and t0 (instead of a bare ``ZeroDivisionError`` escaping). Nothing is
@@ -130,14 +135,14 @@ def _name_failing_part(scene, t0: float, q0, v0) -> None:
     q = as_vector(q0, "q0", n)
     v = as_vector(v0, "v0", n)
     system = scene.system
-    parts = [("mass matrix", lambda: system.mass_matrix(q))]
+    parts: list[tuple[str, Callable[[], Any]]] = [("mass matrix", lambda: system.mass_matrix(q))]
     if system.has_bias:
         parts.append(("bias force", lambda: system.bias_force(q, v)))
     for eff in scene.effects:
-        parts.append((f"force of effect {eff.name!r}", lambda eff=eff: eff.force(t0, q, v)))
+        parts.append((f"force of effect {eff.name!r}", partial(eff.force, t0, q, v)))
     for c in scene.contacts:
-        parts.append((f"gap of contact {c.name!r}", lambda b=c.barrier: b.gap(q)))
-        parts.append((f"Jacobian of contact {c.name!r}", lambda b=c.barrier: b.jacobian(q)))
+        parts.append((f"gap of contact {c.name!r}", partial(c.barrier.gap, q)))
+        parts.append((f"Jacobian of contact {c.name!r}", partial(c.barrier.jacobian, q)))
     for what, call in parts:
         try:
             call()

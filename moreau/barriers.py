@@ -151,8 +151,8 @@ class FunctionBarrier(Barrier):
             raise ValueError("FunctionBarrier: gap and jacobian must be callables")
         if isinstance(nrows, bool) or not isinstance(nrows, (int, np.integer)) or nrows < 1:
             raise ValueError(f"FunctionBarrier: nrows must be a positive integer, got {nrows!r}")
-        self.gap = gap
-        self.jacobian = jacobian
+        self.gap = gap  # type: ignore[method-assign]  # bound directly: no extra call layer
+        self.jacobian = jacobian  # type: ignore[method-assign]
         self.nrows = int(nrows)
         self.ndof = ndof
 

@@ -121,7 +121,7 @@ class Link:
             raise ValueError(f"Link.l (joint-to-joint length, m) must be >= 0, got {self.l!r}")
 
     @classmethod
-    def rod(cls, m: float, l: float) -> "Link":
+    def rod(cls, m: float, l: float) -> Link:
         """A uniform slender rod: J = m l²/12, centre of mass at l/2."""
         return cls(m=m, J=m * l * l / 12.0, l=l, com=0.5 * l)
 
@@ -235,7 +235,7 @@ class PendulumChain(MechanicalSystem):
 
     @classmethod
     def from_arrays(cls, m, J, l, com, com_lateral=None, pivot=(0.0, 0.0),
-                    orientation: str | tuple = "hanging") -> "PendulumChain":
+                    orientation: str | tuple = "hanging") -> PendulumChain:
         """A chain from per-link arrays of shape (N,) (same units as :class:`Link`).
 
         Raises ``ValueError`` naming the link index and the bad value.
@@ -290,7 +290,8 @@ class PendulumChain(MechanicalSystem):
         if isinstance(link, bool) or not isinstance(link, (int, np.integer)):
             raise ValueError(f"{what} index must be an integer, got {link!r}")
         if not 0 <= link < self.ndof:
-            raise ValueError(f"{what} index {link} is out of range for a chain of {self.ndof} links (0..{self.ndof - 1})")
+            raise ValueError(f"{what} index {link} is out of range for a chain of {self.ndof} links "
+                             f"(0..{self.ndof - 1})")
         return int(link)
 
     def levers(self, link: int, local) -> tuple[np.ndarray, np.ndarray]:
@@ -350,7 +351,7 @@ class PendulumChain(MechanicalSystem):
         return C * du + S * dw, C * dw - S * du
 
     # -- scaling ----------------------------------------------------------------------------
-    def nondimensional(self, length_scale: float | None = None, time_scale: float = 1.0) -> "Nondimensional":
+    def nondimensional(self, length_scale: float | None = None, time_scale: float = 1.0) -> Nondimensional:
         """The chain in the paper's non-dimensional units and its dimensionless groups.
 
         Lengths are divided by ``length_scale`` (default l_0, the paper's l_1), times by
@@ -407,15 +408,15 @@ def _orientation(spec) -> tuple[str, np.ndarray, np.ndarray]:
     if isinstance(spec, str):
         if spec not in _ORIENTATIONS:
             raise ValueError(f"orientation must be one of {sorted(_ORIENTATIONS)} or (axis, lateral), got {spec!r}")
-        u, w = _ORIENTATIONS[spec]
-        u, w, name = np.array(u), np.array(w), spec
+        u0, w0 = _ORIENTATIONS[spec]
+        u, w, name = np.array(u0), np.array(w0), spec
     else:
         try:
-            u, w = spec
+            u1, w1 = spec
         except (TypeError, ValueError):
             raise ValueError(f"orientation must be a name or a pair (axis, lateral), got {spec!r}") from None
-        u = as_vector(u, "orientation axis", 2)
-        w = as_vector(w, "orientation lateral", 2)
+        u = as_vector(u1, "orientation axis", 2)
+        w = as_vector(w1, "orientation lateral", 2)
         if abs(u @ u - 1.0) > 1e-9 or abs(w @ w - 1.0) > 1e-9 or abs(u @ w) > 1e-9:
             raise ValueError(f"orientation (axis, lateral) must be orthonormal, got {u.tolist()}, {w.tolist()}")
         name = "custom"
@@ -694,7 +695,7 @@ class LinkTorque(Effect):
         self.name = name
         if callable(torques):
             self.tau = None
-            self.force = torques  # bound directly: no extra call layer on the hot path
+            self.force = torques  # type: ignore[method-assign]  # bound directly: no extra call layer
             self.velocity_dependent = bool(velocity_dependent)
             self.time_dependent = bool(time_dependent)
             self.has_potential = False
@@ -759,7 +760,7 @@ class PointForce(Effect):
             self.velocity_dependent = bool(velocity_dependent)
             self.time_dependent = bool(time_dependent)
             self.has_potential = False
-            self.force = self._force_callable
+            self.force = self._force_callable  # type: ignore[method-assign]
             if isinstance(force, FourierLoad):  # layout of kernels.add_point_fourier
                 self._pf = _k.flat(self._X, self._Y, force.direction,
                                    [force.a0, force.omega, force.coordinate, force.a.shape[0]], force.a, force.b)
@@ -876,6 +877,7 @@ class PointLineBarrier(Barrier):
             g0[r] = float(nrm @ (chain.pivot - a))
             self.normals[r] = nrm
         self.nrows, self.ndof = m, n
+        self._n = n
         self._A, self._B, self._g0 = A, B, g0
         self._p = _k.flat(g0, A, B)  # layout of kernels.gaps_trig
         self.normals.setflags(write=False)
@@ -886,7 +888,7 @@ class PointLineBarrier(Barrier):
         return out
 
     def jacobian(self, q):
-        out = np.empty((self.nrows, self.ndof))
+        out = np.empty((self.nrows, self._n))
         _k.jacobian_trig(self._p, 0, self.nrows, *_k.cos_sin(q), out, 0)
         return out
 

@@ -16,7 +16,7 @@ import warnings
 import numpy as np
 
 from . import loop as lp
-from .errors import SimulationError, SolverError
+from .errors import SimulationError, SolverError, attach_trajectory
 from .flights import initial_flight
 from .lowering import CompiledScene, lower
 from .result import ImpactLog, SolverStats, Trajectory
@@ -143,10 +143,10 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
                 message = "interrupted by the user while the result was assembled"
     if interrupt is not None:
         log.warning("%s; %d records computed so far are attached to the KeyboardInterrupt", traj.message, len(traj))
-        interrupt.trajectory = traj
+        attach_trajectory(interrupt, traj)
         raise interrupt
     if error is not None:
-        error.trajectory = traj
+        attach_trajectory(error, traj)
         raise error
     return traj
 
@@ -154,7 +154,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
 def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE, IMP, q, v, P_acc, act_acc,
               pen, cnt, acc, fail, cs, t0, h, stride, solver, fallback, energy, wall):
     """The Trajectory (and the error to raise, if any) from the loop's buffers."""
-    n, m = scene.ndof, scene.nrows
+    m = scene.nrows
     error = None
     k = int(cnt[lp.C_K])
     t_now = t0 + k * h

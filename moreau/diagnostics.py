@@ -2,14 +2,20 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .result import Trajectory
+
+if TYPE_CHECKING:
+    from .scene import Scene
 
 __all__ = ["convergence_order", "max_penetration", "impact_energy_audit"]
 
 
-def convergence_order(h, errors) -> float:
+def convergence_order(h: ArrayLike, errors: ArrayLike) -> float:
     """Observed order p of ``error ≈ C h^p``: least-squares slope of log(error) on log(h).
 
     Parameters
@@ -43,7 +49,7 @@ def impact_energy_audit(traj: Trajectory) -> float:
     return float(traj.impacts.energy_lost.min())
 
 
-def energy_ledger(traj: Trajectory, scene) -> dict:
+def energy_ledger(traj: Trajectory, scene: Scene) -> dict[str, Any]:
     """Energy balance of a run: the work of each effect, the impact losses, ΔKE, ΔPE.
 
     Every effect's work is the integral of its power ``vᵀ f(t, q, v)`` over the recorded

@@ -63,7 +63,8 @@ class PositionProjection:
         self.max_iter = int(max_iter)
         self.tol = float(tol)
         self.max_restitution = float(max_restitution)
-        self._scene = self._eligible = None
+        self._scene: object | None = None  # the scene _eligible was computed for
+        self._eligible = np.zeros(0, dtype=bool)
 
     #: restitution acts at impacts only (see :class:`CombinedProjection`); False here
     impacts_only = False

@@ -2,7 +2,12 @@
 
 from __future__ import annotations
 
-__all__ = ["SolverError", "SimulationError"]
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from .result import Trajectory
+
+__all__ = ["SolverError", "SimulationError", "attach_trajectory"]
 
 
 class SolverError(RuntimeError):
@@ -18,14 +23,19 @@ class SolverError(RuntimeError):
         Names of the active contact rows.
     residuals : dict
         Scaled KKT residuals of the best candidate (or the error of each backend).
+    trajectory : Trajectory or None
+        The run up to the last good step (``status == "failed"``), attached by
+        :func:`moreau.simulate`; None when the solver was called outside a run.
     """
 
-    def __init__(self, message: str, step: int, t: float, rows: list[str], residuals: dict) -> None:
+    def __init__(self, message: str, step: int, t: float, rows: list[str], residuals: dict[str, Any],
+                 trajectory: Trajectory | None = None) -> None:
         super().__init__(message)
         self.step = step
         self.t = t
         self.rows = rows
         self.residuals = residuals
+        self.trajectory = trajectory
 
 
 class SimulationError(RuntimeError):
@@ -33,13 +43,20 @@ class SimulationError(RuntimeError):
 
     Attributes
     ----------
-    trajectory : Trajectory
+    trajectory : Trajectory or None
         The trajectory up to the last good step (``status == "failed"``).
     step : int
         Index of the step that failed.
     """
 
-    def __init__(self, message: str, trajectory, step: int) -> None:
+    def __init__(self, message: str, trajectory: Trajectory | None, step: int) -> None:
         super().__init__(message)
         self.trajectory = trajectory
         self.step = step
+
+
+def attach_trajectory(exc: BaseException, trajectory: Trajectory | None) -> None:
+    """Attach a run's trajectory to the exception that stopped it, as ``exc.trajectory``
+    (:class:`SolverError`, :class:`SimulationError`, or the ``KeyboardInterrupt`` of
+    Ctrl-C and SIGTERM)."""
+    exc.trajectory = trajectory  # type: ignore[attr-defined]  # KeyboardInterrupt has no such attribute

@@ -42,7 +42,7 @@ def _slot_is_none(fns, i):
     return len(fns) <= i or isinstance(fns[i], (types.NoneType, types.Omitted))
 
 
-@overload(user_mass, jit_options={"cache": True})
+@overload(user_mass, jit_options={"cache": True})  # type: ignore[typeddict-unknown-key]
 def _ov_mass(fns, q, out):
     if _slot_is_none(fns, 0):
         return lambda fns, q, out: None
@@ -52,7 +52,7 @@ def _ov_mass(fns, q, out):
     return impl
 
 
-@overload(user_bias, jit_options={"cache": True})
+@overload(user_bias, jit_options={"cache": True})  # type: ignore[typeddict-unknown-key]
 def _ov_bias(fns, q, v, out):
     if _slot_is_none(fns, 1):
         return lambda fns, q, v, out: None
@@ -62,7 +62,7 @@ def _ov_bias(fns, q, v, out):
     return impl
 
 
-@overload(user_forces, jit_options={"cache": True})
+@overload(user_forces, jit_options={"cache": True})  # type: ignore[typeddict-unknown-key]
 def _ov_forces(fns, t, q, v, out):
     if len(fns) == 0:
         return lambda fns, t, q, v, out: None
@@ -73,7 +73,7 @@ def _ov_forces(fns, t, q, v, out):
     return impl
 
 
-@overload(user_gaps, jit_options={"cache": True})
+@overload(user_gaps, jit_options={"cache": True})  # type: ignore[typeddict-unknown-key]
 def _ov_gaps(fns, rows, q, out):
     if len(fns) == 0:
         return lambda fns, rows, q, out: None
@@ -89,7 +89,7 @@ def _ov_gaps(fns, rows, q, out):
     return impl
 
 
-@overload(user_jacobians, jit_options={"cache": True})
+@overload(user_jacobians, jit_options={"cache": True})  # type: ignore[typeddict-unknown-key]
 def _ov_jac(fns, rows, q, out):
     if len(fns) == 0:
         return lambda fns, rows, q, out: None

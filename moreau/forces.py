@@ -200,7 +200,7 @@ class FunctionForce(Effect):
     ) -> None:
         if not callable(fun):
             raise ValueError(f"FunctionForce: fun must be callable, got {fun!r}")
-        self.force = fun  # bound directly: no extra call layer on the hot path
+        self.force = fun  # type: ignore[method-assign]  # bound directly: no extra call layer
         self._potential = potential
         self.has_potential = potential is not None
         self.velocity_dependent = bool(velocity_dependent)
@@ -291,8 +291,7 @@ class HarmonicForce(Effect):
         self.amplitude = as_vector(amplitude, "HarmonicForce.amplitude")
         self.amplitude.setflags(write=False)
         self.omega = as_positive(omega, "HarmonicForce.omega")
-        phase = as_vector(phase, "HarmonicForce.phase", 1)
-        self.phase = float(phase[0])
+        self.phase = float(as_vector(phase, "HarmonicForce.phase", 1)[0])
         self._p = _k.flat(self.amplitude, [self.omega, self.phase])  # layout of kernels.add_harmonic
         self.name = name
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import logging
 from abc import ABC, abstractmethod
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -122,11 +122,12 @@ class OneStepIntegrator(ABC):
         t0, q0, v0 = check_initial_state(scene, t0, q0, v0, self.penetration_tol)
         sysm = scene.system
         self._constant_mass = sysm.constant_mass
+        # the constant mass matrix and its inverse; None when M depends on q
+        self._M: np.ndarray | None = None
+        self._Minv: np.ndarray | None = None
         if self._constant_mass:
             self._M = np.array(sysm.mass_matrix(q0), dtype=float)
             self._Minv = np.linalg.inv(self._M)
-        else:
-            self._M = self._Minv = None
         self._e = scene.restitution
         self._impacts_only = bool(getattr(self.drift_control, "impacts_only", False))
         self._memory = int(getattr(self.drift_control, "memory", 0))
@@ -147,7 +148,8 @@ class OneStepIntegrator(ABC):
         self.n_solves = self.n_fallbacks = self.n_contact_steps = self.n_projections = 0
         self.worst_residual = 0.0
         self.work_forces = self.work_contacts = 0.0
-        self._last = None
+        #: (M, G, v_k, v⁺, P) of the last contact step, for last_contact_details
+        self._last: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
         self._initialized = True
 
     @abstractmethod
@@ -164,7 +166,7 @@ class OneStepIntegrator(ABC):
         if kind == "contact":
             self.n_solves += 1
         GA, cA = G[rows], c[rows]
-        failures = {}
+        failures: dict[str, dict[str, float] | str] = {}
         for solver in (self.solver, self.fallback):
             if solver is None:
                 break
@@ -211,12 +213,14 @@ class OneStepIntegrator(ABC):
             )
 
     # -- what the last step did at the contacts (computed on request only) --------------
-    def last_contact_details(self, rows: np.ndarray) -> "ContactDetails":
+    def last_contact_details(self, rows: np.ndarray) -> ContactDetails:
         """Normal velocities of the last step at the given rows (all must have been
         active) and the kinetic energy the contact impulses dissipated there.
 
         Computed on request only (a solve with M), never in the step itself.
         """
+        if self._last is None:
+            raise ValueError("no contact step has been taken yet")
         M, G, v_old, v_new, P_all = self._last
         act = self.active
         dv = np.linalg.solve(M, G[act].T @ P_all[act])  # M⁻¹ Gᵀ P
@@ -231,7 +235,8 @@ class OneStepIntegrator(ABC):
         )
 
 
-def check_initial_state(scene: Scene, t0, q0, v0, penetration_tol: float = 1e-12):
+def check_initial_state(scene: Scene, t0: Any, q0: Any, v0: Any,
+                        penetration_tol: float = 1e-12) -> tuple[float, np.ndarray, np.ndarray]:
     """Validate an initial state for ``scene``; return ``(t0, q0, v0)`` as floats/arrays.
 
     Raises ``ValueError`` for non-finite or wrongly shaped q0/v0, a mass matrix that is
@@ -247,6 +252,7 @@ def check_initial_state(scene: Scene, t0, q0, v0, penetration_tol: float = 1e-12
     v0 = as_vector(v0, "v0", n)
     scene.check_state(t0, q0, v0, where=" at the initial state")
     if m:
+        assert scene.gaps is not None  # a scene with rows has gaps
         g0 = np.asarray(scene.gaps(q0), dtype=float)
         bad = np.flatnonzero(g0 < -penetration_tol)
         if bad.size:
@@ -313,7 +319,7 @@ class MoreauJeanMidpoint(OneStepIntegrator):
         h = self.h
         v = self.v
         qm = self.q + (0.5 * h) * v
-        M = self._M if self._constant_mass else self._mass_at(qm)
+        M = self._M if self._M is not None else self._mass_at(qm)
         f = self.scene.force(self.t + 0.5 * h, qm, v)
         v_new, contact = self._velocity_update(qm, M, f, v)
         return self._finish(qm, v_new, contact, f)
@@ -337,6 +343,7 @@ class MoreauJeanMidpoint(OneStepIntegrator):
                 active = active | self.pinned | (2.0 * g - g_start <= 0.0)
             if active.any():
                 rows = np.flatnonzero(active)
+                assert scene.jacobian is not None  # set with the gaps
                 G = scene.jacobian(qm)
                 U = G @ v
                 e = self._e
@@ -354,7 +361,7 @@ class MoreauJeanMidpoint(OneStepIntegrator):
                 self.active, self.P = active, P
                 self._last = (M, G, v, v_new, P)
                 return v_new, True
-        if self._constant_mass:
+        if self._Minv is not None:  # a constant mass matrix
             return v + h * (self._Minv @ f), False
         return v + h * np.linalg.solve(M, f), False
 
@@ -366,6 +373,7 @@ class MoreauJeanMidpoint(OneStepIntegrator):
         self.work_forces += 0.5 * self.h * float(f @ (self.v + v_new))
         if contact:
             self.n_contact_steps += 1
+            assert self._last is not None  # set by the contact solve of this step
             _, G, v_old, _, P = self._last
             act = self.active
             self.work_contacts += 0.5 * float(P[act] @ (G[act] @ (v_old + v_new)))
@@ -411,7 +419,7 @@ class MoreauJeanTheta(MoreauJeanMidpoint):
         v = self.v
         qm = self.q + (0.5 * h) * v
         tm = self.t + 0.5 * h
-        M = self._M if self._constant_mass else self._mass_at(qm)
+        M = self._M if self._M is not None else self._mass_at(qm)
         force = self.scene.force
         v_pred, _ = self._velocity_update(qm, M, force(tm, qm, v), v)
         f = force(tm, qm, 0.5 * (v + v_pred))

@@ -13,6 +13,7 @@ along in a tuple, for which the loop is specialized (compiled once per process).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -121,7 +122,9 @@ def lower(scene: Scene) -> CompiledScene:
         mass_off = pool.add(*mk[1])
     has_bias = bool(sysm.has_bias)
 
-    ekind, eoff, force_fns = [], [], []
+    ekind: list[int] = []
+    eoff: list[int] = []
+    force_fns: list[Any] = []
     for e in scene.effects:
         spec = e.kernel()
         if spec is None:
@@ -137,7 +140,12 @@ def lower(scene: Scene) -> CompiledScene:
             ekind.append(kind)
             eoff.append(pool.add(*params))
 
-    bkind, boff, brow, bnrows, bar_fns, bar_rows = [], [], [], [], [], []
+    bkind: list[int] = []
+    boff: list[int] = []
+    brow: list[int] = []
+    bnrows: list[int] = []
+    bar_fns: list[Any] = []
+    bar_rows: list[int] = []
     row = 0
     for c in scene.contacts:
         spec = c.barrier.kernel()

@@ -47,7 +47,7 @@ class OneStepProblem:
         sol = np.linalg.solve(self.M, np.column_stack([self.b, self.G.T]))
         return self.G @ sol[:, 1:], self.G @ sol[:, 0] - self.c
 
-    def residuals(self, v: np.ndarray, P: np.ndarray) -> "Residuals":
+    def residuals(self, v: np.ndarray, P: np.ndarray) -> Residuals:
         return kkt_residuals(self.M, self.b, self.G, self.c, v, P)
 
 
@@ -88,7 +88,8 @@ class Residuals:
 
 
 
-def kkt_residuals(M, b, G, c, v, P) -> Residuals:
+def kkt_residuals(M: np.ndarray, b: np.ndarray, G: np.ndarray, c: np.ndarray, v: np.ndarray,
+                  P: np.ndarray) -> Residuals:
     """Scaled KKT residuals of the one-step QP (see module docstring), the same check
     the compiled loop runs (:func:`moreau.lcp.kkt_residuals_kernel`).
 

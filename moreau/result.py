@@ -1,4 +1,9 @@
-"""Results: the trajectory of a run, its impact log and solver statistics; save/load."""
+"""Results: the trajectory of a run, its impact log and solver statistics; save/load.
+
+Every quantity is in the units of the scene (``traj.units``, declared by
+``Scene(units=...)``; see :mod:`moreau.units`): times in the scene's time unit,
+impulses in its momentum unit, energies in its energy unit.
+"""
 
 from __future__ import annotations
 
@@ -7,10 +12,20 @@ import json
 import os
 import uuid
 from dataclasses import dataclass, field, fields
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .units import complete_units, unit_suffix
+
+if TYPE_CHECKING:
+    import pandas
+    import xarray
+
 __all__ = ["Trajectory", "ImpactLog", "SolverStats", "load"]
+
+#: one onset as the loops log it: (t, step, row, U_before, U_after, impulse, energy_lost, flight, fast)
+ImpactRow = tuple[float, int, int, float, float, float, float, bool, bool]
 
 _FORMAT = 1
 
@@ -34,25 +49,30 @@ class ImpactLog:
     a Zeno cascade (the e = 0.9 piston). ``Trajectory.velocity_impacts`` keeps the raw
     count of fast onsets, which grows as h → 0 there.
 
-    All arrays have shape (n_onsets,).
+    All arrays have shape (n_onsets,); units are those of the trajectory (``units``).
 
     Attributes
     ----------
     t : ndarray
-        Time at the start of the impact step.
+        Time at the start of the impact step (time unit ``units["t"]``).
     step : ndarray of int
         Index of the step (0 = the step from t0).
     row : ndarray of int
         Contact row (see ``Trajectory.row_names``).
     U_before, U_after : ndarray
-        Normal velocity G v before and after the step.
+        Normal velocity G v before and after the step (the row's gap unit per time unit).
     impulse : ndarray
-        Contact impulse P >= 0 of the step (N s, or the scene's momentum unit).
+        Contact impulse P >= 0 of the step (``units["impulses"]`` of the row: N s for a
+        scene in SI).
     energy_lost : ndarray
-        Kinetic energy dissipated by the contact impulse in the step (J); see
-        :class:`moreau.integrator.ContactDetails`.
+        Kinetic energy dissipated by the contact impulse in the step (``units["energy"]``:
+        J in SI); see :class:`moreau.integrator.ContactDetails`.
     flight, fast : ndarray of bool
         Which test the onset passed (see above).
+    row_names : list of str
+        Names of the trajectory's contact rows (``row`` indexes them).
+    units : dict
+        The trajectory's units (:mod:`moreau.units`).
     """
 
     t: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -64,12 +84,31 @@ class ImpactLog:
     energy_lost: np.ndarray = field(default_factory=lambda: np.zeros(0))
     flight: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     fast: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    row_names: list[str] = field(default_factory=list, repr=False, compare=False, metadata={"array": False})
+    units: dict[str, Any] = field(default_factory=dict, repr=False, compare=False, metadata={"array": False})
 
     def __len__(self) -> int:
         return int(self.t.shape[0])
 
+    def __repr__(self) -> str:
+        if not len(self):
+            return "ImpactLog(0 impacts)"
+        t_unit = unit_suffix(self.units, "t")
+        return (f"ImpactLog({len(self)} impacts, t = {self.t[0]:.6g} to {self.t[-1]:.6g}{t_unit}, "
+                f"largest impulse {self.impulse.max():.4g}{unit_suffix(self.units, 'impulses')})")
+
+    def to_dataframe(self) -> pandas.DataFrame:
+        """The log as a pandas DataFrame, one row per impact, with a ``row_name`` column and
+        each column's unit in ``df.attrs["units"]``; see
+        :func:`moreau.export.impacts_to_dataframe`. ``ImportError`` naming the ``export``
+        extra when pandas is missing."""
+        from .export import impacts_to_dataframe
+
+        return impacts_to_dataframe(self)
+
     @classmethod
-    def from_rows(cls, rows: list[tuple]) -> "ImpactLog":
+    def from_rows(cls, rows: list[ImpactRow]) -> ImpactLog:
+        """The log of the rows the loops collect (see :data:`ImpactRow`)."""
         if not rows:
             return cls()
         cols = list(zip(*rows))
@@ -85,9 +124,15 @@ class ImpactLog:
             fast=np.array(cols[8], dtype=bool),
         )
 
-    def select(self, mask: np.ndarray) -> "ImpactLog":
+    def select(self, mask: np.ndarray) -> ImpactLog:
         """The entries where ``mask`` is True."""
-        return ImpactLog(**{f.name: getattr(self, f.name)[mask] for f in fields(self)})
+        return ImpactLog(**{name: getattr(self, name)[mask] for name in _impact_arrays()},
+                         row_names=self.row_names, units=self.units)
+
+
+def _impact_arrays() -> tuple[str, ...]:
+    """The names of ImpactLog's array fields (what save/load/select handle)."""
+    return tuple(f.name for f in fields(ImpactLog) if f.metadata.get("array", True))
 
 
 @dataclass
@@ -135,18 +180,20 @@ class SolverStats:
 
 @dataclass
 class Trajectory:
-    """The recorded result of :func:`moreau.simulate`. Arrays are time-major.
+    """The recorded result of :func:`moreau.simulate`. Arrays are time-major; every quantity
+    is in the scene's units, named in :attr:`units`.
 
     Attributes
     ----------
     t : ndarray, shape (N,)
-        Recorded times.
+        Recorded times (``units["t"]``).
     q, v : ndarray, shape (N, n)
-        Coordinates and velocities.
+        Coordinates and velocities (``units["q"]``, ``units["v"]``: one per coordinate).
     gaps : ndarray, shape (N, m)
-        Gaps g(q) at the recorded states.
+        Gaps g(q) at the recorded states (``units["gaps"]``, one per row).
     impulses : ndarray, shape (N, m)
-        Contact impulses summed over the steps since the previous record.
+        Contact impulses summed over the steps since the previous record
+        (``units["impulses"]``, one per row).
     active : ndarray of bool, shape (N, m)
         True where the row was closed (at a midpoint) in any step since the previous record.
     onsets : ImpactLog
@@ -156,9 +203,9 @@ class Trajectory:
     stats : SolverStats
         Solver counters and timing.
     energy, kinetic_energy, potential_energy : ndarray, shape (N,) or None
-        Mechanical energy (J) at the records, when computed.
+        Mechanical energy at the records, when computed (``units["energy"]``: J in SI).
     h : float
-        Step size.
+        Step size (``units["t"]``).
     record_every : int
         Steps between records.
     row_names : list of str
@@ -182,6 +229,14 @@ class Trajectory:
     warnings : list of str
         What the run-level checks found (a penetration beyond its limit, see
         :mod:`moreau.trust`); empty for a clean run. Kept by ``save``/``load``.
+    units : dict
+        The units of every field (:mod:`moreau.units`: ``t``, ``q`` and ``v`` per
+        coordinate, ``gaps`` and ``impulses`` per row, ``energy``, a ``description`` and,
+        for non-dimensional models, the ``scales`` to SI). Taken from the scene
+        (``Scene(units=...)``); ``""`` where it declared none. Kept by ``save``/``load``
+        (files written before units existed load with the undeclared defaults).
+    extra : dict
+        Whatever the caller attaches (JSON-serializable); kept by ``save``/``load``.
     """
 
     t: np.ndarray
@@ -195,20 +250,49 @@ class Trajectory:
     h: float
     record_every: int = 1
     row_names: list[str] = field(default_factory=list)
-    scene: dict = field(default_factory=dict)
+    scene: dict[str, Any] = field(default_factory=dict)
     energy: np.ndarray | None = None
     kinetic_energy: np.ndarray | None = None
     potential_energy: np.ndarray | None = None
     status: str = "completed"
     message: str = ""
     version: str = ""
-    extra: dict = field(default_factory=dict)
+    extra: dict[str, Any] = field(default_factory=dict)
     max_penetration: np.ndarray | None = None
-    work: dict = field(default_factory=dict)
-    warnings: list = field(default_factory=list)
+    work: dict[str, float] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+    units: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        ndof = self.q.shape[1] if self.q.ndim == 2 else 0
+        nrows = self.gaps.shape[1] if self.gaps.ndim == 2 else len(self.row_names)
+        self.units = complete_units(self.units or self.scene.get("units"), ndof, nrows)
+        if not self.onsets.row_names:
+            self.onsets.row_names = list(self.row_names)
+        self.onsets.units = self.units
 
     def __len__(self) -> int:
         return int(self.t.shape[0])
+
+    def __repr__(self) -> str:
+        name = self.scene.get("name", "")
+        head = f"Trajectory({name!r}: " if name else "Trajectory("
+        span = f"t = {self.t[0]:.6g} to {self.t[-1]:.6g}{unit_suffix(self.units, 't')}, " if len(self) else ""
+        text = (f"{head}{len(self)} records, {span}{self.q.shape[1] if self.q.ndim == 2 else 0} dof, "
+                f"{len(self.row_names)} row{'' if len(self.row_names) == 1 else 's'}, {self.status}, "
+                f"{len(self.impacts)} impacts)")
+        if self.message:
+            text += f"\n  {self.message}"
+        return text
+
+    def to_xarray(self) -> xarray.Dataset:
+        """The trajectory as an xarray Dataset (dims ``time``, ``dof``, ``row``; a ``units``
+        attribute on each variable; scene, solver, version and units in ``attrs``); see
+        :func:`moreau.export.trajectory_to_xarray`. ``ImportError`` naming the ``export``
+        extra when xarray is missing."""
+        from .export import trajectory_to_xarray
+
+        return trajectory_to_xarray(self)
 
     @property
     def impacts(self) -> ImpactLog:
@@ -232,7 +316,7 @@ class Trajectory:
             raise ValueError(f"no contact row {name!r}; rows are {self.row_names}") from None
 
     # -- persistence ----------------------------------------------------------------------
-    def save(self, path: str | os.PathLike) -> str:
+    def save(self, path: str | os.PathLike[str]) -> str:
         """Write the trajectory to a ``.npz`` file (numpy only, no pickle); returns the path.
 
         The file is written under a temporary name unique to this call, in the same
@@ -256,16 +340,17 @@ class Trajectory:
             "extra": self.extra,
             "work": self.work,
             "warnings": self.warnings,
+            "units": self.units,
         }
-        arrays = {
+        arrays: dict[str, Any] = {
             "t": self.t, "q": self.q, "v": self.v, "gaps": self.gaps,
             "impulses": self.impulses, "active": self.active,
         }
         for name in ("energy", "kinetic_energy", "potential_energy", "max_penetration"):
             if getattr(self, name) is not None:
                 arrays[name] = getattr(self, name)
-        for f in fields(ImpactLog):
-            arrays["impacts_" + f.name] = getattr(self.onsets, f.name)
+        for name in _impact_arrays():
+            arrays["impacts_" + name] = getattr(self.onsets, name)
         # a temporary file of this call only, in the target directory, renamed over the
         # target: two processes saving one path never collide, a reader never sees half a
         # file, and a failed save leaves nothing behind
@@ -281,7 +366,7 @@ class Trajectory:
         return path
 
     @classmethod
-    def load(cls, path: str | os.PathLike) -> "Trajectory":
+    def load(cls, path: str | os.PathLike[str]) -> Trajectory:
         """Read a trajectory written by :meth:`save`.
 
         Raises
@@ -305,7 +390,7 @@ class Trajectory:
             n_on = data["impacts_t"].shape[0]
             for flag in ("flight", "fast"):  # files from before the flight test: every entry counts
                 data.setdefault("impacts_" + flag, np.ones(n_on, dtype=bool))
-            onsets = ImpactLog(**{f.name: data.pop("impacts_" + f.name) for f in fields(ImpactLog)})
+            onsets = ImpactLog(**{name: data.pop("impacts_" + name) for name in _impact_arrays()})
             traj = cls(
                 t=data["t"], q=data["q"], v=data["v"], gaps=data["gaps"],
                 impulses=data["impulses"], active=data["active"], onsets=onsets,
@@ -315,10 +400,12 @@ class Trajectory:
                 potential_energy=data.get("potential_energy"), status=meta["status"],
                 message=meta["message"], version=meta["version"], extra=meta.get("extra", {}),
                 max_penetration=data.get("max_penetration"), work=meta.get("work", {}),
-                warnings=list(meta.get("warnings", [])),
+                warnings=list(meta.get("warnings", [])), units=meta.get("units", {}),
             )
         except (KeyError, TypeError) as exc:
             raise ValueError(f"trajectory file {path!r} is incomplete: missing {exc}") from None
+        except ValueError as exc:  # malformed units
+            raise ValueError(f"trajectory file {path!r}: {exc}") from None
         N = traj.t.shape[0]
         for name in ("q", "v", "gaps", "impulses", "active"):
             if getattr(traj, name).shape[0] != N:
@@ -327,12 +414,12 @@ class Trajectory:
         return traj
 
 
-def load(path: str | os.PathLike) -> Trajectory:
+def load(path: str | os.PathLike[str]) -> Trajectory:
     """Read a trajectory saved with :meth:`Trajectory.save`."""
     return Trajectory.load(path)
 
 
-def _json_default(x):
+def _json_default(x: object) -> Any:
     if isinstance(x, np.ndarray):
         return x.tolist()
     if isinstance(x, np.generic):

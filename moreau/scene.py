@@ -9,8 +9,9 @@ problem for it).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any, cast
 
 import numpy as np
 
@@ -18,8 +19,14 @@ from .barriers import Barrier
 from .forces import Effect
 from .laws import NewtonImpact
 from .system import MechanicalSystem, check_spd
+from .units import complete_units
 
 __all__ = ["Contact", "Scene"]
+
+#: f(t, q, v): a force (the sum of a scene's effects)
+ForceFn = Callable[[float, np.ndarray, np.ndarray], np.ndarray]
+#: g(q) or G(q): gaps or their Jacobian
+GapFn = Callable[[np.ndarray], np.ndarray]
 
 
 @dataclass(frozen=True)
@@ -48,9 +55,9 @@ class Contact:
         if isinstance(law, NewtonImpact):
             e = np.full(self.barrier.nrows, law.e)
         elif np.ndim(law) == 0:
-            e = np.full(self.barrier.nrows, NewtonImpact(law).e)
+            e = np.full(self.barrier.nrows, NewtonImpact(cast(float, law)).e)
         else:
-            e = np.array([NewtonImpact(x).e for x in law], dtype=float)
+            e = np.array([NewtonImpact(x).e for x in cast(Sequence[float], law)], dtype=float)
             if e.shape != (self.barrier.nrows,):
                 raise ValueError(
                     f"Contact {self.name!r}: {e.shape[0]} restitution coefficients for "
@@ -74,6 +81,11 @@ class Scene:
         Unilateral constraints with their impact laws.
     name : str
         Label in results.
+    units : dict, optional
+        The units the scene is written in (``t``, ``q``, ``v``, ``gaps``, ``impulses``,
+        ``energy``, ``description``, ``scales``, ``si``; see :mod:`moreau.units`), carried
+        by its trajectories as ``traj.units``. moreau converts nothing: this only labels
+        the numbers. Undeclared entries are ``""``.
 
     Attributes
     ----------
@@ -100,6 +112,7 @@ class Scene:
         effects: Sequence[Effect] = (),
         contacts: Sequence[Contact] = (),
         name: str = "scene",
+        units: Mapping[str, Any] | None = None,
     ) -> None:
         if not isinstance(system, MechanicalSystem):
             raise ValueError(f"Scene: system must be a MechanicalSystem, got {system!r}")
@@ -119,6 +132,7 @@ class Scene:
             raise ValueError(f"Scene: contact names must be unique, got {names}")
 
         self.nrows = sum(c.barrier.nrows for c in self.contacts)
+        self.units = complete_units(units, self.ndof, self.nrows)
         self.restitution = (
             np.concatenate([c.restitution for c in self.contacts]) if self.contacts else np.zeros(0)
         )
@@ -140,8 +154,8 @@ class Scene:
         self.gaps, self.jacobian = self._build_barrier_calls()
 
     # -- specialized evaluation -------------------------------------------------------
-    def _build_force(self):
-        fs = [e.force for e in self.effects]
+    def _build_force(self) -> ForceFn:
+        fs: list[ForceFn] = [e.force for e in self.effects]
         bias = self.system.bias_force if self.system.has_bias else None
         if bias is None and not fs:
             zero = np.zeros(self.ndof)
@@ -152,21 +166,21 @@ class Scene:
         if bias is not None and not fs:
             return lambda t, q, v: bias(q, v)
         if bias is None:
-            def force(t, q, v):
+            def force(t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
                 f = fs[0](t, q, v) + fs[1](t, q, v)
                 for fi in fs[2:]:
                     f = f + fi(t, q, v)
                 return f
             return force
 
-        def force_with_bias(t, q, v):
+        def force_with_bias(t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
             f = bias(q, v)
             for fi in fs:
                 f = f + fi(t, q, v)
             return f
         return force_with_bias
 
-    def _build_barrier_calls(self):
+    def _build_barrier_calls(self) -> tuple[GapFn | None, GapFn | None]:
         bars = [c.barrier for c in self.contacts]
         if not bars:
             return None, None
@@ -184,11 +198,11 @@ class Scene:
 
     # -- energy -----------------------------------------------------------------------
     def kinetic_energy(self, q: np.ndarray, v: np.ndarray) -> float:
-        """½ vᵀ M(q) v (J)."""
+        """½ vᵀ M(q) v (the scene's energy unit, J in SI)."""
         return self.system.kinetic_energy(q, v)
 
     def potential_energy(self, q: np.ndarray) -> float:
-        """Sum of the potentials of the effects that have one (J)."""
+        """Sum of the potentials of the effects that have one (the scene's energy unit)."""
         return float(sum(e.potential(q) for e in self.effects if e.has_potential))
 
     def energy(self, q: np.ndarray, v: np.ndarray) -> float:
@@ -225,7 +239,7 @@ class Scene:
             if not np.all(np.isfinite(G)):
                 raise ValueError(f"Jacobian of contact {c.name!r}{where} is not finite: {G.tolist()}")
 
-    def describe(self) -> dict:
+    def describe(self) -> dict[str, Any]:
         """The scene's parameters as JSON-serializable data (saved with results)."""
         return {
             "name": self.name,
@@ -235,6 +249,7 @@ class Scene:
                 {"name": c.name, "barrier": c.barrier.describe(), "restitution": c.restitution.tolist()}
                 for c in self.contacts
             ],
+            "units": self.units,
         }
 
     def __repr__(self) -> str:
@@ -243,7 +258,7 @@ class Scene:
         return f"Scene({self.name!r}, ndof={self.ndof}, effects=[{eff}], contacts=[{con}])"
 
 
-def _as_tuple(items, kind: type, what: str) -> tuple:
+def _as_tuple(items: Any, kind: type, what: str) -> tuple[Any, ...]:
     try:
         out = tuple(items)
     except TypeError:
@@ -254,7 +269,7 @@ def _as_tuple(items, kind: type, what: str) -> tuple:
     return out
 
 
-def _check_vec(x, n: int, what: str) -> None:
+def _check_vec(x: Any, n: int, what: str) -> None:
     a = np.asarray(x, dtype=float)
     if a.shape != (n,):
         raise ValueError(f"{what} has shape {a.shape}, expected ({n},)")

@@ -6,15 +6,16 @@ import logging
 import math
 import sys
 import time
+from typing import Any, Protocol, cast
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ._validation import as_positive, as_record_every, as_time_span, checked_start
-from .errors import SimulationError, SolverError
+from .errors import SimulationError, SolverError, attach_trajectory
 from .flights import flight_gaps, initial_flight
-from .integrator import (MoreauJeanMidpoint, MoreauJeanTheta, NonFiniteState, OneStepIntegrator,
-                         check_initial_state)
-from .result import ImpactLog, SolverStats, Trajectory
+from .integrator import MoreauJeanMidpoint, MoreauJeanTheta, NonFiniteState, OneStepIntegrator, check_initial_state
+from .result import ImpactLog, ImpactRow, SolverStats, Trajectory
 from .scene import Scene
 from .solvers import ContactSolver
 from .trust import check_jacobians, penetration_warnings
@@ -28,11 +29,20 @@ _MAX_STEPS = 1e11  # a guard against a mistyped h, far beyond any run that finis
 _MAX_RECORD_BYTES = 8 * 2**30
 
 
+
+class DriftControl(Protocol):
+    """What ``simulate(..., drift_control=...)`` accepts (:class:`moreau.PositionProjection`)."""
+
+    def project(self, integ: Any, q: np.ndarray) -> np.ndarray:
+        """The corrected end position q⁺ of the integrator's last step."""
+        ...
+
+
 def simulate(
     scene: Scene,
     t_span: tuple[float, float],
-    q0,
-    v0,
+    q0: ArrayLike,
+    v0: ArrayLike,
     h: float,
     *,
     backend: str = "auto",
@@ -40,13 +50,13 @@ def simulate(
     fallback: str | ContactSolver | None = "auto",
     integrator: type[OneStepIntegrator] = MoreauJeanMidpoint,
     record_every: int = 1,
-    progress: bool | dict | None = None,
+    progress: bool | dict[str, Any] | None = None,
     energy: bool = True,
     tol: float = 1e-6,
-    drift_control=None,
+    drift_control: DriftControl | None = None,
     check_jacobian: bool = True,
     penetration_limit: float | None = None,
-    flight_gap=0.0,
+    flight_gap: ArrayLike = 0.0,
 ) -> Trajectory:
     """Integrate a scene with a fixed step from ``t_span[0]`` to ``t_span[1]``.
 
@@ -168,11 +178,11 @@ def simulate(
         try:
             bar = _progress_bar(progress, n_steps, scene.name)
             traj = run_compiled(scene, cs, t0, q0, v0, h, n_steps, theta=integrator is MoreauJeanTheta,
-                                solver=solver, fallback=fallback, stride=stride, bar=bar, energy=energy,
+                                solver=cast(str, solver), fallback=fallback, stride=stride, bar=bar, energy=energy,
                                 tol=tol, drift_control=drift_control, flight_gap=flight_gap)
         except KeyboardInterrupt as exc:  # before the loop took over: the initial state is the run
             if getattr(exc, "trajectory", None) is None:
-                exc.trajectory = _initial_state_only(scene, t0, q0, v0, h, stride, solver, fallback)
+                attach_trajectory(exc, _initial_state_only(scene, t0, q0, v0, h, stride, solver, fallback))
             raise
         finally:
             if bar is not None:
@@ -187,7 +197,8 @@ def simulate(
     return traj
 
 
-def _initial_state_only(scene, t0, q0, v0, h, stride, solver, fallback) -> Trajectory:
+def _initial_state_only(scene: Scene, t0: float, q0: np.ndarray, v0: np.ndarray, h: float, stride: int,
+                        solver: str | ContactSolver | None, fallback: str | ContactSolver | None) -> Trajectory:
     """The trajectory of a run interrupted before its first step: the initial state."""
     from . import __version__
 
@@ -202,7 +213,10 @@ def _initial_state_only(scene, t0, q0, v0, h, stride, solver, fallback) -> Traje
     )
 
 
-def _choose_backend(backend, scene, integrator, solver, fallback, drift_control):
+def _choose_backend(backend: str, scene: Scene, integrator: type[OneStepIntegrator],
+                    solver: str | ContactSolver | None, fallback: str | ContactSolver | None,
+                    drift_control: DriftControl | None,
+                    ) -> tuple[str, Any, str | ContactSolver, str | ContactSolver | None]:
     """``(path, compiled scene or None, solver, fallback)`` for :func:`simulate`."""
     from .compiled import COMPILED_SOLVERS
     from .drift import CombinedProjection, PositionProjection
@@ -243,19 +257,20 @@ def _choose_backend(backend, scene, integrator, solver, fallback, drift_control)
     return path, (cs if path == "compiled" else None), solver, fallback
 
 
-def _progress_bar(progress, n_steps: int, desc: str):
+def _progress_bar(progress: bool | dict[str, Any] | None, n_steps: int, desc: str) -> Any:
     show = bool(progress) if progress is not None else (n_steps >= _PROGRESS_MIN_STEPS and sys.stderr.isatty())
     if not show:
         return None
     from tqdm.auto import tqdm
 
-    bar_kw = {"unit": "step", "desc": desc, "mininterval": 0.5, "leave": False}
+    bar_kw: dict[str, Any] = {"unit": "step", "desc": desc, "mininterval": 0.5, "leave": False}
     if isinstance(progress, dict):
         bar_kw.update(progress)
     return tqdm(total=n_steps, **bar_kw)
 
 
-def _run_python(scene, integ, h, n_steps, stride, n_rec, progress, energy, flight_gap) -> Trajectory:
+def _run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, stride: int, n_rec: int,
+                progress: bool | dict[str, Any] | None, energy: bool, flight_gap: np.ndarray) -> Trajectory:
     """The reference loop: one :meth:`OneStepIntegrator.step` call per step."""
     n, m = scene.ndof, scene.nrows
     t0 = integ.t
@@ -266,7 +281,7 @@ def _run_python(scene, integ, h, n_steps, stride, n_rec, progress, energy, fligh
     ACT = np.zeros((n_rec, m), dtype=bool)
     T[0], Q[0], V[0] = t0, integ.q, integ.v
     rec = 1
-    impacts: list[tuple] = []
+    impacts: list[ImpactRow] = []
     P_acc = np.zeros(m)
     act_acc = np.zeros(m, dtype=bool)
     in_contact = np.zeros(m, dtype=bool)
@@ -275,9 +290,11 @@ def _run_python(scene, integ, h, n_steps, stride, n_rec, progress, energy, fligh
 
     bar = _progress_bar(progress, n_steps, scene.name)
     pen = np.zeros(m)
+    gaps_of = scene.gaps if scene.gaps is not None else _no_gaps
     chunk = max(1, min(10_000, n_steps // 200))
 
-    status, message, error = "completed", "", None
+    status, message = "completed", ""
+    error: BaseException | None = None
     wall0 = time.perf_counter()
     k = 0
     try:
@@ -296,7 +313,7 @@ def _run_python(scene, integ, h, n_steps, stride, n_rec, progress, energy, fligh
                     in_contact = now
                 elif in_contact.any():
                     in_contact = np.zeros(m, dtype=bool)
-                g_end = scene.gaps(integ.q)
+                g_end = gaps_of(integ.q)
                 np.maximum(pen, -g_end, out=pen)
                 gmax = np.where(in_contact, -np.inf, np.maximum(gmax, g_end))
             if k % stride == 0 or k == n_steps:
@@ -339,12 +356,13 @@ def _run_python(scene, integ, h, n_steps, stride, n_rec, progress, energy, fligh
                      impacts, wall, status, message, energy)
     traj.max_penetration = pen
     if error is not None:
-        error.trajectory = traj
+        attach_trajectory(error, traj)
         raise error
     return traj
 
 
-def _log_impacts(integ: OneStepIntegrator, rows: np.ndarray, after_flight: np.ndarray, out: list[tuple]) -> None:
+def _log_impacts(integ: OneStepIntegrator, rows: np.ndarray, after_flight: np.ndarray,
+                 out: list[ImpactRow]) -> None:
     """Log the contact onsets of the last step (``rows``) that are impacts by the flight
     test (``after_flight``, shape (m,)) or the velocity test (see :class:`ImpactLog`).
 
@@ -362,7 +380,9 @@ def _log_impacts(integ: OneStepIntegrator, rows: np.ndarray, after_flight: np.nd
                         float(integ.P[r]), float(d.energy_lost[j]), flight, fast))
 
 
-def _assemble(scene, integ, h, stride, T, Q, V, PS, ACT, impacts, wall, status, message, energy) -> Trajectory:
+def _assemble(scene: Scene, integ: OneStepIntegrator, h: float, stride: int, T: np.ndarray, Q: np.ndarray,
+              V: np.ndarray, PS: np.ndarray, ACT: np.ndarray, impacts: list[ImpactRow], wall: float, status: str,
+              message: str, energy: bool) -> Trajectory:
     from . import __version__
 
     m = scene.nrows
@@ -372,8 +392,9 @@ def _assemble(scene, integ, h, stride, T, Q, V, PS, ACT, impacts, wall, status, 
     # post-processing of what was computed: a user callable failing here must not lose
     # the trajectory (it may be why the run stopped), so failures leave NaN and a warning
     try:
+        gaps_of = scene.gaps if scene.gaps is not None else _no_gaps
         for i in range(N if m else 0):
-            gaps[i] = scene.gaps(Q[i])
+            gaps[i] = gaps_of(Q[i])
         if energy and N:
             KE = np.array([scene.kinetic_energy(Q[i], V[i]) for i in range(N)])
             PE = np.array([scene.potential_energy(Q[i]) for i in range(N)])
@@ -398,3 +419,8 @@ def _assemble(scene, integ, h, stride, T, Q, V, PS, ACT, impacts, wall, status, 
         kinetic_energy=KE, potential_energy=PE, status=status, message=message,
         version=__version__, work={"forces": integ.work_forces, "contacts": integ.work_contacts},
     )
+
+
+def _no_gaps(q: np.ndarray) -> np.ndarray:
+    """The gaps of a scene without contacts (none)."""
+    return np.zeros(0)

@@ -55,7 +55,7 @@ class ContactSolver(ABC):
     name: str = "solver"
     exact: bool = False
 
-    def setup(self, ndof: int, nrows: int, mass: np.ndarray | None = None) -> None:
+    def setup(self, ndof: int, nrows: int, mass: np.ndarray | None = None) -> None:  # noqa: B027 - optional hook
         """Prepare for a scene with ``ndof`` coordinates and ``nrows`` contact rows.
 
         ``mass`` is the constant mass matrix when the system has one (None otherwise).
@@ -360,7 +360,7 @@ def available_solvers() -> list[str]:
     return sorted(_SIMPLE) + exact_qp
 
 
-def make_solver(spec: "str | ContactSolver") -> ContactSolver:
+def make_solver(spec: str | ContactSolver) -> ContactSolver:
     """A solver from a name (``"osqp"``, ``"enum"``, ``"daqp"``, ``"quadprog"``,
     ``"qpsolvers:<backend>"``) or an instance (returned as is).
 

@@ -192,7 +192,7 @@ def sweep(
     cache_key : JSON-like value, optional
         Part of every record's key, for what the results depend on beyond the function's
         own source and arguments (the code it calls, data files): e.g.
-        ``source_digest("problems.piston")``. Records made with another ``cache_key`` are
+        ``source_digest("moreau.problems.piston")``. Records made with another ``cache_key`` are
         not reused.
     dask_timeout : float
         Seconds to wait for a Dask scheduler given by its address.
@@ -249,6 +249,7 @@ def sweep(
     todo = [(i, points[i]) for i in range(len(points)) if results[i] is None]
     n_done = len(points) - len(todo)
     if n_done:
+        assert record is not None  # points are only ever read back from a record
         log.info("%s: %d of %d points read from %s, %d to compute", name, n_done, len(points),
                  record.directory, len(todo))
 
@@ -299,7 +300,7 @@ def sweep(
         raise
     finally:
         bar.close()
-        if owned:
+        if owned and client is not None:
             client.close()
         if record is not None:
             record.unlock()

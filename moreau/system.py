@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -60,11 +61,11 @@ class MechanicalSystem(ABC):
         """Kinetic energy ½ vᵀ M(q) v (J)."""
         return 0.5 * float(v @ self.mass_matrix(q) @ v)
 
-    def describe(self) -> dict:
+    def describe(self) -> dict[str, Any]:
         """Parameters of the system as plain JSON-serializable data (for saved results)."""
         return {"type": type(self).__name__, "ndof": self.ndof}
 
-    def mass_kernel(self):
+    def mass_kernel(self) -> tuple[Any, Any] | None:
         """``(kind, params)`` of the compiled mass matrix (see :mod:`moreau.kernels`),
         ``("user", (mass, bias))`` for numba-compiled callables, or None (Python path)."""
         return None
@@ -107,8 +108,8 @@ class FunctionSystem(MechanicalSystem):
             if ndof is None:
                 raise ValueError("FunctionSystem: ndof is required when mass is a callable")
             self.ndof = _positive_int(ndof, "ndof")
-            self._mass_fun = mass
-            self._mass = None
+            self._mass_fun: Callable[[np.ndarray], np.ndarray] | None = mass
+            self._mass: np.ndarray | None = None
             self.constant_mass = False
         else:
             M = as_matrix(mass, "mass")
@@ -129,6 +130,7 @@ class FunctionSystem(MechanicalSystem):
     def mass_matrix(self, q: np.ndarray) -> np.ndarray:
         if self._mass is not None:
             return self._mass
+        assert self._mass_fun is not None  # one of the two is set
         return self._mass_fun(q)
 
     def bias_force(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -136,7 +138,7 @@ class FunctionSystem(MechanicalSystem):
             return np.zeros(self.ndof)
         return self._bias(q, v)
 
-    def mass_kernel(self):
+    def mass_kernel(self) -> tuple[Any, Any] | None:
         from . import kernels as _k
         from .forces import _is_compiled
 
@@ -147,7 +149,7 @@ class FunctionSystem(MechanicalSystem):
             return "user", fns
         return None
 
-    def describe(self) -> dict:
+    def describe(self) -> dict[str, Any]:
         d = super().describe()
         d["name"] = self.name
         if self._mass is not None:
@@ -172,7 +174,7 @@ def check_spd(M: np.ndarray, what: str = "M", where: str = "") -> None:
         ) from None
 
 
-def _positive_int(x, name: str) -> int:
+def _positive_int(x: Any, name: str) -> int:
     if isinstance(x, bool) or not isinstance(x, (int, np.integer)) or x <= 0:
         raise ValueError(f"{name} must be a positive integer, got {x!r}")
     return int(x)

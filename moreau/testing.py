@@ -14,7 +14,8 @@ its KKT check — and fall back to its exact backend, counting the fallback in
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
+from typing import cast
 
 import numpy as np
 
@@ -66,12 +67,14 @@ class FaultInjectingSolver(ContactSolver):
         if mode not in _MODES:
             raise ValueError(f"FaultInjectingSolver: mode must be one of {_MODES}, got {mode!r}")
         self.inner = make_solver(inner)
+        self._fail: Callable[[int], bool]
+        self.fail_on: frozenset[int] | None
         if callable(fail_on):
             self._fail = fail_on
             self.fail_on = None
         else:
             idx = set()
-            for i in fail_on:
+            for i in cast(Iterable[object], fail_on):
                 if isinstance(i, bool) or not isinstance(i, (int, np.integer)) or i < 0:
                     raise ValueError(f"FaultInjectingSolver: call indices must be integers >= 0, got {i!r}")
                 idx.add(int(i))

@@ -42,8 +42,7 @@ import time
 import matplotlib.pyplot as plt
 import pandas as pd
 
-from moreau.sweeps import sweep
-from problems.piston.study import (
+from moreau.problems.piston.study import (
     DEFAULT_ANGLES_DEG,
     piston_cache_key,
     piston_point,
@@ -53,6 +52,7 @@ from problems.piston.study import (
     section_long,
     step_for_clearance,
 )
+from moreau.sweeps import sweep
 
 SMALL = os.environ.get("MOREAU_NOTEBOOK_SCALE", "full") == "small"
 HERE = "." if os.path.basename(os.getcwd()) == "notebooks" else "notebooks"

@@ -23,9 +23,9 @@
 # | 3 | 0.9 | 80.04 mm | still a tendency to slide six times per cycle, but multiple impacts before each sliding state, and quick transits to the other side before the piston stabilizes |
 # | 4 | 0.9 | 80.2 mm | the same with the larger backlash |
 #
-# We run the same three cases with `problems.piston.job.run_case` (the `moreau piston`
+# We run the same three cases with `moreau.problems.piston.job.run_case` (the `moreau piston`
 # job: one transient cycle discarded, then the analyzed cycles) and draw the last cycle
-# with `problems.piston.figures.plot_cycle`: x_O3 in half-clearances (±1 = an untilted
+# with `moreau.problems.piston.figures.plot_cycle`: x_O3 in half-clearances (±1 = an untilted
 # piston against the right/left wall), y_O3 in crank radii l1, the tilt φ3, and which
 # corner carries a contact impulse; dotted lines mark the side changes.
 
@@ -37,11 +37,11 @@ import numpy as np
 import pandas as pd
 
 import moreau as mo
-from problems.piston import PistonParameters, cycle_figures
-from problems.piston.analysis import sliding_phases
-from problems.piston.figures import plot_cycle
-from problems.piston.job import PAPER_CASES, Case, run_cases
-from problems.piston.study import SLAP_FRACTION
+from moreau.problems.piston import PistonParameters, cycle_figures
+from moreau.problems.piston.analysis import sliding_phases
+from moreau.problems.piston.figures import plot_cycle
+from moreau.problems.piston.job import PAPER_CASES, Case, run_cases
+from moreau.problems.piston.study import SLAP_FRACTION
 
 SMALL = os.environ.get("MOREAU_NOTEBOOK_SCALE", "full") == "small"
 HERE = "." if os.path.basename(os.getcwd()) == "notebooks" else "notebooks"
@@ -144,7 +144,7 @@ per_fig
 #   the gap). A restitution coefficient is a crude model of an oil-lubricated contact,
 #   as the paper says itself, and the count is sensitive to it.
 # * **The count of side changes at e = 0.9** depends on how quick transits are counted:
-#   here every arrival on the other wall counts (see `problems.piston.analysis`), so a
+#   here every arrival on the other wall counts (see `moreau.problems.piston.analysis`), so a
 #   bounce across and back counts twice, as the paper describes it; the paper does not
 #   give a number.
 # * **The count of impacts** (hundreds to thousands per cycle at e = 0.9) includes
@@ -163,4 +163,4 @@ per_fig
 # at crank angles fixed by the crank mechanism and the pressure curve, and, with little
 # damping at the wall, bounce trains and quick transits — from the published parameters
 # alone. Quantitative slap timing needs the engine's real pressure trace, which is one
-# argument (`pressure=`) of `problems.piston.piston_model`.
+# argument (`pressure=`) of `moreau.problems.piston.piston_model`.

@@ -34,7 +34,7 @@
 # at fixed crank angles: a Poincaré section of the self-excited engine, drawn against e
 # like a bifurcation diagram.
 #
-# The numbers come from `problems.piston.study.piston_point`, run over the grid by
+# The numbers come from `moreau.problems.piston.study.piston_point`, run over the grid by
 # `moreau.sweeps.sweep` on all cores; every finished point is kept in `data/*.parts/`, so
 # re-running this notebook only computes what is missing. As in the main job
 # (`moreau piston`), drift control is on: the positions are projected back onto the
@@ -51,8 +51,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from moreau.sweeps import sweep
-from problems.piston.study import (
+from moreau.problems.piston.study import (
     DEFAULT_ANGLES_DEG,
     piston_cache_key,
     piston_point,
@@ -61,6 +60,7 @@ from problems.piston.study import (
     plot_sweep,
     section_long,
 )
+from moreau.sweeps import sweep
 
 SMALL = os.environ.get("MOREAU_NOTEBOOK_SCALE", "full") == "small"
 HERE = "." if os.path.basename(os.getcwd()) == "notebooks" else "notebooks"

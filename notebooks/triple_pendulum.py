@@ -43,9 +43,18 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import moreau as mo
-from moreau.dynamics import (TimeMap, bifurcation_diagram, detect_period, floquet_multipliers,
-                             join_state, largest_lyapunov, lyapunov_spectrum, plot_bifurcation,
-                             poincare, stroboscopic)
+from moreau.dynamics import (
+    TimeMap,
+    bifurcation_diagram,
+    detect_period,
+    floquet_multipliers,
+    join_state,
+    largest_lyapunov,
+    lyapunov_spectrum,
+    plot_bifurcation,
+    poincare,
+    stroboscopic,
+)
 from moreau.dynamics.benchmarks import forced_triple_pendulum
 
 logging.basicConfig(level=logging.WARNING)
@@ -249,7 +258,7 @@ fig.savefig(os.path.join(FIG_DIR, "triple_pendulum_lyapunov.png"), dpi=110)
 # %% [markdown]
 # ## The piston at e = 0.9: periodic in 720°, or chaotic?
 #
-# The engine (`problems.piston`, D = 80.04 mm, e = 0.9) is self-excited: there is no
+# The engine (`moreau.problems.piston`, D = 80.04 mm, e = 0.9) is self-excited: there is no
 # forcing period, so the section is the crank angle φ1 = 0 mod 4π (firing TDC, once per
 # 720° cycle), a Poincaré section s = sin(φ1/4) = 0 on the trajectory. Two questions: do
 # the section points repeat from cycle to cycle (period 1 in 720°), and does a small
@@ -260,8 +269,8 @@ fig.savefig(os.path.join(FIG_DIR, "triple_pendulum_lyapunov.png"), dpi=110)
 # section leaves free) say how stable a periodic engine cycle is.
 
 # %%
-from problems.piston.model import piston_model
-from problems.piston.params import PistonParameters
+from moreau.problems.piston.model import piston_model
+from moreau.problems.piston.params import PistonParameters
 
 params = PistonParameters(e=0.9)
 model = piston_model(params)

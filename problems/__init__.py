@@ -1,7 +1,7 @@
 """Bundled problems, each built only from moreau's public API.
 
-* :mod:`problems.bouncing_ball` — a ball on a floor, with the analytic solution;
-* :mod:`problems.pendulum_wall` — a pendulum whose bob hits a vertical wall;
-* :mod:`problems.piston` — the piston – connecting rod – crankshaft engine of
+* :mod:`moreau.problems.bouncing_ball` — a ball on a floor, with the analytic solution;
+* :mod:`moreau.problems.pendulum_wall` — a pendulum whose bob hits a vertical wall;
+* :mod:`moreau.problems.piston` — the piston – connecting rod – crankshaft engine of
   Awrejcewicz & Kudra.
 """

@@ -39,7 +39,8 @@ def bouncing_ball(e: float = 0.5, mass: float = 1.0, g: float = 9.81, floors: in
         mo.Contact(mo.LinearBarrier([[1.0]], [0.0]), mo.NewtonImpact(e), name="floor" if floors == 1 else f"floor{i}")
         for i in range(floors)
     ]
-    return mo.Scene(system, effects, contacts, name="bouncing_ball")
+    units = {"t": "s", "q": "m", "gaps": "m", "impulses": "N s", "energy": "J"}
+    return mo.Scene(system, effects, contacts, name="bouncing_ball", units=units)
 
 
 @dataclass(frozen=True)

@@ -135,7 +135,7 @@ def event_driven(
     ----------
     rhs : callable ``rhs(t, y) -> dy``
         Smooth first-order right-hand side, y = (q, v) with n = len(y)/2 (e.g.
-        :func:`problems.pendulum_wall.pendulum_rhs`).
+        :func:`moreau.problems.pendulum_wall.pendulum_rhs`).
     gap : callable ``gap(q) -> g``
         Gaps, scalar or shape (m,); admissible when all g >= 0.
     jacobian : callable ``jacobian(q) -> G``
@@ -268,7 +268,7 @@ def pendulum_wall_reference(
     atol: float = 1e-12,
     **kwargs,
 ) -> EventDrivenSolution:
-    """The event-driven reference of :func:`problems.pendulum_wall.pendulum_wall` from
+    """The event-driven reference of :func:`moreau.problems.pendulum_wall.pendulum_wall` from
     ``(theta0, omega0)`` at t = 0 to ``t_end`` (same parameters and units).
 
     The bob hits the wall x = ``wall_x`` where ``sin θ = wall_x / length``; gravity pulls

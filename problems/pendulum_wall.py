@@ -68,7 +68,8 @@ def pendulum_wall(
             ndof=1,
         )
         contacts.append(mo.Contact(wall, mo.NewtonImpact(e), name="wall"))
-    return mo.Scene(system, effects, contacts, name="pendulum_wall")
+    units = {"t": "s", "q": "rad", "gaps": "m", "impulses": "N s", "energy": "J"}
+    return mo.Scene(system, effects, contacts, name="pendulum_wall", units=units)
 
 
 def pendulum_rhs(mass: float = 1.0, length: float = 1.0, g: float = 9.81, damping: float = 0.0):

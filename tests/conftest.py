@@ -19,6 +19,6 @@ def compiled_loop_in_cache():
     """Have the compiled loop in numba's cache before a test starts commands that are
     interrupted a second after they begin stepping: they then load it, not compile it."""
     import moreau as mo
-    from problems.bouncing_ball import bouncing_ball
+    from moreau.problems.bouncing_ball import bouncing_ball
 
     mo.simulate(bouncing_ball(0.5), (0.0, 0.01), [1.0], [0.0], 1e-3, backend="compiled")

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 import moreau as mo
-from problems.bouncing_ball import bouncing_ball
-from problems.pendulum_wall import pendulum_wall
+from moreau.problems.bouncing_ball import bouncing_ball
+from moreau.problems.pendulum_wall import pendulum_wall
 
 
 def free_scene():
@@ -54,17 +54,20 @@ def test_mass_matrix_not_spd_or_not_symmetric():
         mo.FunctionSystem([[1.0, 0.5], [0.0, 1.0]])
     # a callable mass that is not SPD is caught at the initial state
     sysm = mo.FunctionSystem(lambda q: np.array([[1.0, 2.0], [2.0, 1.0]]), ndof=2)
-    with pytest.raises(ValueError, match=r"mass matrix at the initial state is not positive definite \(smallest eigenvalue -1"):
+    with pytest.raises(ValueError,
+                       match=r"mass matrix at the initial state is not positive definite \(smallest eigenvalue -1"):
         mo.simulate(mo.Scene(sysm), (0, 1), [0, 0], [0, 0], 0.1)
 
 
 def test_wrong_shapes_from_user_callables_are_named():
     sysm = mo.FunctionSystem(np.eye(2))
     bad_force = mo.FunctionForce(lambda t, q, v: np.zeros(3), name="wind")
-    with pytest.raises(ValueError, match=r"force of effect 'wind' at the initial state has shape \(3,\), expected \(2,\)"):
+    with pytest.raises(ValueError,
+                       match=r"force of effect 'wind' at the initial state has shape \(3,\), expected \(2,\)"):
         mo.simulate(mo.Scene(sysm, [bad_force]), (0, 1), [0, 0], [0, 0], 0.1)
     bad_jac = mo.FunctionBarrier(lambda q: np.array([q[1]]), lambda q: np.zeros((2, 2)))
-    with pytest.raises(ValueError, match=r"Jacobian of contact 'floor' at the initial state has shape \(2, 2\), expected \(1, 2\)"):
+    with pytest.raises(ValueError,
+                       match=r"Jacobian of contact 'floor' at the initial state has shape \(2, 2\), expected \(1, 2\)"):
         mo.simulate(mo.Scene(sysm, contacts=[mo.Contact(bad_jac, 0.5, name="floor")]), (0, 1), [0, 1], [0, 0], 0.1)
     nan_gap = mo.FunctionBarrier(lambda q: np.array([np.nan]), lambda q: np.zeros((1, 2)))
     with pytest.raises(ValueError, match="gap of contact 'floor' at the initial state is not finite"):

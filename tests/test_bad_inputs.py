@@ -24,10 +24,10 @@ Bugs this catalogue found (now fixed) have their own tests at the end of part 1.
 from __future__ import annotations
 
 import json
-from numbers import Real
 import re
 import subprocess
 import sys
+from numbers import Real
 
 import numpy as np
 import pytest
@@ -37,8 +37,8 @@ from hypothesis import strategies as st
 import moreau as mo
 from moreau.chain import ChainGravity, JointDamping, Link, PendulumChain, PointForce
 from moreau.cli import main
-from problems.bouncing_ball import bouncing_ball
-from problems.piston import PistonParameters, piston_model
+from moreau.problems.bouncing_ball import bouncing_ball
+from moreau.problems.piston import PistonParameters, piston_model
 
 DOCUMENTED = (ValueError, mo.SolverError, mo.SimulationError)
 

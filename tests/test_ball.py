@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import moreau as mo
-from problems.bouncing_ball import BallSolution, bouncing_ball
+from moreau.problems.bouncing_ball import BallSolution, bouncing_ball
 
 
 def apexes(traj):

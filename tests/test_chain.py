@@ -139,8 +139,8 @@ def test_triple_pendulum_matches_paper_closed_form(rng, orientation):
     assert chain.has_bias and not chain.constant_mass
     for _ in range(20):
         q, v = rng.uniform(-np.pi, np.pi, 3), rng.uniform(-5, 5, 3)
-        c = lambda i, j: np.cos(q[i] - q[j])  # noqa: E731
-        s = lambda i, j: np.sin(q[i] - q[j])  # noqa: E731
+        c = lambda i, j: np.cos(q[i] - q[j])  # noqa: E731, B023 - called in this iteration
+        s = lambda i, j: np.sin(q[i] - q[j])  # noqa: E731, B023 - called in this iteration
         M_paper = np.array([
             [1.0, nu[0, 1] * c(0, 1), nu[0, 2] * c(0, 2)],
             [nu[0, 1] * c(0, 1), beta[1], nu[1, 2] * c(1, 2)],
@@ -196,8 +196,9 @@ def test_lagrangian_residual_by_finite_differences(rng, lateral):
         q, v, a = rng.uniform(-np.pi, np.pi, n), rng.uniform(-2, 2, n), rng.uniform(-2, 2, n)
 
         def momentum(t):  # ∂T/∂v at (q(t), v(t)); central differences are exact in v (T is quadratic)
-            qt, vt = q + v * t + 0.5 * a * t * t, v + a * t
-            return np.array([(T(qt, vt + dv * I[i]) - T(qt, vt - dv * I[i])) / (2 * dv) for i in range(n)])
+            qt, vt = q + v * t + 0.5 * a * t * t, v + a * t  # noqa: B023 - used in this iteration
+            return np.array([(T(qt, vt + dv * I[i]) - T(qt, vt - dv * I[i])) / (2 * dv)
+                             for i in range(n)])
 
         dpdt = (momentum(dt) - momentum(-dt)) / (2 * dt)
         dTdq = np.array([(T(q + dq * I[i], v) - T(q - dq * I[i], v)) / (2 * dq) for i in range(n)])
@@ -247,7 +248,7 @@ def test_point_kinematics(rng, orientation):
         q, v = rng.uniform(-np.pi, np.pi, 4), rng.uniform(-2, 2, 4)
         link, local = int(rng.integers(4)), rng.uniform(-1, 1, 2)
         Jp = chain.point_jacobian(q, link, local)
-        Jfd = finite_difference_jacobian(lambda x: chain.point_position(x, link, local), q)
+        Jfd = finite_difference_jacobian(lambda x: chain.point_position(x, link, local), q)  # noqa: B023
         np.testing.assert_allclose(Jp, Jfd, atol=1e-8)
         np.testing.assert_allclose(chain.point_velocity(q, v, link, local), Jp @ v, rtol=1e-14, atol=1e-14)
         same = PendulumChain(chain.links, chain.pivot, orientation=(chain.axis, chain.lateral))
@@ -323,7 +324,7 @@ def test_conservative_effects_are_potential_gradients(rng):
         q = rng.uniform(-np.pi, np.pi, 4)
         for eff in effects:
             assert eff.has_potential and not eff.velocity_dependent
-            grad = finite_difference_jacobian(lambda x: np.array([eff.potential(x)]), q)[0]
+            grad = finite_difference_jacobian(lambda x: np.array([eff.potential(x)]), q)[0]  # noqa: B023
             np.testing.assert_allclose(eff.force(0.0, q, np.zeros(4)), -grad, atol=1e-7, err_msg=eff.name)
     # gravity's potential is Σ m g · height of the centres of mass (downward gravity)
     g = ChainGravity(chain, g=9.81)
@@ -356,7 +357,8 @@ def test_nondimensional_scene_reproduces_the_physical_run(rng):
     u = nd.units
     c = np.array([0.05, 0.02, 0.01])
     phys = mo.Scene(chain, [ChainGravity(chain), JointDamping(chain, c)])
-    scaled = mo.Scene(nd.chain, [ChainGravity(nd.chain, g=9.81 / u.acceleration), JointDamping(nd.chain, c / u.damping)])
+    scaled = mo.Scene(nd.chain, [ChainGravity(nd.chain, g=9.81 / u.acceleration),
+                                 JointDamping(nd.chain, c / u.damping)])
     q0, v0 = np.array([0.9, -0.4, 1.3]), np.array([0.5, 0.0, -1.0])
     h = 1e-3
     a = mo.simulate(phys, (0.0, 0.5), q0, v0, h, solver="enum")

@@ -15,8 +15,8 @@ import moreau as mo
 from moreau import kernels as K
 from moreau.chain import ChainGravity, JointDamping, Link, PendulumChain, PointLineBarrier, PointLineRow
 from moreau.lowering import NotCompilable, lower
-from problems.bouncing_ball import bouncing_ball
-from problems.piston import piston_model
+from moreau.problems.bouncing_ball import bouncing_ball
+from moreau.problems.piston import piston_model
 
 
 def triple_with_walls():
@@ -109,7 +109,7 @@ def test_compiled_scene_parameters_are_the_objects_own():
     objects call are fed the very same numbers."""
     model = piston_model()
     cs = lower(model.scene)
-    for e, kind, off in zip(model.scene.effects, cs.ekind, cs.eoff):
+    for e, off in zip(model.scene.effects, cs.eoff):
         p = e.kernel()[1][0]
         np.testing.assert_array_equal(cs.pool[off:off + p.size], p)
 
@@ -188,7 +188,7 @@ def test_a_new_process_loads_the_loop_from_the_cache():
     code = textwrap.dedent("""
         import time, moreau as mo
         from moreau import loop
-        from problems.piston import piston_model
+        from moreau.problems.piston import piston_model
         m = piston_model(e=0.9)
         t = time.perf_counter()
         traj = m.simulate(0.01, 1e-4, drift_control=mo.PositionProjection())

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import moreau as mo
-from problems.bouncing_ball import bouncing_ball
+from moreau.problems.bouncing_ball import bouncing_ball
 
 # the block: half-width A, half-height B (m), mass 1 kg, corners (±A, −B) on the wall y = 0
 A, B, MASS = 0.2, 0.05, 1.0

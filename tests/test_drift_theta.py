@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 import moreau as mo
-from problems.bouncing_ball import bouncing_ball
-from problems.pendulum_wall import pendulum_wall
+from moreau.problems.bouncing_ball import bouncing_ball
+from moreau.problems.pendulum_wall import pendulum_wall
 
 
 def bead_in_circle(e=0.0):

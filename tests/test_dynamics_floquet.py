@@ -12,8 +12,15 @@ import numpy as np
 import pytest
 
 import moreau as mo
-from moreau.dynamics import (TimeMap, detect_period, find_fixed_point, floquet_multipliers, poincare,
-                             poincare_on_the_fly, stroboscopic)
+from moreau.dynamics import (
+    TimeMap,
+    detect_period,
+    find_fixed_point,
+    floquet_multipliers,
+    poincare,
+    poincare_on_the_fly,
+    stroboscopic,
+)
 from moreau.dynamics.benchmarks import table_period1, vibrating_table
 
 E, A = 0.5, 1.49  # stable period-1 orbit with two real multipliers, -0.836 and -0.299

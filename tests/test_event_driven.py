@@ -6,9 +6,9 @@ import pytest
 
 import moreau as mo
 from moreau.diagnostics import convergence_order
-from problems.bouncing_ball import BallSolution, bouncing_ball
-from problems.event_driven import event_driven, moreau_impact_times, pendulum_wall_reference
-from problems.pendulum_wall import pendulum_wall
+from moreau.problems.bouncing_ball import BallSolution, bouncing_ball
+from moreau.problems.event_driven import event_driven, moreau_impact_times, pendulum_wall_reference
+from moreau.problems.pendulum_wall import pendulum_wall
 
 G = 9.81
 

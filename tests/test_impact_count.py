@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 import moreau as mo
-from problems.bouncing_ball import BallSolution, bouncing_ball
-from problems.piston import PistonParameters, cycle_figures, piston_model
+from moreau.problems.bouncing_ball import BallSolution, bouncing_ball
+from moreau.problems.piston import PistonParameters, cycle_figures, piston_model
 
 
 @pytest.mark.parametrize("flight_gap", [0.0, 0.01, 0.1])

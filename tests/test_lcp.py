@@ -98,7 +98,7 @@ def test_a_light_coordinate_is_solved_exactly_and_a_wrong_one_is_caught(scale):
 def test_osqp_projection_solves_pass_the_check_without_fallbacks():
     """Drift-control projections are QPs with data of 1e-10 (b = 0, c = −g): OSQP solves them
     in units where they are O(1). Before, 7794 of 11324 steps fell back (0.1 cycle)."""
-    from problems.piston import piston_model
+    from moreau.problems.piston import piston_model
 
     traj = piston_model(e=0.0).simulate(0.1, 1e-4, solver="osqp", backend="python",
                                         drift_control=mo.PositionProjection())

@@ -3,9 +3,8 @@
 import numpy as np
 import pytest
 
-import moreau as mo
 from moreau.barriers import finite_difference_jacobian
-from problems.piston import EFFECTS, PistonParameters, closed_form, groups, piston_model
+from moreau.problems.piston import EFFECTS, PistonParameters, closed_form, groups, piston_model
 
 
 @pytest.fixture(scope="module")

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from problems.piston import PistonParameters, cycle_figures, piston_model, steady_speed_rpm
-from problems.piston.analysis import sliding_phases
+from moreau.problems.piston import PistonParameters, cycle_figures, piston_model, steady_speed_rpm
+from moreau.problems.piston.analysis import sliding_phases
 
 pytestmark = pytest.mark.slow
 

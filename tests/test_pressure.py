@@ -6,7 +6,7 @@ import time
 import numpy as np
 import pytest
 
-from problems.piston.pressure import (
+from moreau.problems.piston.pressure import (
     C1_CRANK,
     CALIBRATED_SOC_DEG,
     DEFAULT_GEOMETRY,

@@ -5,8 +5,8 @@ import pytest
 
 import moreau as mo
 from moreau.onestep import OneStepProblem, kkt_residuals
+from moreau.problems.bouncing_ball import bouncing_ball
 from moreau.solvers import SolveFailed
-from problems.bouncing_ball import bouncing_ball
 
 
 def random_problem(rng):

@@ -143,7 +143,7 @@ def test_source_digest_follows_the_code(tmp_path, monkeypatch):
 
 
 def test_the_piston_command_keys_its_records_by_the_model_code(tmp_path, monkeypatch):
-    import problems.piston.study as study
+    import moreau.problems.piston.study as study
 
     out = tmp_path / "s.csv"
     argv = ["sweep", "piston", "--param", "e=0", "--cycles", "1", "--transient", "0", "--h", "1e-3",

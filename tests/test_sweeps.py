@@ -218,7 +218,7 @@ def _returns_bad(k: int):
 
 # -- the piston study functions ------------------------------------------------------------
 def test_piston_point_and_bifurcation_samples_at_coarse_step():
-    from problems.piston.study import bifurcation_samples, piston_point
+    from moreau.problems.piston.study import bifurcation_samples, piston_point
 
     r = piston_point(0.0, 80.04, cycles=1, transient=1, h=1e-3, section_deg=(60.0, 420.0))
     assert r["clearance_um"] == pytest.approx(40.0)
@@ -235,7 +235,7 @@ def test_piston_point_and_bifurcation_samples_at_coarse_step():
 
 
 def test_piston_sweep_rows_are_deterministic_across_executors():
-    from problems.piston.study import piston_point
+    from moreau.problems.piston.study import piston_point
 
     grid = {"e": [0.0, 0.9], "D_mm": 80.04, "cycles": 1, "transient": 0, "h": 1e-3}
     a = sweep(piston_point, grid, executor="serial", progress=False).drop(columns="wall_time_s")

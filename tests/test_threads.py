@@ -12,8 +12,8 @@ import numpy as np
 
 import moreau as mo
 import moreau.solvers
+from moreau.problems.bouncing_ball import bouncing_ball
 from moreau.sweeps import sweep
-from problems.bouncing_ball import bouncing_ball
 
 RESTITUTIONS = (0.0, 0.3, 0.5, 0.8)
 

@@ -23,9 +23,9 @@ import pytest
 
 import moreau as mo
 import moreau.cli
-import problems.piston.job as job
+import moreau.problems.piston.job as job
 from moreau.cli import main
-from problems.bouncing_ball import bouncing_ball
+from moreau.problems.bouncing_ball import bouncing_ball
 
 linux = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc, sends POSIX signals")
 
@@ -160,7 +160,8 @@ def test_sigterm_to_sweep_keeps_the_record_lists_every_point_and_leaves_no_worke
 
 @linux
 def test_sigterm_to_ball_saves_the_partial_trajectory(tmp_path):
-    proc, err = start_command(["ball", "--t-end", "3000", "--h", "1e-5", "--record-every", "1000", "--out", "out"], tmp_path)
+    proc, err = start_command(["ball", "--t-end", "3000", "--h", "1e-5", "--record-every", "1000", "--out", "out"],
+                              tmp_path)
     wait_for(err, b"step/s]", proc)
     os.kill(proc.pid, signal.SIGTERM)
     rc = finish(proc)

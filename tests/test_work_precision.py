@@ -13,7 +13,7 @@ from scipy.integrate import solve_ivp
 import moreau as mo
 from moreau.chain import ChainGravity, Link, PendulumChain
 from moreau.diagnostics import convergence_order
-from problems.pendulum_wall import pendulum_rhs, pendulum_wall
+from moreau.problems.pendulum_wall import pendulum_rhs, pendulum_wall
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCRIPT = os.path.join(ROOT, "benchmarks", "work_precision.py")
@@ -99,9 +99,9 @@ def test_piston_drift_control_keeps_penetration_below_one_percent_at_h_1e_3():
     """e = 0, h = 1e-3, transient 1 + 3 cycles with PositionProjection: the penetration
     stays below 1 % of the clearance (without it: ~100 %) and every cycle after the
     transient still has the 6 side changes."""
-    from problems.piston.analysis import cycle_figures
-    from problems.piston.model import piston_model
-    from problems.piston.params import PistonParameters
+    from moreau.problems.piston.analysis import cycle_figures
+    from moreau.problems.piston.model import piston_model
+    from moreau.problems.piston.params import PistonParameters
 
     params = PistonParameters(e=0.0)
     model = piston_model(params)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import functools
 import logging
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -73,7 +74,7 @@ def bifurcation_point(*, make_scene: Callable, param: str, value: float, q0, v0,
     T = float(period(value) if callable(period) else period)
     n_steps = max(1, int(round(T / h)))
     hh = T / n_steps
-    kw = {"progress": False, "energy": False}
+    kw: dict[str, Any] = {"progress": False, "energy": False}
     if scene.nrows:
         kw["solver"] = "enum"
     kw.update(simulate_kwargs or {})

@@ -98,7 +98,7 @@ def _stats(logs: np.ndarray, interval: float, n_blocks: int) -> tuple[np.ndarray
 
 def _admissible(scene: mo.Scene, x: np.ndarray, x_ref: np.ndarray) -> bool:
     """True unless the perturbed state penetrates deeper than the reference one."""
-    if not scene.nrows:
+    if scene.gaps is None:  # no contacts
         return True
     g = np.asarray(scene.gaps(split_state(x)[0]), float)
     g_ref = np.asarray(scene.gaps(split_state(x_ref)[0]), float)
@@ -176,7 +176,7 @@ def largest_lyapunov(scene: mo.Scene, q0, v0, h: float, *, interval: float, n_in
     t = float(t0)
     x, t = _transient(fmap, x, t, n_transient)
     rng = np.random.default_rng(seed)
-    u = rng.standard_normal(x.shape[0])
+    u = rng.standard_normal(size=(x.shape[0],))
     u /= np.linalg.norm(u)
     n_all = n_align + n_intervals
     logs = np.empty((n_all, 1))

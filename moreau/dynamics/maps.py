@@ -10,6 +10,7 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -67,7 +68,7 @@ class TimeMap:
         self.n_steps = max(1, int(round(self.T / h)))
         self.h = self.T / self.n_steps
         self.t0 = float(as_vector(t0, "TimeMap.t0", 1)[0])
-        kw = {"progress": False, "energy": False}
+        kw: dict[str, Any] = {"progress": False, "energy": False}
         kw.update(simulate_kwargs)
         kw["record_every"] = max(1, self.n_steps)  # only the end point is kept
         self.simulate_kwargs = kw
@@ -103,7 +104,7 @@ def _tolerant(integrator: type) -> type:
     if integrator not in _TOLERANT:
         def __init__(self, *args, **kwargs):
             kwargs.setdefault("penetration_tol", 1e300)
-            integrator.__init__(self, *args, **kwargs)
+            integrator.__init__(self, *args, **kwargs)  # type: ignore[misc]  # the base class's
         _TOLERANT[integrator] = type(f"Restart{integrator.__name__}", (integrator,), {"__init__": __init__})
     return _TOLERANT[integrator]
 
@@ -116,7 +117,7 @@ def restart(scene: mo.Scene, t_span, q, v, h: float, **simulate_kwargs) -> mo.Tr
     such a state is what the uninterrupted run would have done, so the check is relaxed
     for it (only then: otherwise the call is plain :func:`moreau.simulate`).
     """
-    if scene.nrows and np.min(scene.gaps(np.asarray(q, float))) < -1e-12:
+    if scene.gaps is not None and np.min(scene.gaps(np.asarray(q, float))) < -1e-12:
         kw = dict(simulate_kwargs)
         kw["integrator"] = _tolerant(kw.get("integrator", mo.MoreauJeanMidpoint))
         return mo.simulate(scene, t_span, q, v, h, **kw)
@@ -205,7 +206,7 @@ class PoincareMap:
         self.t_min, self.t_max, self.t0 = float(t_min), float(t_max), float(t0)
         if not 0 <= self.t_min < self.t_max:
             raise ValueError(f"PoincareMap: need 0 <= t_min < t_max, got {t_min}, {t_max}")
-        kw = {"progress": False, "energy": False}
+        kw: dict[str, Any] = {"progress": False, "energy": False}
         kw.update(simulate_kwargs)
         kw["record_every"] = 1
         self.simulate_kwargs = kw

@@ -167,7 +167,9 @@ def poincare_on_the_fly(scene: mo.Scene, q0, v0, h: float,
     integ.init(float(t0), as_vector(q0, "q0", scene.ndof), as_vector(v0, "v0", scene.ndof))
     t_prev, q_prev, v_prev = integ.t, integ.q.copy(), integ.v.copy()
     s_prev = float(surface(q_prev, v_prev))
-    T, Q, V = [], [], []
+    T: list[float] = []
+    Q: list[np.ndarray] = []
+    V: list[np.ndarray] = []
     while len(T) < n_crossings and integ.t < t_max:
         integ.step()
         t, q, v = integ.t, integ.q.copy(), integ.v.copy()

@@ -2,7 +2,7 @@
 
 All functions take a :class:`moreau.Trajectory` of the non-dimensional piston scene
 (q = (φ1, φ2, φ3), time τ = ω t, lengths in units of l1) and the
-:class:`~problems.piston.params.PistonParameters` it was built from.
+:class:`~moreau.problems.piston.params.PistonParameters` it was built from.
 
 Sides and side changes
 ----------------------

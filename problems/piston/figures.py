@@ -46,7 +46,7 @@ def plot_cycle(traj: mo.Trajectory, params: PistonParameters, cycle: int, title:
     axes[1].set_ylabel("y_O3 / l1")
     axes[2].plot(deg, 1e3 * phi3, lw=0.9)
     axes[2].set_ylabel("φ3 (mrad)")
-    for j, name in enumerate(CORNERS):
+    for j in range(len(CORNERS)):
         on = P[:, j] > 0
         axes[3].fill_between(deg, j - 0.4, j + 0.4, where=on, step="mid", color=f"C{j}", lw=0)
     axes[3].set_yticks(range(4), CORNERS, fontsize="small")

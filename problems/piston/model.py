@@ -2,7 +2,7 @@
 
 Built only from moreau's public API: a three-link inverted :class:`~moreau.chain.PendulumChain`
 in the paper's non-dimensional units (length l1, time 1/ω, M_11 = 1; see
-:mod:`problems.piston.params`), with the effects the scene asks for — any of
+:mod:`moreau.problems.piston.params`), with the effects the scene asks for — any of
 ``"gravity"``, ``"damping"`` (joint damping), ``"gas"`` (gas force on the pin),
 ``"brake"`` (brake moment on the crank) — and the four corner contacts of eq. (2.3).
 """
@@ -30,6 +30,7 @@ from moreau.chain import (
 
 from .params import PistonParameters
 from .pressure import EngineGeometry, FourierPressure, calibrate
+from .units import scene_units
 
 __all__ = ["EFFECTS", "CORNERS", "FLIGHT_FRACTION", "PistonModel", "piston_model"]
 
@@ -183,5 +184,5 @@ def piston_model(
     ]
     law = p.e if e is None else e
     contact = mo.Contact(PointLineBarrier(chain, rows), law, name="cylinder")
-    scene = mo.Scene(chain, fx, [contact], name="piston")
+    scene = mo.Scene(chain, fx, [contact], name="piston", units=scene_units(p, u))
     return PistonModel(params=p, pressure=pressure, chain=chain, units=u, scene=scene, effects=effects)

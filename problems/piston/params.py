@@ -1,8 +1,8 @@
 r"""Parameters of the piston – connecting rod – crankshaft engine and the paper's
 non-dimensional closed form, eq. (2.1)–(2.3) of Awrejcewicz & Kudra.
 
-Conventions (stated once, used by the whole ``problems.piston`` package)
------------------------------------------------------------------------
+Conventions (stated once, used by the whole ``moreau.problems.piston`` package)
+-------------------------------------------------------------------------------
 * Links: 1 crank (pivot O1 fixed at the origin, length l1), 2 connecting rod
   (O2 → O3, length l2), 3 piston (pin O3). The cylinder axis is vertical, the piston
   above the crank: an *inverted* triple pendulum. Angles φ_i are absolute, measured from
@@ -122,7 +122,7 @@ class PistonParameters:
         if self.l2 <= self.l1:
             raise ValueError(f"rod length l2 = {self.l2!r} m must exceed the crank radius l1 = {self.l1!r} m")
 
-    def with_(self, **changes) -> "PistonParameters":
+    def with_(self, **changes) -> PistonParameters:
         """A copy with some parameters changed (validated)."""
         return replace(self, **changes)
 

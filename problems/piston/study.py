@@ -6,7 +6,7 @@ of one engine, for ``moreau.sweeps.sweep``) and :func:`bifurcation_samples` (the
 lateral position and the piston tilt sampled once per cycle at fixed crank angles — a
 Poincaré section φ1 = const mod 720° of the self-excited engine).
 
-Like the main job (:func:`problems.piston.job.run_case`), the runs use drift control
+Like the main job (:func:`moreau.problems.piston.job.run_case`), the runs use drift control
 (``drift_control=True``: :class:`moreau.CombinedProjection`, which projects every
 corner back onto the cylinder after each step and applies restitution only at
 impacts): without it the midpoint drift of a sliding contact leaves the corners O(h)
@@ -53,11 +53,11 @@ DEFAULT_ANGLES_DEG = (60.0, 420.0)
 
 def piston_cache_key() -> str:
     """The ``cache_key`` of piston sweeps (``moreau sweep``, the notebooks): a digest of
-    the source of ``problems.piston`` and of ``moreau``, so that recorded points are
+    the source of ``moreau.problems.piston`` and of ``moreau``, so that recorded points are
     recomputed after any change to the model, its parameters or the engine."""
     from moreau.sweeps import source_digest
 
-    return source_digest("problems.piston", "moreau")
+    return source_digest("moreau.problems.piston", "moreau")
 
 SLAP_FRACTION = 0.01
 """An impact is a *slap* when its impulse is at least this fraction of the largest one
@@ -78,7 +78,7 @@ def step_for_clearance(D_mm: float, h: float = 3e-4, margin: float = 0.5, d_mm: 
 
     In one step the crank pin moves h·l1 (non-dimensional speed 1), the velocity scale of
     the piston's lateral motion; the piston model warns when that exceeds the clearance
-    D − d (:meth:`problems.piston.model.PistonModel.simulate`). This keeps it to
+    D − d (:meth:`moreau.problems.piston.model.PistonModel.simulate`). This keeps it to
     ``margin`` of the clearance: with the defaults h = 1.25e-4 at 10 µm, 2.5e-4 at 20 µm
     and 3e-4 from 24 µm up. Rounded to 3 significant digits.
 

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from moreau.diagnostics import energy_ledger
-from problems.piston import PistonParameters, cycle_figures, piston_model
+from moreau.problems.piston import PistonParameters, cycle_figures, piston_model
 
 from .conftest import assert_finite, audit_impacts
 

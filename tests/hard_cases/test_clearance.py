@@ -5,15 +5,15 @@ cycle (four at the largest clearance, where it no longer reaches the wall in two
 
 Every run starts 29° before firing TDC from the centred piston and covers one whole
 cycle (the contact side before firing TDC is established by then, so all six side
-changes of the cycle count; see problems.piston.analysis).
+changes of the cycle count; see moreau.problems.piston.analysis).
 """
 
 import numpy as np
 import pytest
 
 import moreau as mo
-from problems.piston import PistonParameters, cycle_figures, piston_model
-from problems.piston.analysis import max_penetration_ratio
+from moreau.problems.piston import PistonParameters, cycle_figures, piston_model
+from moreau.problems.piston.analysis import max_penetration_ratio
 
 from .conftest import assert_finite, audit_impacts
 

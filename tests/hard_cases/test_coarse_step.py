@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import moreau as mo
-from problems.piston import PistonParameters, cycle_figures, piston_model
-from problems.piston.analysis import max_penetration_ratio
+from moreau.problems.piston import PistonParameters, cycle_figures, piston_model
+from moreau.problems.piston.analysis import max_penetration_ratio
 
 from .conftest import assert_finite, audit_impacts
 

@@ -18,9 +18,9 @@ import pytest
 
 import moreau as mo
 from moreau.chain import PointLineBarrier, PointLineRow
-from problems.piston import PistonParameters, piston_model
-from problems.piston.analysis import max_penetration_ratio
-from problems.piston.model import CORNERS
+from moreau.problems.piston import PistonParameters, piston_model
+from moreau.problems.piston.analysis import max_penetration_ratio
+from moreau.problems.piston.model import CORNERS
 
 from .conftest import assert_finite, audit_impacts
 

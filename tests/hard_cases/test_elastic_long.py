@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import moreau as mo
-from problems.bouncing_ball import BallSolution, bouncing_ball
+from moreau.problems.bouncing_ball import BallSolution, bouncing_ball
 
 from .conftest import assert_finite, audit_impacts, newton_dissipation
 

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 import moreau as mo
+from moreau.problems.bouncing_ball import bouncing_ball
+from moreau.problems.piston import PistonParameters, piston_model
 from moreau.testing import FaultInjectingSolver
-from problems.bouncing_ball import bouncing_ball
-from problems.piston import PistonParameters, piston_model
 
 from .conftest import assert_finite, audit_impacts
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import moreau as mo
-from problems.pendulum_wall import pendulum_wall
+from moreau.problems.pendulum_wall import pendulum_wall
 
 from .conftest import assert_finite, audit_impacts
 

@@ -11,9 +11,9 @@ pressure curve: 4π M0' + W_damp(10 000 rpm) = 4π M0 + W_damp(2000 rpm), M0' = 
 import numpy as np
 import pytest
 
-from problems.piston import PistonParameters, cycle_figures, piston_model, steady_speed_rpm
-from problems.piston.analysis import max_penetration_ratio
-from problems.piston.pressure import FOUR_PI, calibrate, damping_work
+from moreau.problems.piston import PistonParameters, cycle_figures, piston_model, steady_speed_rpm
+from moreau.problems.piston.analysis import max_penetration_ratio
+from moreau.problems.piston.pressure import FOUR_PI, calibrate, damping_work
 
 from .conftest import assert_finite, audit_impacts
 

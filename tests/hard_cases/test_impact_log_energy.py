@@ -9,14 +9,14 @@ m g h |U| per bounce, the e = 0.9 piston logged gains); these tests keep that fi
 """
 
 import numpy as np
-import pytest
 
 import moreau as mo
-from problems.bouncing_ball import bouncing_ball
-from problems.pendulum_wall import pendulum_wall
-from problems.piston import PistonParameters, piston_model
+from moreau.problems.bouncing_ball import bouncing_ball
+from moreau.problems.pendulum_wall import pendulum_wall
+from moreau.problems.piston import PistonParameters, piston_model
 
 from .conftest import AUDIT_RTOL, audit_impacts, energy_scale, newton_dissipation
+
 
 def elastic_ball():
     return mo.simulate(bouncing_ball(1.0), (0.0, 5.0), [1.0], [0.0], 1e-3, solver="enum")

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import moreau as mo
-from problems.bouncing_ball import BallSolution, bouncing_ball
-from problems.piston import PistonParameters, piston_model
+from moreau.problems.bouncing_ball import BallSolution, bouncing_ball
+from moreau.problems.piston import PistonParameters, piston_model
 
 from .conftest import assert_finite, audit_impacts
 
@@ -108,7 +108,7 @@ def piston_slap(solver):
 
 def test_piston_top_and_bottom_corners_close_in_the_same_step():
     runs = {s: piston_slap(s) for s in SOLVERS}
-    for solver, traj in runs.items():
+    for traj in runs.values():
         assert traj.completed and traj.stats.fallbacks == 0
         assert_finite(traj)
         audit_impacts(traj)

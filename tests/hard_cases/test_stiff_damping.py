@@ -16,8 +16,8 @@ from scipy.linalg import eigh
 
 import moreau as mo
 from moreau.chain import ChainGravity, JointStop, Link, LinkTorque, PendulumChain
-from problems.piston import PistonParameters, piston_model
-from problems.piston.analysis import max_penetration_ratio
+from moreau.problems.piston import PistonParameters, piston_model
+from moreau.problems.piston.analysis import max_penetration_ratio
 
 from .conftest import assert_finite, audit_impacts
 

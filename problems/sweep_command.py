@@ -1,4 +1,5 @@
-"""``moreau sweep piston``: the piston engine over a grid of e and D (see :mod:`moreau.cli`)."""
+"""``moreau sweep piston``: the piston engine over a grid of e and D; registered by
+:func:`moreau.problems.commands.register_sweep`."""
 
 from __future__ import annotations
 
@@ -6,14 +7,14 @@ import argparse
 import os
 import sys
 
-from ._cli_common import EXIT_FAILED, EXIT_OK, EXIT_USAGE, CLIError, Stopped
-from ._pool import interrupt_exit_code
+from moreau.cli import EXIT_FAILED, EXIT_OK, EXIT_USAGE, CLIError, Stopped, interrupt_exit_code
 
-# -- sweep --------------------------------------------------------------------------------
+__all__ = ["param_spec", "run_sweep"]
+
 _SWEEP_PARAMS = {"e": ("e", 0.0, 1.0, False), "D": ("D_mm", 80.0, 100.0, True)}
 
 
-def _param_spec(text: str) -> tuple[str, list[float]]:
+def param_spec(text: str) -> tuple[str, list[float]]:
     """``NAME=start:stop:num`` (numpy.linspace), ``NAME=a,b,c`` or ``NAME=value``."""
     name, sep, spec = text.partition("=")
     name = name.strip()
@@ -64,9 +65,10 @@ def _sweep_out(path: str) -> str:
     return path
 
 
-def _cmd_sweep(args) -> int:
+def run_sweep(args: argparse.Namespace) -> int:
+    """Run the sweep and print its table; exit code 1 when a point failed."""
+    from moreau.problems.piston.study import piston_cache_key, piston_point
     from moreau.sweeps import sweep
-    from problems.piston.study import piston_cache_key, piston_point
 
     try:
         import pandas as pd
@@ -88,7 +90,7 @@ def _cmd_sweep(args) -> int:
     n = len(grid["e"]) * len(grid["D_mm"])
     where = f"Dask scheduler {args.dask}" if args.dask else f"{args.workers or os.cpu_count()} processes"
     print(f"moreau sweep piston: {n} point(s), {args.transient} transient + {args.cycles} analyzed cycles "
-          f"each, h = {args.h:g}, on {where}; table {args.out} (finished points kept in {args.out}.parts/)")
+          f"each, h = {args.h:g} τ, on {where}; table {args.out} (finished points kept in {args.out}.parts/)")
     try:
         df = sweep(piston_point, grid, executor=args.dask or "processes", workers=args.workers,
                    out=args.out, progress=not args.no_progress, cache_key=piston_cache_key())
