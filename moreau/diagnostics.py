@@ -93,7 +93,7 @@ def energy_ledger(traj: Trajectory, scene) -> dict:
         ``impact_loss`` : float, kinetic energy dissipated at the logged impacts;
         ``kinetic_change`` : float, T(end) − T(start);
         ``residual`` : float, Σ work − kinetic_change − impact_loss;
-        ``scale`` : float, Σ |work| + |kinetic_change| + impact_loss (for a relative
+        ``scale`` : float, ``Σ |work| + |kinetic_change| + impact_loss`` (for a relative
         residual);
         ``quadrature_error`` : float, change of Σ work when every other record is
         dropped (an indicator of the trapezoid error, see above);

@@ -2,7 +2,7 @@ r"""Parameters of the piston – connecting rod – crankshaft engine and the pa
 non-dimensional closed form, eq. (2.1)–(2.3) of Awrejcewicz & Kudra.
 
 Conventions (stated once, used by the whole ``problems.piston`` package)
------------------------------------------------------------------------
+------------------------------------------------------------------------
 * Links: 1 crank (pivot O1 fixed at the origin, length l1), 2 connecting rod
   (O2 → O3, length l2), 3 piston (pin O3). The cylinder axis is vertical, the piston
   above the crank: an *inverted* triple pendulum. Angles φ_i are absolute, measured from
