@@ -82,13 +82,15 @@ nb_merge_streams = True
 # ---- HTML ---------------------------------------------------------------------------
 html_theme = "pydata_sphinx_theme"
 html_title = f"moreau {release}"
-html_static_path = []
+html_static_path = ["_static"]
+html_css_files = ["custom.css"]
 html_theme_options = {
     "show_toc_level": 2,
     "navigation_with_keys": False,
     "secondary_sidebar_items": ["page-toc"],
 }
 html_show_sourcelink = False
+html_sidebars = {"index": [], "theory": []}  # pages without sub-pages
 
 
 # ---- the notebooks: copied from notebooks/, executed at reduced size -------------------
