@@ -1,14 +1,16 @@
 """Sphinx configuration of moreau's documentation site.
 
-Build (from the repository root; warnings are errors, as in CI)::
+Build (from the repository root; warnings and unresolved references are errors, as in CI)::
 
-    python -m sphinx -W --keep-going -b html docs docs/_build/html
+    python -m sphinx -W --keep-going -n -b html docs docs/_build/html
 
 The notebooks of ``notebooks/`` (jupytext percent scripts) are copied into
 ``docs/notebooks/`` (not versioned) and executed by myst-nb at reduced size
 (``MOREAU_NOTEBOOK_SCALE=small``, the size the test suite runs); a cell error fails the
 build. Set ``MOREAU_NOTEBOOK_SCALE=full`` in the environment to render them at full size
-(about 15 minutes for the triple pendulum alone).
+(about 15 minutes for the triple pendulum alone; add ``-D nb_execution_timeout=-1``, as
+a cell may then run longer than the 900 s allowed here). ``MOREAU_DOCS_EXECUTE=0`` renders
+every page without executing anything, for a quick preview of the text.
 """
 
 from __future__ import annotations
