@@ -192,9 +192,9 @@ class JacobianCheck:
     Attributes
     ----------
     max_abs_error : float
-        Largest |G_analytic - G_fd| entry.
+        Largest ``|G_analytic - G_fd|`` entry.
     max_rel_error : float
-        ``max_abs_error`` divided by max(1e-300, max |G_fd|).
+        ``max_abs_error`` divided by ``max(1e-300, max |G_fd|)``.
     analytic, numeric : ndarray, shape (m, n)
     """
 

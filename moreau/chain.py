@@ -22,7 +22,7 @@ Every quantity below is of the form ``Σ_i [C_i cos φ_i + S_i sin φ_i]`` with 
 coefficients, which are precomputed once so that the per-step evaluations are a handful
 of vectorized numpy operations.
 
-Mass matrix and bias force (derived from T = ½ Σ_k m_k |v_Ck|² + ½ J_k φ̇_k²):
+Mass matrix and bias force (derived from ``T = ½ Σ_k m_k |v_Ck|² + ½ J_k φ̇_k²``):
 
 .. math:: M_{ij} = ν_{ij} \\cos(φ_i - φ_j) + ν^s_{ij} \\sin(φ_i - φ_j),
 .. math:: f_{\\mathrm{bias}} = -N(φ)\\,\\dot φ^2,\\quad
@@ -274,7 +274,7 @@ class PendulumChain(MechanicalSystem):
         return _k.MASS_CHAIN, (self._pm,)
 
     def kinetic_energy(self, q, v) -> float:
-        """Kinetic energy ½ vᵀ M(q) v (J) = Σ_k ½ m_k |v_Ck|² + ½ J_k φ̇_k²."""
+        """Kinetic energy ½ vᵀ M(q) v (J) = ``Σ_k ½ m_k |v_Ck|² + ½ J_k φ̇_k²``."""
         v = np.asarray(v, dtype=float)
         return 0.5 * float(v @ self.mass_matrix(np.asarray(q, dtype=float)) @ v)
 
@@ -356,7 +356,7 @@ class PendulumChain(MechanicalSystem):
 
         Lengths are divided by ``length_scale`` (default l_0, the paper's l_1), times by
         ``time_scale`` (s), and masses by the mass unit M_00 / L², chosen so that the
-        (configuration-independent) M_00 = J_0 + m_0 |c_0|² + (Σ_{k>0} m_k) l_0² becomes 1,
+        (configuration-independent) ``M_00 = J_0 + m_0 |c_0|² + (Σ_{k>0} m_k) l_0²`` becomes 1,
         as in eq. (2.1). A scene built from the returned chain runs in non-dimensional time
         τ = t / time_scale; convert its effects with :class:`Units`.
 

@@ -100,7 +100,7 @@ def energy_ledger(traj: Trajectory, scene: Scene) -> dict[str, Any]:
         ``impact_loss`` : float, kinetic energy dissipated at the velocity-test onsets;
         ``kinetic_change`` : float, T(end) − T(start);
         ``residual`` : float, Σ work − kinetic_change − impact_loss;
-        ``scale`` : float, Σ |work| + |kinetic_change| + impact_loss (for a relative
+        ``scale`` : float, ``Σ |work| + |kinetic_change| + impact_loss`` (for a relative
         residual);
         ``quadrature_error`` : float, change of Σ work when every other record is
         dropped (an indicator of the trapezoid error, see above);

@@ -32,7 +32,7 @@ class PositionProjection:
 
     (the one-step QP with b = 0 and c = −g, so the same solver, checks and fallback) and
     set q⁺ ← q⁺ + Δq, after every step; repeat while a row still penetrates, up to ``max_iter`` times (the
-    linearization leaves O(|Δq|²) behind, far below the drift it removes). Velocities are
+    linearization leaves ``O(|Δq|²)`` behind, far below the drift it removes). Velocities are
     not changed. One more small solve per step in which something penetrates.
 
     Only rows whose restitution is at most ``max_restitution`` (default 0: plastic

@@ -277,7 +277,7 @@ class ContactDetails(NamedTuple):
     energy_lost : ndarray
         Per row ``−½ P_i (U⁻_i + U⁺_i)`` (J), the contact's share of the step's exact
         kinetic energy balance ``½v⁺ᵀMv⁺ − ½v_kᵀMv_k = h fᵀ(v_k + v⁺)/2 + ½ Pᵀ(U⁻ + U⁺)``.
-        With Newton's law (U⁺ = −e U⁻ where P > 0) it is ½ P |U⁻| (1 − e) >= 0: never a
+        With Newton's law (U⁺ = −e U⁻ where P > 0) it is ``½ P |U⁻| (1 − e) >= 0``: never a
         gain for e <= 1, zero for e = 1, and ½ m_eff U²(1 − e²) for an isolated impact.
     """
 

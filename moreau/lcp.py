@@ -234,8 +234,8 @@ def kkt_residuals_kernel(M, L, b, G, c, v, P, k, out, Gv, GtP, r, d, x, y):
     written to ``out`` (4,): primal, dual, complementarity, stationarity (dimensionless).
 
     Contact rows are measured as normal velocities against the contact's own velocity
-    scale (the largest of |c|, |G v|, the normal velocity the impulses make, and
-    1e-9 |G||v|); an impulse counts through the velocity it makes, ``P_i Σ_j G_ij²/M_jj``.
+    scale (the largest of ``|c|``, ``|G v|``, the normal velocity the impulses make, and
+    ``1e-9 |G||v|``); an impulse counts through the velocity it makes, ``P_i Σ_j G_ij²/M_jj``.
     Stationarity is measured per coordinate as a velocity error: ``δ = M⁻¹ (M v − b − Gᵀ P)``
     against ``max(|v_i|, |(M⁻¹ b)_i|, 1e-9 (‖v‖_M + ‖M⁻¹b‖_M)/√M_ii)``, less the round-off
     floor of that reconstruction, ``16 ε √(M⁻¹)_ii Σ_j √(M⁻¹)_jj (|M||v| + |b| + |Gᵀ||P|)_j``

@@ -206,7 +206,7 @@ class Scene:
         return float(sum(e.potential(q) for e in self.effects if e.has_potential))
 
     def energy(self, q: np.ndarray, v: np.ndarray) -> float:
-        """Kinetic plus potential energy (J); conserved when :attr:`conservative` and e = 1."""
+        """Kinetic plus potential energy (J); conserved when ``conservative`` and e = 1."""
         return self.kinetic_energy(q, v) + self.potential_energy(q)
 
     # -- checks -----------------------------------------------------------------------

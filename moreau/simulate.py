@@ -110,7 +110,7 @@ def simulate(
         Compare every barrier's Jacobian with finite differences of its gap at q0 and
         refuse a mismatch (``ValueError`` naming the row); default True.
     penetration_limit : float, optional
-        Largest acceptable penetration (gap units). Default: h·|U⁻| per row, the
+        Largest acceptable penetration (gap units). Default: ``h·|U⁻|`` per row, the
         distance its impacts travel in one step. A run beyond it warns
         (``RuntimeWarning``) and says so in ``traj.warnings``.
     flight_gap : float or array_like, shape (m,)

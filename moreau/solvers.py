@@ -285,7 +285,7 @@ class EnumerationSolver(_CompiledLCPSolver):
     Parameters
     ----------
     max_rows : int
-        Refuse (raise :class:`SolveFailed`) above this many active rows (at most 12).
+        Refuse (raise :class:`~moreau.solvers.SolveFailed`) above this many active rows (at most 12).
     """
 
     name = "enum"

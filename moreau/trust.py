@@ -4,7 +4,7 @@
   differences of its gap at the initial state: a Jacobian of the wrong sign or scale
   would otherwise let the contact drift through the barrier and the run "complete".
 * After the run, the largest penetration of every row over every step is compared with a
-  limit: the scheme's own scale h·|U⁻| (the distance a contact approaching at the normal
+  limit: the scheme's own scale ``h·|U⁻|`` (the distance a contact approaching at the normal
   speed U⁻ of its impacts travels in one step) unless the caller gives one (the piston
   passes its clearance). A run beyond it warns once and records the warning in
   ``traj.warnings``, which ``save``/``load`` keep.

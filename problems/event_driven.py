@@ -293,7 +293,7 @@ def pendulum_wall_reference(
 
 
 def moreau_impact_times(traj) -> np.ndarray:
-    """Impact times of a moreau run, comparable with :attr:`EventDrivenSolution.impact_times`.
+    """Impact times of a moreau run, comparable with ``impact_times`` of :class:`EventDrivenSolution`.
 
     The impact log gives the start t_k of the step in which an impact happened; reading
     that alone adds an O(h) quantization noise (the impact lies anywhere in the step)

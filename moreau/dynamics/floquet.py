@@ -83,7 +83,7 @@ def detect_period(points, max_period: int = 16, rtol: float = 1e-3, atol: float 
     rtol, atol : float
         Tolerances; scale is the largest magnitude of the points per component (1 where
         it is 0). With impacts, the scheme's section points of a periodic orbit jitter by
-        O(h·|v|) (the impact instant is quantized to the step grid): the tolerance must
+        ``O(h·|v|)`` (the impact instant is quantized to the step grid): the tolerance must
         exceed that.
     n_check : int, optional
         Number of pairs compared (default: all ``K - p``).

@@ -224,7 +224,7 @@ def lyapunov_spectrum(scene: mo.Scene, q0, v0, h: float, *, interval: float, n_i
     delta : float
         Finite-difference perturbation in the scaled norm (see :func:`largest_lyapunov`
         for its choice with impacts). Error O(delta) forward, O(delta²) central, plus
-        O(h·|v| / delta) with impacts.
+        ``O(h·|v| / delta)`` with impacts.
     scheme : {"forward", "central"}
         Finite differences.
     Other parameters

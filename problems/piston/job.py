@@ -189,7 +189,7 @@ def run_cases(cases: Sequence[Case], out: str, progress: bool = True, workers: i
 
     The files an earlier run left for these cases in ``out`` are removed first. On Ctrl-C
     or SIGTERM no further case starts, the running ones save what they computed, and the
-    ``KeyboardInterrupt`` (:class:`moreau._pool.Terminated` after SIGTERM) is re-raised
+    ``KeyboardInterrupt`` (``moreau._pool.Terminated`` after SIGTERM) is re-raised
     with the rows of every case as ``exc.rows`` (status ``"interrupted"`` or
     ``"not started"`` for those that did not complete).
     """

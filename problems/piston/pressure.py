@@ -15,14 +15,14 @@ Conventions
   cylinder axis; :math:`\varphi_1 = 0` (mod :math:`4\pi`) is the *firing* top
   dead centre (TDC).  The cycle has period :math:`4\pi` (720 deg):
 
-  ====================================  =================================
-  :math:`\varphi_1` interval             stroke
-  ====================================  =================================
+  ==========================================  =================
+  :math:`\varphi_1` interval                  stroke
+  ==========================================  =================
   :math:`[-\pi, 0]` (= :math:`[3\pi, 4\pi]`)  compression
-  :math:`[0, \pi]`                       expansion (power)
-  :math:`[\pi, 2\pi]`                    exhaust
-  :math:`[2\pi, 3\pi]`                   intake
-  ====================================  =================================
+  :math:`[0, \pi]`                            expansion (power)
+  :math:`[\pi, 2\pi]`                         exhaust
+  :math:`[2\pi, 3\pi]`                        intake
+  ==========================================  =================
 
 * Pressures are **gauge** pressures [Pa] (absolute minus atmospheric
   :math:`p_{atm} = 101325` Pa) unless stated otherwise.
@@ -873,7 +873,7 @@ def calibrate(
     defaults and the peak gauge pressure held at ``p_max``, find the start of
     combustion phi_s such that the indicated work of the K-harmonic Fourier
     representation equals 4 pi M0 plus the damping work at ``omega``
-    (brentq, |surplus| << 0.05 J).  Results are cached.
+    (brentq, ``|surplus| << 0.05 J``).  Results are cached.
 
     Parameters
     ----------
