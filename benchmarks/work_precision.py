@@ -1,7 +1,7 @@
 """Work–precision study: what accuracy costs in time (issue 5).
 
 For a ladder of step sizes, each integrator (:class:`~moreau.MoreauJeanMidpoint`,
-:class:`~moreau.MoreauJeanTheta`), each contact solver (OSQP at its default eps 1e-9
+:class:`~moreau.MoreauJeanPredictorCorrector`), each contact solver (OSQP at its default eps 1e-9
 with polishing and at loose tolerances, the exact ``enum`` and ``daqp``) and with and
 without drift control (:class:`~moreau.PositionProjection`), measure the wall time of the
 run and its error against an independent reference; fit the observed order of
@@ -76,7 +76,7 @@ __all__ = [
     "SolverSpec", "Config", "Run", "Problem", "BallProblem", "PendulumWallProblem",
     "SmoothPendulumProblem", "PistonProblem", "SOLVERS", "impact_times", "configs",
     "make_problems", "run_study", "fit_orders", "drift_cost", "osqp_comparison",
-    "format_table", "format_orders", "write_csv", "plot", "main",
+    "format_table", "format_orders", "cheapest", "format_cheapest", "write_csv", "plot", "main",
 ]
 
 # ----------------------------------------------------------------------------------------
@@ -107,31 +107,43 @@ SOLVERS: dict[str, SolverSpec] = {
     "osqp1e-5": SolverSpec("osqp1e-5", lambda: mo.OSQPSolver(eps=1e-5, polish=False), checked=False),
     "osqp1e-3": SolverSpec("osqp1e-3", lambda: mo.OSQPSolver(eps=1e-3, polish=False), checked=False),
     "enum": SolverSpec("enum", lambda: "enum"),
+    "exact": SolverSpec("exact", lambda: "exact"),  # the compiled default: runs the compiled loop
     "daqp": SolverSpec("daqp", lambda: "daqp"),
     # checked variants of the loose tolerances (rejected answers fall back to enum)
     "osqp1e-5+check": SolverSpec("osqp1e-5+check", lambda: mo.OSQPSolver(eps=1e-5, polish=False)),
     "osqp1e-3+check": SolverSpec("osqp1e-3+check", lambda: mo.OSQPSolver(eps=1e-3, polish=False)),
 }
 
-_INTEGRATORS = {"mid": mo.MoreauJeanMidpoint, "theta": mo.MoreauJeanTheta}
+_INTEGRATORS = {"mid": mo.MoreauJeanMidpoint, "theta": mo.MoreauJeanPredictorCorrector}
+#: drift control variants: none, PositionProjection (plastic rows), CombinedProjection (every e)
+_DRIFTS = {"none": None, "proj": mo.PositionProjection, "comb": mo.CombinedProjection}
 
 
 @dataclass(frozen=True)
 class Config:
-    """One configuration: integrator (``"mid"`` or ``"theta"``), solver, drift control."""
+    """One configuration: integrator (``"mid"`` or ``"theta"``), solver, drift control
+    (``"none"``, ``"proj"``: :class:`~moreau.PositionProjection`, ``"comb"``:
+    :class:`~moreau.CombinedProjection`; ``False``/``True`` mean none/proj)."""
 
     integrator: str
     solver: str
-    drift: bool
+    drift: str = "none"
+
+    def __post_init__(self) -> None:
+        d = {False: "none", True: "proj"}[self.drift] if isinstance(self.drift, bool) else self.drift
+        if d not in _DRIFTS:
+            raise ValueError(f"drift must be one of {sorted(_DRIFTS)} (or a bool), got {self.drift!r}")
+        object.__setattr__(self, "drift", d)
 
     @property
     def label(self) -> str:
-        return f"{self.integrator}/{self.solver}/{'proj' if self.drift else 'none'}"
+        return f"{self.integrator}/{self.solver}/{self.drift}"
 
     def simulate_kwargs(self) -> dict:
         kw = SOLVERS[self.solver].simulate_kwargs()
         kw["integrator"] = _INTEGRATORS[self.integrator]
-        kw["drift_control"] = mo.PositionProjection() if self.drift else None
+        make = _DRIFTS[self.drift]
+        kw["drift_control"] = make() if make is not None else None
         return kw
 
 
@@ -438,20 +450,32 @@ def make_problems(quick: bool = False) -> list[Problem]:
             PistonProblem(plad, pist, e=0.0, h_ref=5e-4),
             PistonProblem(plad, pist, e=0.9, h_ref=5e-4),
         ]
-    lad = list(np.logspace(-2, -4, 5))  # 1e-2 ... 1e-4, 2 decades
-    full = configs()
-    # the piston costs ~100x the small problems per run: one factor at a time around the
-    # midpoint with the exact enum solver (daqp and the checked loose OSQP runs are in
-    # the OSQP comparison)
-    pist = [Config("mid", "enum", False), Config("mid", "enum", True), Config("theta", "enum", False),
-            Config("mid", "osqp", False), Config("mid", "osqp1e-5", False), Config("mid", "osqp1e-3", False)]
+    lad = list(np.logspace(-2, -4, 5))  # 1e-2 ... 1e-4, 2 decades: the Python-path solvers
+    deep = list(np.logspace(-2, -6, 9))  # 1e-2 ... 1e-6, 4 decades: the compiled loop
+    compiled = configs(solvers=("exact",), drifts=("none", "proj", "comb"))
+    python = configs(solvers=("osqp", "osqp1e-5", "osqp1e-3", "enum", "daqp"), drifts=("none", "proj"))
+
+    def both(problem_cls, **kw):
+        p = problem_cls(deep, compiled + python, **kw)
+        p.ladders = {c: (deep if c.solver == "exact" else lad) for c in p.configs}
+        return p
+
+    # the piston: every integrator and drift control compiled, down to h = 1e-5 against
+    # a reference at h = 1e-6; the Python-path OSQP runs at h >= 1e-4
+    plad = list(np.logspace(-2, -5, 7))
+    pist = configs(solvers=("exact",), drifts=("none", "proj", "comb")) + [
+        Config("mid", "osqp", "none"), Config("mid", "osqp1e-5", "none"), Config("mid", "osqp1e-3", "none")]
+    pistons = []
+    for e in (0.0, 0.9):
+        p = PistonProblem(plad, pist, e=e, h_ref=1e-6, ref_config=Config("mid", "exact", "none"))
+        p.ladders = {c: (plad if c.solver == "exact" else [h for h in plad if h >= 1e-4]) for c in pist}
+        pistons.append(p)
     return [
-        BallProblem(lad, full),
-        PendulumWallProblem(lad, full, t_end=12.0),
-        SmoothPendulumProblem([0.04, 0.02, 0.01, 0.005, 0.0025, 0.00125, 4e-4],
-                              configs(solvers=("enum",), drifts=(False,))),
-        PistonProblem(lad, pist, e=0.0),
-        PistonProblem(lad, pist, e=0.9),
+        both(BallProblem),
+        both(PendulumWallProblem, t_end=12.0),
+        SmoothPendulumProblem([0.04, 0.02, 0.01, 0.005, 0.0025, 0.00125, 4e-4, 1e-4, 1e-5],
+                              configs(solvers=("exact",), drifts=(False,))),
+        *pistons,
     ]
 
 
@@ -464,8 +488,9 @@ def run_study(problems: Sequence[Problem], log: Callable[[str], None] | None = N
         if log and getattr(p, "ref_wall", None):
             log(f"{p.name}: reference {p.ref_config.label} at h = {p.h_ref:g} took {p.ref_wall:.1f} s: "
                 f"{_describe_ref(p.ref)}")
+        ladders = getattr(p, "ladders", {})
         for c in p.configs:
-            for h in p.ladder:
+            for h in ladders.get(c, p.ladder):
                 runs.append(p.run(c, h))
         if log:
             log(f"{p.name}: {len(p.configs)} configurations x {len(p.ladder)} steps in "
@@ -503,9 +528,11 @@ def drift_cost(runs: Sequence[Run], solver: str = "enum") -> list[dict]:
     out = []
     for r in runs:
         c = r.config
-        if not r.problem.startswith("piston") or c.drift or c.solver != solver:
+        if not r.problem.startswith("piston") or c.drift != "none" or c.solver != solver:
             continue
-        w = by.get((r.problem, Config(c.integrator, c.solver, True), r.h))
+        w = by.get((r.problem, Config(c.integrator, c.solver, "comb"), r.h))
+        if w is None:
+            w = by.get((r.problem, Config(c.integrator, c.solver, "proj"), r.h))
         if w is None:
             continue
         out.append({"problem": r.problem, "integrator": c.integrator, "h": r.h, "wall_none": r.wall,
@@ -572,6 +599,38 @@ def format_table(runs: Sequence[Run], problems: Sequence[Problem]) -> str:
             vals = " ".join(f"{_fmt(r.metrics.get(c, np.nan)):>12}" for c in cols)
             st = "" if r.status == "completed" else f"  [{r.status}]"
             lines.append(f"{r.config.label:<24} {r.h:8.2g} {r.wall:8.3f} {r.fallbacks:5d}  {vals}{st}")
+    return "\n".join(lines)
+
+
+def cheapest(runs: Sequence[Run], problems: Sequence[Problem], decades: int = 3) -> list[dict]:
+    """Per problem and target error: the configuration and h that reach it at the least
+    wall time. Targets: the largest primary error of the study, divided by 10, 100, ...
+    (``decades`` of them); a configuration reaches a target when one of its runs has a
+    primary error at or below it."""
+    out = []
+    for p in problems:
+        rs = [r for r in runs if r.problem == p.name and r.status == "completed" and np.isfinite(r.error)
+              and r.error > 0]
+        if not rs:
+            continue
+        top = max(r.error for r in rs)
+        for k in range(1, decades + 1):
+            target = top / 10.0**k
+            ok = [r for r in rs if r.error <= target]
+            if not ok:
+                continue
+            best = min(ok, key=lambda r: r.wall)
+            out.append({"problem": p.name, "target": target, "config": best.config.label, "h": best.h,
+                        "wall": best.wall, "error": best.error})
+    return out
+
+
+def format_cheapest(rows: Sequence[dict]) -> str:
+    head = f"{'problem':<16} {'target error':>12}  {'cheapest configuration':<24} {'h':>8} {'wall[s]':>8} {'error':>10}"
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        lines.append(f"{r['problem']:<16} {r['target']:12.3g}  {r['config']:<24} {r['h']:8.2g} {r['wall']:8.3f} "
+                     f"{r['error']:10.3g}")
     return "\n".join(lines)
 
 
@@ -647,9 +706,9 @@ def plot(runs: Sequence[Run], orders: dict, problems: Sequence[Problem], path: s
     import matplotlib.pyplot as plt
     from matplotlib.lines import Line2D
 
-    colors = {"osqp": "C0", "osqp1e-5": "C1", "osqp1e-3": "C3", "enum": "C2", "daqp": "C4"}
+    colors = {"osqp": "C0", "osqp1e-5": "C1", "osqp1e-3": "C3", "enum": "C2", "daqp": "C4", "exact": "C5"}
     styles = {"mid": "-", "theta": "--"}
-    markers = {False: "o", True: "s"}
+    markers = {"none": "o", "proj": "s", "comb": "^"}
     n = len(problems)
     ncol = 3
     nrow = math.ceil((n + 1) / ncol)
@@ -674,7 +733,7 @@ def plot(runs: Sequence[Run], orders: dict, problems: Sequence[Problem], path: s
         if not p.name.startswith("piston"):
             continue
         for c in p.configs:
-            if c.solver != "enum":
+            if c.solver not in ("enum", "exact"):
                 continue
             rs = [r for r in runs if r.problem == p.name and r.config == c and "penetration_run" in r.metrics]
             if rs:
@@ -689,8 +748,8 @@ def plot(runs: Sequence[Run], orders: dict, problems: Sequence[Problem], path: s
         ax.axis("off")
     handles = [Line2D([], [], color=v, label=k) for k, v in colors.items()]
     handles += [Line2D([], [], color="k", ls=v, label=k) for k, v in styles.items()]
-    handles += [Line2D([], [], color="k", marker=v, ls="", label="projection" if k else "no drift control")
-                for k, v in markers.items()]
+    names = {"none": "no drift control", "proj": "PositionProjection", "comb": "CombinedProjection"}
+    handles += [Line2D([], [], color="k", marker=v, ls="", label=names[k]) for k, v in markers.items()]
     fig.legend(handles=handles, loc="lower center", ncol=len(handles), fontsize=8)
     fig.suptitle("moreau work–precision: error against wall time (p = fitted order in h)")
     fig.tight_layout(rect=(0, 0.04, 1, 0.97))
@@ -721,6 +780,8 @@ def main(argv=None) -> int:
     print(format_table(runs, problems))
     print("\nobserved order of the primary error per configuration (fit over the ladder)")
     print(format_orders(runs, problems))
+    print("\nwhat buys an accuracy at least cost (primary error; targets 10x, 100x, 1000x below the largest)")
+    print(format_cheapest(cheapest(runs, problems)))
     pistons = [p for p in problems if isinstance(p, PistonProblem)]
     for p in pistons:
         print(f"\n{p.name} reference ({p.ref_config.label}, h = {p.h_ref:g}, {p.ref_wall:.0f} s): "

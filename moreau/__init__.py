@@ -27,7 +27,8 @@ from .barriers import Barrier, FunctionBarrier, LinearBarrier, check_jacobian
 from .drift import CombinedProjection, PositionProjection
 from .errors import SimulationError, SolverError
 from .forces import ConstantForce, Effect, FourierLoad, FunctionForce, HarmonicForce, LinearDamping, LinearSpring
-from .integrator import MoreauJeanMidpoint, MoreauJeanTheta, OneStepIntegrator
+from .integrator import MoreauJeanMidpoint, MoreauJeanPredictorCorrector, OneStepIntegrator
+from .integrator import MoreauJeanTheta as MoreauJeanTheta  # the former name, not in __all__
 from .laws import NewtonImpact
 from .onestep import OneStepProblem, Residuals
 from .result import ImpactLog, SolverStats, Trajectory, load
@@ -41,7 +42,8 @@ __all__ = [
     "Barrier", "FunctionBarrier", "LinearBarrier", "check_jacobian",
     "SimulationError", "SolverError",
     "ConstantForce", "Effect", "FourierLoad", "FunctionForce", "HarmonicForce", "LinearDamping", "LinearSpring",
-    "MoreauJeanMidpoint", "MoreauJeanTheta", "OneStepIntegrator", "PositionProjection", "CombinedProjection",
+    "MoreauJeanMidpoint", "MoreauJeanPredictorCorrector", "OneStepIntegrator",
+    "PositionProjection", "CombinedProjection",
     "NewtonImpact",
     "OneStepProblem", "Residuals",
     "ImpactLog", "SolverStats", "Trajectory", "load",

@@ -25,7 +25,8 @@ from .onestep import kkt_residuals
 from .scene import Scene
 from .solvers import ContactSolver, SolveFailed, make_solver
 
-__all__ = ["OneStepIntegrator", "MoreauJeanMidpoint", "MoreauJeanTheta", "NonFiniteState", "ContactDetails",
+__all__ = ["OneStepIntegrator", "MoreauJeanMidpoint", "MoreauJeanPredictorCorrector", "NonFiniteState",
+           "ContactDetails",
            "check_initial_state"]
 
 log = logging.getLogger(__name__)
@@ -308,7 +309,7 @@ class MoreauJeanMidpoint(OneStepIntegrator):
     velocity-dependent forces (damping, the Coriolis/centrifugal terms of a
     configuration-dependent M). For a constant mass matrix and position-only forces the
     smooth phases are integrated to order 2 (the scheme is then Störmer–Verlet).
-    :class:`MoreauJeanTheta` restores order 2 with velocity-dependent forces.
+    :class:`MoreauJeanPredictorCorrector` restores order 2 with velocity-dependent forces.
 
     The velocity condition is imposed with the Jacobian at the midpoint, so a pressed
     contact on a curved barrier drifts into it by about h²/2 · vᵀ∇²g v per step; a
@@ -393,8 +394,13 @@ class MoreauJeanMidpoint(OneStepIntegrator):
         return contact
 
 
-class MoreauJeanTheta(MoreauJeanMidpoint):
-    """Moreau–Jean midpoint with a θ = ½ treatment of the velocity-dependent forces.
+class MoreauJeanPredictorCorrector(MoreauJeanMidpoint):
+    """Moreau–Jean midpoint with a predictor–corrector (θ = ½) treatment of the
+    velocity-dependent forces.
+
+    Formerly ``MoreauJeanTheta`` (still importable under that name): renamed because in
+    Siconos' ``MoreauJeanOSI`` θ weights the whole step, while here the step stays the
+    midpoint one and only the velocity-dependent forces are corrected.
 
     The forces are evaluated at the mean of the start and end velocities instead of at
     v_k, by one predictor–corrector pass:
@@ -425,3 +431,7 @@ class MoreauJeanTheta(MoreauJeanMidpoint):
         f = force(tm, qm, 0.5 * (v + v_pred))
         v_new, contact = self._velocity_update(qm, M, f, v)
         return self._finish(qm, v_new, contact, f)
+
+
+#: The former name of :class:`MoreauJeanPredictorCorrector` (kept for existing scripts).
+MoreauJeanTheta = MoreauJeanPredictorCorrector

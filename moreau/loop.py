@@ -6,7 +6,7 @@ buffer is full, a solve fails or the state breaks) and returns a status code; th
 Python driver (:mod:`moreau.compiled`) calls it chunk after chunk, advancing the
 progress bar and honouring Ctrl-C between chunks, and turns the codes into the
 documented exceptions. The step is the one of :class:`moreau.MoreauJeanMidpoint` (and,
-with ``THETA``, of :class:`moreau.MoreauJeanTheta`), evaluated with the same kernels.
+with ``THETA``, of :class:`moreau.MoreauJeanPredictorCorrector`), evaluated with the same kernels.
 """
 
 from __future__ import annotations

@@ -14,7 +14,13 @@ from numpy.typing import ArrayLike
 from ._validation import as_positive, as_record_every, as_time_span, checked_start
 from .errors import SimulationError, SolverError, attach_trajectory
 from .flights import flight_gaps, initial_flight
-from .integrator import MoreauJeanMidpoint, MoreauJeanTheta, NonFiniteState, OneStepIntegrator, check_initial_state
+from .integrator import (
+    MoreauJeanMidpoint,
+    MoreauJeanPredictorCorrector,
+    NonFiniteState,
+    OneStepIntegrator,
+    check_initial_state,
+)
 from .result import ImpactLog, ImpactRow, SolverStats, Trajectory
 from .scene import Scene
 from .solvers import ContactSolver
@@ -78,7 +84,7 @@ def simulate(
         (numba; :mod:`moreau.loop`), for scenes whose every part has a compiled kernel
         (all built-in systems, effects and barriers, and user callables decorated with
         ``@numba.njit``), the integrators :class:`MoreauJeanMidpoint` and
-        :class:`MoreauJeanTheta`, drift control :class:`CombinedProjection` and
+        :class:`MoreauJeanPredictorCorrector`, drift control :class:`CombinedProjection` and
         :class:`PositionProjection`, and the
         compiled solvers ``"exact"`` and ``"enum"``; it raises ``ValueError`` naming
         what does not compile. ``"python"``: the readable reference path, with any
@@ -177,7 +183,7 @@ def simulate(
         bar = None
         try:
             bar = _progress_bar(progress, n_steps, scene.name)
-            traj = run_compiled(scene, cs, t0, q0, v0, h, n_steps, theta=integrator is MoreauJeanTheta,
+            traj = run_compiled(scene, cs, t0, q0, v0, h, n_steps, theta=integrator is MoreauJeanPredictorCorrector,
                                 solver=cast(str, solver), fallback=fallback, stride=stride, bar=bar, energy=energy,
                                 tol=tol, drift_control=drift_control, flight_gap=flight_gap)
         except KeyboardInterrupt as exc:  # before the loop took over: the initial state is the run
@@ -230,7 +236,7 @@ def _choose_backend(backend: str, scene: Scene, integrator: type[OneStepIntegrat
             raise ValueError(f"{what} must be a name or a ContactSolver, got {x!r}")
     reason = ""
     if backend != "python":
-        if integrator not in (MoreauJeanMidpoint, MoreauJeanTheta):
+        if integrator not in (MoreauJeanMidpoint, MoreauJeanPredictorCorrector):
             reason = f"integrator {integrator.__name__} has no compiled form"
         elif drift_control is not None and type(drift_control) not in (PositionProjection, CombinedProjection):
             reason = f"drift control {type(drift_control).__name__} has no compiled form"

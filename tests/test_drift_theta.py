@@ -55,13 +55,14 @@ def test_theta_equals_midpoint_without_velocity_dependent_forces():
     scene = pendulum_wall(e=0.8)
     assert not scene.velocity_dependent
     a = mo.simulate(scene, (0.0, 1.0), [-0.5], [2.0], 1e-3)
-    b = mo.simulate(scene, (0.0, 1.0), [-0.5], [2.0], 1e-3, integrator=mo.MoreauJeanTheta)
+    b = mo.simulate(scene, (0.0, 1.0), [-0.5], [2.0], 1e-3, integrator=mo.MoreauJeanPredictorCorrector)
     np.testing.assert_array_equal(a.q, b.q)
 
 
 def test_theta_with_damping_and_impacts_loses_no_energy_at_impacts():
     scene = pendulum_wall(e=0.8, damping=0.3)
-    traj = mo.simulate(scene, (0.0, 3.0), [-0.5], [3.0], 1e-3, integrator=mo.MoreauJeanTheta, solver="enum")
+    traj = mo.simulate(scene, (0.0, 3.0), [-0.5], [3.0], 1e-3, integrator=mo.MoreauJeanPredictorCorrector,
+                       solver="enum")
     assert len(traj.impacts) >= 2  # the pendulum swings back to the wall once in 3 s
     assert traj.impacts.energy_lost.min() > 0
     np.testing.assert_allclose(traj.impacts.U_after, -0.8 * traj.impacts.U_before, rtol=0.02)
@@ -77,3 +78,8 @@ def test_projection_leaves_bouncing_rows_alone_so_they_come_to_rest():
     every = mo.simulate(ball, (0.0, 6.0), [1.0], [0.0], 1e-3, solver="enum",
                         drift_control=mo.PositionProjection(max_restitution=1.0))
     assert len(every.impacts) > 5 * len(plain.impacts)  # the behaviour the default avoids
+
+
+def test_former_name_of_the_predictor_corrector_still_works():
+    assert mo.MoreauJeanTheta is mo.MoreauJeanPredictorCorrector
+    assert "MoreauJeanTheta" not in mo.__all__

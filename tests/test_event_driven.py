@@ -122,7 +122,7 @@ def pendulum_reference():
     return ref.impact_times[ref.impact_times <= T_END]
 
 
-@pytest.mark.parametrize("integrator", [mo.MoreauJeanMidpoint, mo.MoreauJeanTheta])
+@pytest.mark.parametrize("integrator", [mo.MoreauJeanMidpoint, mo.MoreauJeanPredictorCorrector])
 def test_moreau_impact_times_converge_to_the_reference_at_first_order(integrator, pendulum_reference):
     scene = pendulum_wall(e=E, wall_x=WALL, damping=DAMPING)
     assert pendulum_reference.size == 10

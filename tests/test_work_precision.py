@@ -52,7 +52,7 @@ def test_midpoint_is_first_order_with_damping():
 
 
 def test_theta_variant_is_second_order_with_damping():
-    errs = damped_pendulum_errors(mo.MoreauJeanTheta)
+    errs = damped_pendulum_errors(mo.MoreauJeanPredictorCorrector)
     assert convergence_order(STEPS, errs) == pytest.approx(2.0, abs=0.2)
     assert errs[-1] < damped_pendulum_errors(mo.MoreauJeanMidpoint)[-1] / 100
 
@@ -68,12 +68,12 @@ def test_chain_energy_error_second_order_with_theta_first_with_midpoint(links):
     v0 = np.array([0.0, 1.0, 0.5][:links])
     E0 = scene.energy(q0, v0)
     orders = {}
-    for integ in (mo.MoreauJeanMidpoint, mo.MoreauJeanTheta):
+    for integ in (mo.MoreauJeanMidpoint, mo.MoreauJeanPredictorCorrector):
         errs = [np.abs(mo.simulate(scene, (0.0, 2.0), q0, v0, h, integrator=integ).energy - E0).max()
                 for h in STEPS]
         orders[integ] = convergence_order(STEPS, errs)
     assert orders[mo.MoreauJeanMidpoint] == pytest.approx(1.0, abs=0.15)
-    assert orders[mo.MoreauJeanTheta] == pytest.approx(2.0, abs=0.2)
+    assert orders[mo.MoreauJeanPredictorCorrector] == pytest.approx(2.0, abs=0.2)
 
 
 # ----------------------------------------------------------------------------------------
