@@ -11,8 +11,10 @@ Backends
 --------
 ``"osqp"`` : :class:`OSQPSolver` (default). Set up once per scene, changed each step with
     OSQP's ``update()`` on a fixed sparsity pattern (inactive rows opened with l = −∞),
-    warm-started, eps 1e-9 with polishing. Rebuilding OSQP every step through
-    ``qpsolvers.solve_qp`` costs ~20x more (see ``benchmarks/step_cost.py``).
+    warm-started, eps 1e-9 with polishing, on the QP in mass-normalized units (identity
+    Hessian, rows of unit length); its active set is then made exact (and corrected where
+    it is not complementary). Rebuilding OSQP every step through ``qpsolvers.solve_qp``
+    costs ~20x more (see ``benchmarks/step_cost.py``).
 ``"enum"`` : :class:`EnumerationSolver`, exact: enumerates the active sets of the LCP,
     smallest first. Fast for the few active rows of a typical step; the default fallback.
 ``"daqp"``, ``"quadprog"``, ``"qpsolvers:<name>"`` : :class:`QpsolversSolver`, exact
@@ -21,9 +23,11 @@ Backends
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 
 import numpy as np
+from numba import njit
 
 __all__ = [
     "ContactSolver",
@@ -35,6 +39,9 @@ __all__ = [
     "make_solver",
     "available_solvers",
 ]
+
+
+_jit = njit(cache=True, nogil=True)
 
 
 class SolveFailed(RuntimeError):
@@ -71,27 +78,21 @@ class ContactSolver(ABC):
         return {"name": self.name}
 
 
-def _unconstrained_if_feasible(M, b, G, c, rows, factor=None):
+def _unconstrained_if_feasible(M, b, G, c, rows):
     """The unconstrained minimizer ``v = M⁻¹ b`` when it satisfies every active row, else None.
 
     Then it is the exact solution, with P = 0 (the QP is strictly convex). OSQP (1.x)
     prints "Polishing not needed - no active set detected at optimal point" through
     ``sys.stdout`` whenever polishing finds no active row, whatever ``verbose`` says; the
-    OSQP backends use this test to switch polishing off for such a solve (polishing would
-    not change the answer). Redirecting ``sys.stdout`` or file descriptor 1 around each
-    solve instead is process-global state and breaks under threads. What remains: a solve
-    whose true impulses are nonzero but below OSQP's detection threshold can still print
-    that line (measured: 1 in ~6 000 piston solves); it changes no result.
-
-    ``factor`` is a Cholesky factor of a constant M (``scipy.linalg.cho_factor``), or None.
+    OSQP backends use this test (:class:`OSQPSolver` in its own units) to switch polishing
+    off for such a solve (polishing would not change the answer). Redirecting
+    ``sys.stdout`` or file descriptor 1 around each solve instead is process-global state
+    and breaks under threads. What remains: a solve whose true impulses are nonzero but
+    below OSQP's detection threshold can still print that line (measured: 1 in ~6 000
+    piston solves); it changes no result.
     """
     try:
-        if factor is not None:
-            import scipy.linalg as sla
-
-            v = sla.cho_solve(factor, b)
-        else:
-            v = np.linalg.solve(M, b)
+        v = np.linalg.solve(M, b)
     except (np.linalg.LinAlgError, ValueError):
         return None
     if not np.all(np.isfinite(v)) or not np.all(G[rows] @ v >= c[rows]):
@@ -100,23 +101,47 @@ def _unconstrained_if_feasible(M, b, G, c, rows, factor=None):
 
 
 class OSQPSolver(ContactSolver):
-    """OSQP, set up once and updated every step.
+    """OSQP, set up once and updated every step, on the QP in mass-normalized units.
+
+    The one-step QP ``min ½ vᵀMv − bᵀv, G v >= c`` is handed to OSQP in the variables
+    ``u = Lᵀ v`` (``M = L Lᵀ``, Cholesky) with every row scaled to unit length:
+
+        minimize ½ uᵀu − u_freeᵀ u   subject to   Â u >= ĉ,
+        u_free = L⁻¹ b,   Â = R G L⁻ᵀ,   ĉ = R c,   R = diag(1 / ‖(G L⁻ᵀ)_i‖)
+
+    so that its Hessian is the identity and its Delassus matrix ``Â Âᵀ`` has a unit
+    diagonal, whatever the units of the coordinates (a change of units rescales M, G and
+    b and leaves this problem unchanged): ADMM's convergence and its tolerances no longer
+    depend on how the mass matrix is scaled. OSQP's answer then only proposes the
+    active set; the answer returned is the exact solution on that set (see ``refine``).
 
     Parameters
     ----------
     eps : float
-        Absolute and relative tolerance (``eps_abs = eps_rel``). The default 1e-9 with
-        polishing matches an exact solve; at eps >= 1e-5 impact counts change.
+        Absolute and relative tolerance (``eps_abs = eps_rel``) of ADMM, in the units
+        above (default 1e-9).
     polish : bool
         Polish the solution (solve the reduced KKT system on the detected active set).
     max_iter : int
         Iteration limit.
     refine : bool
-        Make the answer exact on the active set OSQP found (default True): the KKT
-        check measures velocities per coordinate, and ADMM alone leaves errors of
-        1e-6 … 1e-4 in light coordinates of ill-scaled mass matrices.
+        Make the answer exact (default True): solve the LCP ``0 <= p ⟂ ŵ + Ŵ p >= 0``
+        (``Ŵ = Â Âᵀ``, ``ŵ = Â u_free − ĉ``) exactly on the active set OSQP found (also
+        from an iterate ADMM stopped short of its tolerance), check complementarity (no
+        negative impulse, no violated row), and correct the set where it fails, by the
+        steps of the exact solver's dual active-set method (:func:`_lcp_from_proposed_set`).
+        What does not settle (an infeasible problem, or rows that lose independence to
+        round-off) is returned as OSQP answered and left to the integrator's KKT check and
+        its fallback. With False: OSQP's own answer, in the original units.
     name : str, optional
         Name in results (default ``"osqp"`` or ``"osqp(eps=...)"``).
+
+    Attributes
+    ----------
+    n_corrections : int
+        Solves whose active set had to be corrected after OSQP (statistics).
+    n_unsettled : int
+        Solves whose refinement did not settle (their answer is OSQP's).
     """
 
     exact = False
@@ -131,6 +156,7 @@ class OSQPSolver(ContactSolver):
         self.refine = bool(refine)
         self.name = name or ("osqp" if (eps == 1e-9 and polish) else f"osqp(eps={eps:g},polish={polish})")
         self._solver = None
+        self.n_corrections = self.n_unsettled = 0
 
     def setup(self, ndof, nrows, mass=None):
         import osqp
@@ -138,28 +164,15 @@ class OSQPSolver(ContactSolver):
 
         n, m = ndof, nrows
         self._n, self._m = n, m
-        # Dense patterns, kept fixed: upper triangle of P (CSC order), all of A.
-        Ppat = sp.csc_matrix(np.triu(np.ones((n, n))))
-        triu = [(i, j) for j in range(n) for i in range(j + 1)]
-        self._p_rows = np.array([i for i, _ in triu])
-        self._p_cols = np.array([j for _, j in triu])
-        Ppat.data = (np.eye(n) if mass is None else mass)[self._p_rows, self._p_cols].astype(float)
-        Apat = sp.csc_matrix(np.ones((m, n)))
         self._l = np.full(m, -np.inf)
         self._u = np.full(m, np.inf)
-        self._constant_mass = mass is not None
-        self._last_A = None
-        self._factor = None
-        if mass is not None:
-            import scipy.linalg as sla
-
-            try:
-                self._factor = sla.cho_factor(np.asarray(mass, dtype=float))
-            except (np.linalg.LinAlgError, ValueError):
-                self._factor = None
+        self._L = None
+        if mass is not None:  # constant M: factorized once
+            self._L = _cholesky(np.asarray(mass, dtype=float))
+        self._last_G = None
         s = osqp.OSQP()
         s.setup(
-            Ppat, np.zeros(n), Apat, self._l, self._u,
+            sp.identity(n, format="csc"), np.zeros(n), sp.csc_matrix(np.ones((m, n))), self._l, self._u,
             verbose=False, eps_abs=self.eps, eps_rel=self.eps, polishing=self.polish,
             warm_starting=True, max_iter=self.max_iter, eps_prim_inf=1e-12, eps_dual_inf=1e-12,
         )
@@ -167,75 +180,264 @@ class OSQPSolver(ContactSolver):
         self._solved_status = osqp.SolverStatus.OSQP_SOLVED
 
     def solve(self, M, b, G, c, rows):
+        import osqp
+
         if self._solver is None:
             raise SolveFailed("OSQPSolver.solve called before setup()")
-        # the QP is homogeneous in (b, c): solve small data in units where they are O(1)
-        # and scale (v, P) back. OSQP's absolute tolerance would otherwise swamp the 1e-10 m
-        # corrections of a drift-control projection (b = 0, c = −g).
-        scale = min(1.0, max(float(np.abs(c[rows]).max()) if rows.size else 0.0,
-                             float(np.abs(b).max()) / float(np.abs(np.diag(M)).max())
-                             * float(np.abs(G[rows]).max()) if rows.size else 0.0, 1e-300))
+        L = self._L if self._L is not None else _cholesky(M)
+        if L is None:
+            raise SolveFailed("the mass matrix is not positive definite")
+        # u_free = L⁻¹ b and L⁻¹ Gᵀ in one triangular solve (Ax is refreshed only when G
+        # or M changed: a constant M and a constant Jacobian keep it)
+        kw = {}
+        if self._L is None or G is not self._last_G:
+            X = _lower_solve(L, np.column_stack([b, G.T]).astype(float))
+            uf, AT = X[:, 0], X[:, 1:]
+            norms = np.sqrt(np.einsum("ij,ij->j", AT, AT))
+            r = 1.0 / np.where(norms > 0.0, norms, 1.0)
+            A = AT.T * r[:, None]
+            self._last_G = G
+            self._A, self._r = A, r
+            kw["Ax"] = A.ravel(order="F")
+        else:
+            uf = _lower_solve(L, np.asarray(b, dtype=float).reshape(-1, 1))[:, 0]
+            A, r = self._A, self._r
+        AR = A[rows]
+        cR = c[rows] * r[rows]
+        # the QP is homogeneous in (u_free, ĉ): solve it in units where they are O(1) (the
+        # 1e-10 corrections of a drift-control projection, b = 0 and c = −g, would
+        # otherwise drown in OSQP's absolute tolerance) and scale (u, p) back
+        scale = max(float(np.abs(uf).max()) if uf.size else 0.0, float(np.abs(cR).max()) if rows.size else 0.0)
+        if scale == 0.0:  # b = 0, c = 0: v = 0 is the solution
+            scale = 1.0
+        free_ok = bool(np.all(AR @ uf >= cR))
         l = self._l
         l.fill(-np.inf)
-        l[rows] = c[rows] / scale
-        kw = {"q": -b / scale, "l": l}
-        if not self._constant_mass:
-            kw["Px"] = M[self._p_rows, self._p_cols]
-        if G is not self._last_A:
-            kw["Ax"] = G.ravel(order="F")
-            self._last_A = G
+        l[rows] = cR / scale
+        self._solver.update(q=-uf / scale, l=l, **kw)
         # polishing would find no active row: skip it, it would only print that (see
         # _unconstrained_if_feasible); the answer is the same
-        quiet = self.polish and _unconstrained_if_feasible(M, b, G, c, rows, self._factor) is not None
-        self._solver.update(**kw)
+        quiet = self.polish and free_ok
         if quiet:
             self._solver.update_settings(polishing=False)
             res = self._solver.solve(raise_error=False)
             self._solver.update_settings(polishing=True)
         else:
             res = self._solver.solve(raise_error=False)
-        import osqp
-
         st = res.info.status_val  # an IntEnum: compares with the int
         nearly = st in (osqp.SolverStatus.OSQP_SOLVED_INACCURATE, osqp.SolverStatus.OSQP_MAX_ITER_REACHED)
         if st != self._solved_status and not (self.refine and nearly):
             raise SolveFailed(f"OSQP status {res.info.status!r} after {res.info.iter} iterations")
-        # OSQP: l <= Ax <= u with y < 0 on active lower bounds; P = -y.
-        v, P = scale * res.x, -scale * res.y[rows]
+        # OSQP: l <= Ax <= u with y < 0 on active lower bounds; p = -y
+        u, p = scale * res.x, -scale * res.y[rows]
         if self.refine:
-            # also from an iterate ADMM stopped short of its tolerance (ill-scaled M): the
-            # active set it found is usually right, and the KKT check judges the result
-            v, P = _refine_on_active_set(M, b, G[rows], c[rows], v, P)
-        return v, P
+            exact = self._exact_on_proposed_set(L, G[rows], c[rows], AR, uf, cR, r[rows], u, p)
+            if exact is not None:
+                return exact
+            self.n_unsettled += 1
+        return _upper_solve(L, u), p * r[rows]
+
+    def _exact_on_proposed_set(self, L, GR, cR_orig, AR, uf, cR, rR, u, p):
+        """(v, P) exact on the active set OSQP proposes, corrected if it is not
+        complementary (:func:`_lcp_from_proposed_set`); None when that does not settle.
+        Ends with iterative refinement in the original units, as the exact solver does:
+        ``v⁺ = v_free + M⁻¹GᵀP`` cancels large free velocities, leaving G v⁺ off its bound by
+        round-off of the large terms; P and v are corrected by that residual."""
+        k = AR.shape[0]
+        if k == 0:
+            return _upper_solve(L, uf), np.zeros(0)
+        W = AR @ AR.T
+        w = AR @ uf - cR
+        tol = 1e-12 * max(1e-300, float(np.abs(w).max()), float(np.abs(cR).max()), float(np.abs(uf).max()))
+        found = _lcp_from_proposed_set(W, w, p, AR @ u - cR, tol, 4 * k + 10)
+        if found is None:
+            return None
+        q, act, corrections = found
+        self.n_corrections += bool(corrections)
+        v = _upper_solve(L, uf + AR.T @ q)
+        # iterative refinement while it reduces the set's slacks (nearly opposed rows,
+        # whose large impulses cancel, take two steps), keeping the best answer
+        best = None
+        for step in range(4 if act else 0):
+            t = np.zeros(k)
+            t[act] = rR[act] * (GR[act] @ v - cR_orig[act])  # the set's slacks, in these units
+            err = float(np.abs(t[act]).max())
+            if best is not None and not err < best[0]:
+                v, q = best[1], best[2]
+                break
+            best = (err, v, q.copy())
+            if err == 0.0 or step == 3:
+                break
+            kept, dq = _solve_on(W, t, act)
+            if len(kept) != len(act) or not np.all(q[act] + dq >= 0.0):
+                break
+            q[act] += dq
+            v = v + _upper_solve(L, AR[act].T @ dq)
+        return v, q * rR
 
     def describe(self):
         return {"name": self.name, "eps": self.eps, "polish": self.polish}
 
 
-def _refine_on_active_set(M, b, GA, cA, v, P):
-    """OSQP's answer made exact on the active set it found (rows with P > 0, possibly none): solve the
-    equality-constrained KKT system there, ``W_SS P_S = c_S − G_S M⁻¹ b``, and keep the
-    result when its impulses are non-negative and every row is feasible (to round-off);
-    otherwise OSQP's own answer (the KKT check then judges it). ADMM converges slowly in
-    a light coordinate of an ill-scaled M; this step does not depend on the scaling."""
-    S = np.flatnonzero(P > 0.0)
-    if S.size > M.shape[0]:
-        return v, P
-    try:
-        sol = np.linalg.solve(M, np.column_stack([b, GA[S].T]))
-        GS = GA[S]
-        PS = np.linalg.solve(GS @ sol[:, 1:], cA[S] - GS @ sol[:, 0]) if S.size else np.zeros(0)
-    except np.linalg.LinAlgError:
-        return v, P
-    if S.size and PS.min() < 0.0:
-        return v, P
-    v2 = sol[:, 0] + sol[:, 1:] @ PS
-    slack = GA @ v2 - cA
-    if slack.min() < -1e-12 * max(1e-300, float(np.abs(cA).max()), float(np.abs(GA @ v2).max())):
-        return v, P
-    P2 = np.zeros_like(P)
-    P2[S] = PS
-    return v2, P2
+def _cholesky(M):
+    """Lower Cholesky factor of M, or None when M is not positive definite."""
+    from .kernels import cholesky
+
+    M = np.ascontiguousarray(M, dtype=float)
+    n = M.shape[0]
+    L = np.empty((n, n))
+    return None if cholesky(M, L, n) >= 0 else L
+
+
+def _lcp_from_proposed_set(W, w, p, s, tol, max_steps):
+    """The exact solution of the LCP ``0 <= p ⟂ w + W p >= 0`` (W = A Aᵀ of rows of unit
+    length, positive semi-definite) from the active set an approximate ``(p, s)`` proposes;
+    ``(p, active rows, corrections)`` or None when it does not settle in ``max_steps``.
+
+    p and s are both velocities in these units, and the proposed set is
+    ``{i : p_i > s_i, p_i > 0}`` (the primal–dual active-set rule: for OSQP's polished
+    answer, the rows it holds at their bound with an impulse). On that set solve
+    ``W_SS p_S = −w_S`` (a row dependent on those before it, a redundant contact, gets no
+    impulse) and drop the most negative impulse until none is negative: a dual-feasible
+    start. Then check complementarity, and while a row is violated (slack below ``−tol``,
+    less the round-off of ``W p``) correct the set as the dual active-set method of
+    Goldfarb & Idnani does (the exact solver's, :mod:`moreau.lcp`): add the most violated
+    row, moving the impulses of the set so that their slacks stay zero, and drop a row
+    whose impulse reaches zero first. From a right proposal this is one solve.
+    """
+    k = w.shape[0]
+    order = np.argsort(-(p - s), kind="stable")
+    A = [int(i) for i in order if p[i] > s[i] and p[i] > 0.0]
+    A, pA, corrections = _nonnegative_on(W, w, A)
+    q = np.zeros(k)
+    q[A] = pA
+    absW = np.abs(W)
+    for _ in range(max_steps):
+        # slacks of the rows outside the set (those in it are zero by construction), less
+        # the round-off of W p where large impulses cancel (nearly opposed rows)
+        sl = w + W @ q
+        sl[A] = np.inf
+        sl += 8.0 * np.finfo(float).eps * (absW @ np.abs(q))
+        j = int(np.argmin(sl))
+        if not sl[j] < -tol:
+            return q, A, corrections
+        sl[j] = w[j] + float(W[j] @ q)
+        corrections += 1
+        while True:  # bring row j to its bound (Goldfarb–Idnani step)
+            if A:
+                kept, dpA = _solve_on(W, W[:, j], A)  # −W_AA⁻¹ W_Aj
+                if len(kept) != len(A):
+                    return None  # the set lost independence to round-off
+                ds = W[j, j] + float(W[j, A] @ dpA)
+            else:
+                dpA, ds = np.zeros(0), W[j, j]
+            t_full = -sl[j] / ds if ds > 1e-13 * W[j, j] else np.inf
+            shrink = np.flatnonzero(dpA < 0.0)
+            t_part, blocking = np.inf, -1
+            if shrink.size:
+                ratios = -q[np.array(A)[shrink]] / dpA[shrink]
+                blocking = int(shrink[np.argmin(ratios)])
+                t_part = float(ratios.min())
+            t = min(t_full, t_part)
+            if not np.isfinite(t):
+                return None  # row j cannot be satisfied: infeasible
+            if A:
+                q[A] += t * dpA
+            q[j] += t
+            sl[j] += t * ds
+            if t_full <= t_part:
+                A.append(j)
+                A, pA, dropped = _nonnegative_on(W, w, A)  # exactly on the new set
+                corrections += dropped
+                q[:] = 0.0
+                q[A] = pA
+                break
+            q[A[blocking]] = 0.0
+            del A[blocking]
+    return None
+
+
+def _nonnegative_on(W, w, S):
+    """:func:`_solve_on` on S, dropping the most negative impulse and solving again until
+    none is negative; ``(rows, impulses, rows dropped)``."""
+    dropped = 0
+    while True:
+        S, pS = _solve_on(W, w, S)
+        if not S or pS.min() >= 0.0:
+            return S, pS, dropped
+        del S[int(np.argmin(pS))]
+        dropped += 1
+
+
+def _solve_on(W, w, S):
+    """``W_SS p_S = −w_S`` by Cholesky, taking the rows of S in order and leaving out a row
+    whose pivot shows it dependent on those before it (below 1e-13 of its W_ii, the exact
+    solver's test); ``(kept rows, p_kept)``."""
+    S = np.asarray(S, dtype=np.int64)
+    ns = S.shape[0]
+    kept = np.empty(ns, dtype=np.int64)
+    out = np.empty(ns)
+    nk = _solve_on_kernel(W, np.ascontiguousarray(w), S, kept, out, np.empty((max(ns, 1), max(ns, 1))))
+    return [int(i) for i in kept[:nk]], out[:nk]
+
+
+# small dense kernels (numba: LAPACK's triangular solves go through a threaded BLAS whose
+# start-up costs milliseconds on these 3 x 3 … 30 x 30 problems)
+@_jit
+def _solve_on_kernel(W, w, S, kept, out, F):
+    nk = 0
+    for a in range(S.shape[0]):
+        i = S[a]
+        d = W[i, i]
+        for r in range(nk):  # row nk of F: F[:nk, :nk]⁻¹ W[kept, i]
+            t = W[i, kept[r]]
+            for m in range(r):
+                t -= F[nk, m] * F[r, m]
+            F[nk, r] = t / F[r, r]
+            d -= F[nk, r] * F[nk, r]
+        if not d > 1e-13 * W[i, i]:
+            continue
+        F[nk, nk] = math.sqrt(d)
+        kept[nk] = i
+        nk += 1
+    for r in range(nk):
+        t = -w[kept[r]]
+        for m in range(r):
+            t -= F[r, m] * out[m]
+        out[r] = t / F[r, r]
+    for r in range(nk - 1, -1, -1):
+        t = out[r]
+        for m in range(r + 1, nk):
+            t -= F[m, r] * out[m]
+        out[r] = t / F[r, r]
+    return nk
+
+
+@_jit
+def _lower_solve(L, B):
+    """L⁻¹ B for a lower triangular L (n x n) and B (n x p)."""
+    n, p = B.shape
+    X = np.empty((n, p))
+    for c in range(p):
+        for i in range(n):
+            t = B[i, c]
+            for m in range(i):
+                t -= L[i, m] * X[m, c]
+            X[i, c] = t / L[i, i]
+    return X
+
+
+@_jit
+def _upper_solve(L, x):
+    """L⁻ᵀ x for a lower triangular L."""
+    n = x.shape[0]
+    y = np.empty(n)
+    for i in range(n - 1, -1, -1):
+        t = x[i]
+        for m in range(i + 1, n):
+            t -= L[m, i] * y[m]
+        y[i] = t / L[i, i]
+    return y
 
 
 class _CompiledLCPSolver(ContactSolver):
