@@ -129,7 +129,7 @@ class OSQPSolver(ContactSolver):
         (``Ŵ = Â Âᵀ``, ``ŵ = Â u_free − ĉ``) exactly on the active set OSQP found (also
         from an iterate ADMM stopped short of its tolerance), check complementarity (no
         negative impulse, no violated row), and correct the set where it fails, by the
-        steps of the exact solver's dual active-set method (:func:`_lcp_from_proposed_set`).
+        steps of the exact solver's dual active-set method (:func:`_exact_from_proposed_set`).
         What does not settle (an infeasible problem, or rows that lose independence to
         round-off) is returned as OSQP answered and left to the integrator's KKT check and
         its fallback. With False: OSQP's own answer, in the original units.
@@ -187,38 +187,33 @@ class OSQPSolver(ContactSolver):
         L = self._L if self._L is not None else _cholesky(M)
         if L is None:
             raise SolveFailed("the mass matrix is not positive definite")
-        # u_free = L⁻¹ b and L⁻¹ Gᵀ in one triangular solve (Ax is refreshed only when G
-        # or M changed: a constant M and a constant Jacobian keep it)
+        n, m = self._n, self._m
+        uf = np.empty(n)
         kw = {}
-        if self._L is None or G is not self._last_G:
-            X = _lower_solve(L, np.column_stack([b, G.T]).astype(float))
-            uf, AT = X[:, 0], X[:, 1:]
-            norms = np.sqrt(np.einsum("ij,ij->j", AT, AT))
-            r = 1.0 / np.where(norms > 0.0, norms, 1.0)
-            A = AT.T * r[:, None]
+        if self._L is None or G is not self._last_G:  # Â is kept for a constant M and Jacobian
+            A, r = np.empty((m, n)), np.empty(m)
+            _normalized(L, np.ascontiguousarray(b, dtype=float), np.ascontiguousarray(G, dtype=float), A, r, uf)
             self._last_G = G
             self._A, self._r = A, r
             kw["Ax"] = A.ravel(order="F")
         else:
-            uf = _lower_solve(L, np.asarray(b, dtype=float).reshape(-1, 1))[:, 0]
             A, r = self._A, self._r
+            _normalized(L, np.ascontiguousarray(b, dtype=float), np.zeros((0, n)), A[:0], r[:0], uf)
         AR = A[rows]
         cR = c[rows] * r[rows]
         # the QP is homogeneous in (u_free, ĉ): solve it in units where they are O(1) (the
         # 1e-10 corrections of a drift-control projection, b = 0 and c = −g, would
         # otherwise drown in OSQP's absolute tolerance) and scale (u, p) back
-        scale = max(float(np.abs(uf).max()) if uf.size else 0.0, float(np.abs(cR).max()) if rows.size else 0.0)
+        scale = max(float(np.abs(uf).max()) if n else 0.0, float(np.abs(cR).max()) if rows.size else 0.0)
         if scale == 0.0:  # b = 0, c = 0: v = 0 is the solution
             scale = 1.0
-        free_ok = bool(np.all(AR @ uf >= cR))
         l = self._l
         l.fill(-np.inf)
         l[rows] = cR / scale
         self._solver.update(q=-uf / scale, l=l, **kw)
         # polishing would find no active row: skip it, it would only print that (see
         # _unconstrained_if_feasible); the answer is the same
-        quiet = self.polish and free_ok
-        if quiet:
+        if self.polish and bool(np.all(AR @ uf >= cR)):
             self._solver.update_settings(polishing=False)
             res = self._solver.solve(raise_error=False)
             self._solver.update_settings(polishing=True)
@@ -231,49 +226,15 @@ class OSQPSolver(ContactSolver):
         # OSQP: l <= Ax <= u with y < 0 on active lower bounds; p = -y
         u, p = scale * res.x, -scale * res.y[rows]
         if self.refine:
-            exact = self._exact_on_proposed_set(L, G[rows], c[rows], AR, uf, cR, r[rows], u, p)
-            if exact is not None:
-                return exact
+            k = rows.shape[0]
+            v, P, info = np.empty(n), np.empty(k), np.zeros(2, dtype=np.int64)
+            if _exact_from_proposed_set(L, np.ascontiguousarray(G[rows], dtype=float),
+                                        np.ascontiguousarray(c[rows], dtype=float), AR, uf, cR, r[rows], u, p,
+                                        v, P, info):
+                self.n_corrections += bool(info[0])
+                return v, P
             self.n_unsettled += 1
         return _upper_solve(L, u), p * r[rows]
-
-    def _exact_on_proposed_set(self, L, GR, cR_orig, AR, uf, cR, rR, u, p):
-        """(v, P) exact on the active set OSQP proposes, corrected if it is not
-        complementary (:func:`_lcp_from_proposed_set`); None when that does not settle.
-        Ends with iterative refinement in the original units, as the exact solver does:
-        ``v⁺ = v_free + M⁻¹GᵀP`` cancels large free velocities, leaving G v⁺ off its bound by
-        round-off of the large terms; P and v are corrected by that residual."""
-        k = AR.shape[0]
-        if k == 0:
-            return _upper_solve(L, uf), np.zeros(0)
-        W = AR @ AR.T
-        w = AR @ uf - cR
-        tol = 1e-12 * max(1e-300, float(np.abs(w).max()), float(np.abs(cR).max()), float(np.abs(uf).max()))
-        found = _lcp_from_proposed_set(W, w, p, AR @ u - cR, tol, 4 * k + 10)
-        if found is None:
-            return None
-        q, act, corrections = found
-        self.n_corrections += bool(corrections)
-        v = _upper_solve(L, uf + AR.T @ q)
-        # iterative refinement while it reduces the set's slacks (nearly opposed rows,
-        # whose large impulses cancel, take two steps), keeping the best answer
-        best = None
-        for step in range(4 if act else 0):
-            t = np.zeros(k)
-            t[act] = rR[act] * (GR[act] @ v - cR_orig[act])  # the set's slacks, in these units
-            err = float(np.abs(t[act]).max())
-            if best is not None and not err < best[0]:
-                v, q = best[1], best[2]
-                break
-            best = (err, v, q.copy())
-            if err == 0.0 or step == 3:
-                break
-            kept, dq = _solve_on(W, t, act)
-            if len(kept) != len(act) or not np.all(q[act] + dq >= 0.0):
-                break
-            q[act] += dq
-            v = v + _upper_solve(L, AR[act].T @ dq)
-        return v, q * rR
 
     def describe(self):
         return {"name": self.name, "eps": self.eps, "polish": self.polish}
@@ -289,104 +250,53 @@ def _cholesky(M):
     return None if cholesky(M, L, n) >= 0 else L
 
 
-def _lcp_from_proposed_set(W, w, p, s, tol, max_steps):
-    """The exact solution of the LCP ``0 <= p ⟂ w + W p >= 0`` (W = A Aᵀ of rows of unit
-    length, positive semi-definite) from the active set an approximate ``(p, s)`` proposes;
-    ``(p, active rows, corrections)`` or None when it does not settle in ``max_steps``.
-
-    p and s are both velocities in these units, and the proposed set is
-    ``{i : p_i > s_i, p_i > 0}`` (the primal–dual active-set rule: for OSQP's polished
-    answer, the rows it holds at their bound with an impulse). On that set solve
-    ``W_SS p_S = −w_S`` (a row dependent on those before it, a redundant contact, gets no
-    impulse) and drop the most negative impulse until none is negative: a dual-feasible
-    start. Then check complementarity, and while a row is violated (slack below ``−tol``,
-    less the round-off of ``W p``) correct the set as the dual active-set method of
-    Goldfarb & Idnani does (the exact solver's, :mod:`moreau.lcp`): add the most violated
-    row, moving the impulses of the set so that their slacks stay zero, and drop a row
-    whose impulse reaches zero first. From a right proposal this is one solve.
-    """
-    k = w.shape[0]
-    order = np.argsort(-(p - s), kind="stable")
-    A = [int(i) for i in order if p[i] > s[i] and p[i] > 0.0]
-    A, pA, corrections = _nonnegative_on(W, w, A)
-    q = np.zeros(k)
-    q[A] = pA
-    absW = np.abs(W)
-    for _ in range(max_steps):
-        # slacks of the rows outside the set (those in it are zero by construction), less
-        # the round-off of W p where large impulses cancel (nearly opposed rows)
-        sl = w + W @ q
-        sl[A] = np.inf
-        sl += 8.0 * np.finfo(float).eps * (absW @ np.abs(q))
-        j = int(np.argmin(sl))
-        if not sl[j] < -tol:
-            return q, A, corrections
-        sl[j] = w[j] + float(W[j] @ q)
-        corrections += 1
-        while True:  # bring row j to its bound (Goldfarb–Idnani step)
-            if A:
-                kept, dpA = _solve_on(W, W[:, j], A)  # −W_AA⁻¹ W_Aj
-                if len(kept) != len(A):
-                    return None  # the set lost independence to round-off
-                ds = W[j, j] + float(W[j, A] @ dpA)
-            else:
-                dpA, ds = np.zeros(0), W[j, j]
-            t_full = -sl[j] / ds if ds > 1e-13 * W[j, j] else np.inf
-            shrink = np.flatnonzero(dpA < 0.0)
-            t_part, blocking = np.inf, -1
-            if shrink.size:
-                ratios = -q[np.array(A)[shrink]] / dpA[shrink]
-                blocking = int(shrink[np.argmin(ratios)])
-                t_part = float(ratios.min())
-            t = min(t_full, t_part)
-            if not np.isfinite(t):
-                return None  # row j cannot be satisfied: infeasible
-            if A:
-                q[A] += t * dpA
-            q[j] += t
-            sl[j] += t * ds
-            if t_full <= t_part:
-                A.append(j)
-                A, pA, dropped = _nonnegative_on(W, w, A)  # exactly on the new set
-                corrections += dropped
-                q[:] = 0.0
-                q[A] = pA
-                break
-            q[A[blocking]] = 0.0
-            del A[blocking]
-    return None
-
-
-def _nonnegative_on(W, w, S):
-    """:func:`_solve_on` on S, dropping the most negative impulse and solving again until
-    none is negative; ``(rows, impulses, rows dropped)``."""
-    dropped = 0
-    while True:
-        S, pS = _solve_on(W, w, S)
-        if not S or pS.min() >= 0.0:
-            return S, pS, dropped
-        del S[int(np.argmin(pS))]
-        dropped += 1
-
-
-def _solve_on(W, w, S):
-    """``W_SS p_S = −w_S`` by Cholesky, taking the rows of S in order and leaving out a row
-    whose pivot shows it dependent on those before it (below 1e-13 of its W_ii, the exact
-    solver's test); ``(kept rows, p_kept)``."""
-    S = np.asarray(S, dtype=np.int64)
-    ns = S.shape[0]
-    kept = np.empty(ns, dtype=np.int64)
-    out = np.empty(ns)
-    nk = _solve_on_kernel(W, np.ascontiguousarray(w), S, kept, out, np.empty((max(ns, 1), max(ns, 1))))
-    return [int(i) for i in kept[:nk]], out[:nk]
-
-
-# small dense kernels (numba: LAPACK's triangular solves go through a threaded BLAS whose
-# start-up costs milliseconds on these 3 x 3 … 30 x 30 problems)
+# -- the exact refinement (numba: small dense loops, called at every solve; LAPACK's
+# -- triangular solves go through a threaded BLAS whose start-up costs milliseconds here)
 @_jit
-def _solve_on_kernel(W, w, S, kept, out, F):
+def _normalized(L, b, G, A, r, uf):
+    """``u_free = L⁻¹ b`` into uf and the rows of ``G L⁻ᵀ`` scaled to unit length into A,
+    their scales ``1 / ‖(G L⁻ᵀ)_i‖`` into r (1 for a zero row)."""
+    n = L.shape[0]
+    for i in range(n):
+        t = b[i]
+        for j in range(i):
+            t -= L[i, j] * uf[j]
+        uf[i] = t / L[i, i]
+    for row in range(G.shape[0]):
+        nrm = 0.0
+        for i in range(n):
+            t = G[row, i]
+            for j in range(i):
+                t -= L[i, j] * A[row, j]
+            A[row, i] = t / L[i, i]
+            nrm += A[row, i] * A[row, i]
+        s = 1.0 / math.sqrt(nrm) if nrm > 0.0 else 1.0
+        r[row] = s
+        for i in range(n):
+            A[row, i] *= s
+
+
+@_jit
+def _upper_solve(L, x):
+    """L⁻ᵀ x for a lower triangular L."""
+    n = x.shape[0]
+    y = np.empty(n)
+    for i in range(n - 1, -1, -1):
+        t = x[i]
+        for m in range(i + 1, n):
+            t -= L[m, i] * y[m]
+        y[i] = t / L[i, i]
+    return y
+
+
+@_jit
+def _solve_on(W, w, S, ns, kept, out, F):
+    """``W_SS p_S = −w_S`` on the rows ``S[:ns]`` by Cholesky, taking them in order and
+    leaving out a row whose pivot shows it dependent on those before it (below 1e-13 of its
+    W_ii, the exact solver's test: a redundant contact gets no impulse). The rows kept go
+    to ``kept``, their impulses to ``out``; returns how many were kept. F: work (>= ns)²."""
     nk = 0
-    for a in range(S.shape[0]):
+    for a in range(ns):
         i = S[a]
         d = W[i, i]
         for r in range(nk):  # row nk of F: F[:nk, :nk]⁻¹ W[kept, i]
@@ -414,30 +324,218 @@ def _solve_on_kernel(W, w, S, kept, out, F):
 
 
 @_jit
-def _lower_solve(L, B):
-    """L⁻¹ B for a lower triangular L (n x n) and B (n x p)."""
-    n, p = B.shape
-    X = np.empty((n, p))
-    for c in range(p):
-        for i in range(n):
-            t = B[i, c]
-            for m in range(i):
-                t -= L[i, m] * X[m, c]
-            X[i, c] = t / L[i, i]
-    return X
+def _nonnegative_on(W, w, S, ns, kept, out, F):
+    """:func:`_solve_on` on ``S[:ns]``, dropping the most negative impulse and solving again
+    until none is negative; S[:returned] holds the rows, ``out`` their impulses. Returns
+    ``(rows, rows dropped)``."""
+    dropped = 0
+    while True:
+        nk = _solve_on(W, w, S, ns, kept, out, F)
+        for a in range(nk):
+            S[a] = kept[a]
+        ns = nk
+        worst = -1
+        for a in range(nk):
+            if out[a] < 0.0 and (worst < 0 or out[a] < out[worst]):
+                worst = a
+        if worst < 0:
+            return ns, dropped
+        for a in range(worst, ns - 1):
+            S[a] = S[a + 1]
+        ns -= 1
+        dropped += 1
 
 
 @_jit
-def _upper_solve(L, x):
-    """L⁻ᵀ x for a lower triangular L."""
-    n = x.shape[0]
-    y = np.empty(n)
-    for i in range(n - 1, -1, -1):
-        t = x[i]
-        for m in range(i + 1, n):
-            t -= L[m, i] * y[m]
-        y[i] = t / L[i, i]
-    return y
+def _exact_from_proposed_set(L, GR, cRo, A, uf, c, rR, u, p, v, P, info):
+    """The exact solution of the normalized one-step problem ``min ½|u|² − u_freeᵀu,
+    A u >= c`` (rows of A of unit length) from the active set an approximate ``(u, p)``
+    proposes: v (original units) and P into ``v``, ``P``; returns False when it does not
+    settle (an infeasible problem, or active rows that lose independence to round-off).
+    ``info[0]``: the corrections the proposed set needed.
+
+    In the LCP form ``0 <= p ⟂ s = w + W p >= 0`` (``W = A Aᵀ``, unit diagonal;
+    ``w = A u_free − c``) p and s are both velocities, and the proposed set is
+    ``{i : p_i > s_i, p_i > 0}`` (the primal–dual active-set rule: for OSQP's polished
+    answer, the rows it holds at their bound with an impulse), taken in decreasing
+    ``p_i − s_i``. On that set solve ``W_SS p_S = −w_S`` (a row dependent on those before
+    it, a redundant contact, gets no impulse) and drop the most negative impulse until
+    none is negative: a dual-feasible start. Then check complementarity, and while a row is
+    violated (slack below ``−tol``, 1e-12 of the problem's velocity scale as in the exact
+    solver, less the round-off of ``W p``) correct the set as the dual active-set method of
+    Goldfarb & Idnani does (the exact solver's, :mod:`moreau.lcp`): add the most violated
+    row, moving the impulses of the set so that their slacks stay zero, and drop a row
+    whose impulse reaches zero first. From a right proposal this is one solve. Last,
+    ``u = u_free + Aᵀ p``, ``v = L⁻ᵀ u`` and iterative refinement in the original units
+    (``G v − c`` on the set, back through W) while it reduces that residual: large
+    cancelling impulses (nearly opposed rows) leave it at round-off of the large terms.
+    """
+    k, n = A.shape
+    eps = 2.220446049250313e-16
+    W = np.empty((k, k))
+    w = np.empty(k)
+    s = np.empty(k)
+    scale = 1e-300
+    for j in range(n):
+        scale = max(scale, abs(uf[j]))
+    for i in range(k):
+        t = -c[i]
+        t0 = -c[i]
+        for j in range(n):
+            t += A[i, j] * uf[j]
+            t0 += A[i, j] * u[j]
+        w[i] = t
+        s[i] = t0
+        scale = max(scale, abs(t), abs(c[i]))
+        for j in range(i + 1):
+            d = 0.0
+            for m in range(n):
+                d += A[i, m] * A[j, m]
+            W[i, j] = d
+            W[j, i] = d
+    tol = 1e-12 * scale
+    # the proposed set, in decreasing p − s
+    S = np.empty(k, dtype=np.int64)
+    key = np.empty(k)
+    ns = 0
+    for i in range(k):
+        if p[i] > s[i] and p[i] > 0.0:
+            S[ns] = i
+            key[ns] = s[i] - p[i]
+            ns += 1
+    order = np.argsort(key[:ns])
+    Ssorted = np.empty(k, dtype=np.int64)
+    for a in range(ns):
+        Ssorted[a] = S[order[a]]
+    S = Ssorted
+    kept = np.empty(k, dtype=np.int64)
+    out = np.empty(k)
+    F = np.empty((k, k))
+    ns, corrections = _nonnegative_on(W, w, S, ns, kept, out, F)
+    q = np.zeros(k)
+    inA = np.zeros(k, dtype=np.bool_)
+    for a in range(ns):
+        q[S[a]] = out[a]
+        inA[S[a]] = True
+    dp = np.empty(k)
+    settled = False
+    for _ in range(4 * k + 10):
+        # the most violated row outside the set (those in it have zero slack)
+        j = -1
+        worst = 0.0
+        for i in range(k):
+            if inA[i]:
+                continue
+            t = w[i]
+            fl = 0.0
+            for m in range(k):
+                t += W[i, m] * q[m]
+                fl += abs(W[i, m] * q[m])
+            t += 8.0 * eps * fl
+            if t < -tol and (j < 0 or t < worst):
+                j, worst = i, t
+        if j < 0:
+            settled = True
+            break
+        corrections += 1
+        slj = w[j]
+        for m in range(k):
+            slj += W[j, m] * q[m]
+        added = False
+        for _inner in range(k + 1):  # bring row j to its bound (Goldfarb–Idnani step)
+            ds = W[j, j]
+            if ns > 0:
+                if _solve_on(W, W[j], S, ns, kept, dp, F) != ns:  # dp = −W_AA⁻¹ W_Aj
+                    return False  # the set lost independence to round-off
+                for a in range(ns):
+                    ds += W[j, S[a]] * dp[a]
+            t_full = -slj / ds if ds > 1e-13 * W[j, j] else math.inf
+            t_part = math.inf
+            blocking = -1
+            for a in range(ns):
+                if dp[a] < 0.0:
+                    ratio = -q[S[a]] / dp[a]
+                    if ratio < t_part:
+                        t_part, blocking = ratio, a
+            t = min(t_full, t_part)
+            if t == math.inf:
+                return False  # row j cannot be satisfied: infeasible
+            for a in range(ns):
+                q[S[a]] += t * dp[a]
+            q[j] += t
+            slj += t * ds
+            if t_full <= t_part:
+                S[ns] = j
+                ns += 1
+                ns, dropped = _nonnegative_on(W, w, S, ns, kept, out, F)  # exactly on the new set
+                corrections += dropped
+                q[:] = 0.0
+                inA[:] = False
+                for a in range(ns):
+                    q[S[a]] = out[a]
+                    inA[S[a]] = True
+                added = True
+                break
+            q[S[blocking]] = 0.0
+            inA[S[blocking]] = False
+            for a in range(blocking, ns - 1):
+                S[a] = S[a + 1]
+            ns -= 1
+        if not added:
+            return False
+    if not settled:
+        return False
+    info[0] = corrections
+    ut = uf.copy()
+    for i in range(k):
+        if q[i] != 0.0:
+            for j in range(n):
+                ut[j] += A[i, j] * q[i]
+    vv = _upper_solve(L, ut)
+    # iterative refinement in the original units, keeping the best answer
+    best = math.inf
+    vbest = vv.copy()
+    qbest = q.copy()
+    t = np.zeros(k)
+    for step in range(4 if ns > 0 else 0):
+        err = 0.0
+        for i in range(k):
+            t[i] = 0.0
+        for a in range(ns):
+            i = S[a]
+            g = -cRo[i]
+            for j in range(n):
+                g += GR[i, j] * vv[j]
+            t[i] = rR[i] * g  # the set's slacks, in the normalized units
+            err = max(err, abs(t[i]))
+        if not err < best:
+            break
+        best = err
+        vbest[:] = vv
+        qbest[:] = q
+        if err == 0.0 or step == 3:
+            break
+        if _solve_on(W, t, S, ns, kept, dp, F) != ns:
+            break
+        ok = True
+        for a in range(ns):
+            if q[S[a]] + dp[a] < 0.0:
+                ok = False
+        if not ok:
+            break
+        du = np.zeros(n)
+        for a in range(ns):
+            q[S[a]] += dp[a]
+            for j in range(n):
+                du[j] += A[S[a], j] * dp[a]
+        dv = _upper_solve(L, du)
+        for j in range(n):
+            vv[j] += dv[j]
+    for j in range(n):
+        v[j] = vbest[j]
+    for i in range(k):
+        P[i] = qbest[i] * rR[i]
+    return True
 
 
 class _CompiledLCPSolver(ContactSolver):
