@@ -69,7 +69,9 @@ class OneStepIntegrator(ABC):
         Contact solver backend (default ``"osqp"``); see :mod:`moreau.solvers`.
     fallback : str or ContactSolver or None
         Exact backend used when the main one fails or its answer does not pass the KKT
-        check (default ``"enum"``); None disables the fallback.
+        check; ``"auto"`` (default): ``"enum"``, or ``"exact"`` when the main solver is
+        ``"enum"``. Never the main solver again (the same name is refused: its failures
+        would be indistinguishable); None disables the fallback.
     tol : float
         Largest accepted scaled KKT residual (see :class:`moreau.onestep.Residuals`).
     penetration_tol : float
@@ -110,7 +112,7 @@ class OneStepIntegrator(ABC):
         scene: Scene,
         h: float,
         solver: str | ContactSolver = "osqp",
-        fallback: str | ContactSolver | None = "enum",
+        fallback: str | ContactSolver | None = "auto",
         tol: float = 1e-6,
         penetration_tol: float = 1e-12,
         drift_control=None,
@@ -120,9 +122,13 @@ class OneStepIntegrator(ABC):
         self.scene = scene
         self.h = as_positive(h, "step size h")
         self.solver = make_solver(solver)
+        if isinstance(fallback, str) and fallback == "auto":
+            fallback = "exact" if self.solver.name == "enum" else "enum"
         self.fallback = None if fallback is None else make_solver(fallback)
         if self.fallback is self.solver:
             raise ValueError("fallback must be a different solver object than solver")
+        if self.fallback is not None and self.fallback.name == self.solver.name:
+            raise ValueError(f"fallback must be another solver than the main one, got {self.solver.name!r} twice")
         self.tol = as_positive(tol, "tol")
         self.penetration_tol = as_positive(penetration_tol, "penetration_tol", allow_zero=True)
         if drift_control is not None and not hasattr(drift_control, "project"):
