@@ -15,25 +15,40 @@ from __future__ import annotations
 
 import logging
 from abc import ABC, abstractmethod
+from collections.abc import Callable
+from functools import partial
 from typing import Any, NamedTuple
 
 import numpy as np
 
 from ._validation import as_positive, as_vector
 from .errors import SolverError
+from .kernels import cho_solve as _cho_solve
+from .kernels import cholesky as _cholesky
+from .kernels import symmetry_defect as _symmetry_defect
 from .onestep import kkt_residuals
 from .scene import Scene
 from .solvers import ContactSolver, SolveFailed, make_solver
 
 __all__ = ["OneStepIntegrator", "MoreauJeanMidpoint", "MoreauJeanPredictorCorrector", "NonFiniteState",
-           "ContactDetails",
-           "check_initial_state"]
+           "BadModelOutput", "ContactDetails", "check_initial_state"]
 
 log = logging.getLogger(__name__)
 
 
 class NonFiniteState(FloatingPointError):
     """The state became NaN or infinite during a step (``step`` and ``t`` say where)."""
+
+    def __init__(self, message: str, step: int, t: float) -> None:
+        super().__init__(message)
+        self.step = step
+        self.t = t
+
+
+class BadModelOutput(ValueError):
+    """A model function (mass matrix, force, gap, Jacobian) returned an array of another
+    shape during a step; the message names it with the expected and the received shape
+    (``step`` and ``t`` say where)."""
 
     def __init__(self, message: str, step: int, t: float) -> None:
         super().__init__(message)
@@ -54,7 +69,9 @@ class OneStepIntegrator(ABC):
         Contact solver backend (default ``"osqp"``); see :mod:`moreau.solvers`.
     fallback : str or ContactSolver or None
         Exact backend used when the main one fails or its answer does not pass the KKT
-        check (default ``"enum"``); None disables the fallback.
+        check; ``"auto"`` (default): ``"enum"``, or ``"exact"`` when the main solver is
+        ``"enum"``. Never the main solver again (the same name is refused: its failures
+        would be indistinguishable); None disables the fallback.
     tol : float
         Largest accepted scaled KKT residual (see :class:`moreau.onestep.Residuals`).
     penetration_tol : float
@@ -82,6 +99,12 @@ class OneStepIntegrator(ABC):
         Solver statistics since :meth:`init`.
     worst_residual : float
         Largest accepted scaled KKT residual so far.
+
+    Every call of the scene's mass matrix, force, gaps and Jacobian in a step is checked
+    for its shape: another shape raises :class:`BadModelOutput` naming the part (the
+    contact or effect), the expected and the received shape. A configuration-dependent M
+    is factorized once per step (Cholesky), and that factor serves the step's solves and
+    the KKT check.
     """
 
     def __init__(
@@ -89,7 +112,7 @@ class OneStepIntegrator(ABC):
         scene: Scene,
         h: float,
         solver: str | ContactSolver = "osqp",
-        fallback: str | ContactSolver | None = "enum",
+        fallback: str | ContactSolver | None = "auto",
         tol: float = 1e-6,
         penetration_tol: float = 1e-12,
         drift_control=None,
@@ -99,9 +122,13 @@ class OneStepIntegrator(ABC):
         self.scene = scene
         self.h = as_positive(h, "step size h")
         self.solver = make_solver(solver)
+        if isinstance(fallback, str) and fallback == "auto":
+            fallback = "exact" if self.solver.name == "enum" else "enum"
         self.fallback = None if fallback is None else make_solver(fallback)
         if self.fallback is self.solver:
             raise ValueError("fallback must be a different solver object than solver")
+        if self.fallback is not None and self.fallback.name == self.solver.name:
+            raise ValueError(f"fallback must be another solver than the main one, got {self.solver.name!r} twice")
         self.tol = as_positive(tol, "tol")
         self.penetration_tol = as_positive(penetration_tol, "penetration_tol", allow_zero=True)
         if drift_control is not None and not hasattr(drift_control, "project"):
@@ -126,9 +153,13 @@ class OneStepIntegrator(ABC):
         # the constant mass matrix and its inverse; None when M depends on q
         self._M: np.ndarray | None = None
         self._Minv: np.ndarray | None = None
+        self._L: np.ndarray | None = None  # the Cholesky factor of the constant M
         if self._constant_mass:
             self._M = np.array(sysm.mass_matrix(q0), dtype=float)
             self._Minv = np.linalg.inv(self._M)
+            self._L = np.linalg.cholesky(self._M)
+        # what every model function must return (checked at every call on this path)
+        self._shape_f, self._shape_g, self._shape_G, self._shape_M = (n,), (m,), (m, n), (n, n)
         self._e = scene.restitution
         self._impacts_only = bool(getattr(self.drift_control, "impacts_only", False))
         self._memory = int(getattr(self.drift_control, "memory", 0))
@@ -158,11 +189,12 @@ class OneStepIntegrator(ABC):
         """Advance the state by one step h; return True when a contact problem was solved."""
 
     # -- contact solve ------------------------------------------------------------------
-    def _solve_contact(self, M, b, G, c, rows, kind: str = "contact"):
+    def _solve_contact(self, M, b, G, c, rows, kind: str = "contact", L=None):
         """Solve the step's QP with the main solver, check it, fall back if needed.
 
         ``kind`` names the problem in errors (``"contact"``, or ``"projection"`` for drift
-        control, whose solves are not counted in ``n_solves``).
+        control, whose solves are not counted in ``n_solves``). ``L``: the Cholesky factor
+        of M when the step has it (the check then does not factorize M again).
         """
         if kind == "contact":
             self.n_solves += 1
@@ -177,7 +209,7 @@ class OneStepIntegrator(ABC):
                           failures[self.solver.name], solver.name)
             try:
                 v, P = solver.solve(M, b, G, c, rows)
-                res = kkt_residuals(M, b, GA, cA, v, P)
+                res = kkt_residuals(M, b, GA, cA, v, P, L=L)
                 if res.worst <= self.tol:
                     if res.worst > self.worst_residual:
                         self.worst_residual = res.worst
@@ -191,18 +223,53 @@ class OneStepIntegrator(ABC):
             step=self.k, t=self.t, rows=names, residuals=failures,
         )
 
-    def _mass_at(self, q) -> np.ndarray:
-        """M(q), factorized (Cholesky) as the compiled step does: a matrix that stops being
-        symmetric positive definite raises :class:`NonFiniteState` at this step."""
-        from . import kernels as _k
-
-        M = np.ascontiguousarray(self.scene.system.mass_matrix(q), dtype=float)
+    def _mass_at(self, q, v) -> tuple[np.ndarray, np.ndarray]:
+        """``(M(q), L)`` with L its Cholesky factor, factorized once as the compiled step
+        does (the step's solves use L): a matrix of another shape raises
+        :class:`BadModelOutput`, one that stops being symmetric positive definite
+        :class:`NonFiniteState`, at this step."""
+        M = self._evaluate(self.scene.system.mass_matrix, (q,), self._shape_M, "mass", self.t, q, v)
+        M = np.ascontiguousarray(M, dtype=float)
         n = self.scene.ndof
-        if M.shape != (n, n) or _k.symmetry_defect(M) > 1e-10 or _k.cholesky(M, np.empty((n, n)), n) >= 0:
+        L = np.empty((n, n))
+        if _symmetry_defect(M) > 1e-10 or _cholesky(M, L, n) >= 0:
             raise NonFiniteState(
                 f"the mass matrix stopped being symmetric positive definite at step {self.k} "
                 f"(t = {self.t:.9g}): M = {M.tolist()}", self.k, self.t)
-        return M
+        return M, L
+
+    # -- model calls, checked at every call ------------------------------------------------
+    def _evaluate(self, fun, args, shape, kind, t, q, v):
+        """``fun(*args)``, checked to have ``shape``; else :class:`BadModelOutput` naming the
+        part of the scene that returned another shape (``kind``: ``"mass"``, ``"force"``,
+        ``"gaps"`` or ``"jacobian"``; t, q, v: where it was evaluated)."""
+        try:
+            out = fun(*args)
+        except Exception as exc:  # a part of another shape can break the scene's sum
+            msg = _locate_bad_shape(self.scene, kind, t, q, v, self._where())
+            if msg is None:
+                raise
+            raise BadModelOutput(msg, self.k, self.t) from exc
+        if np.shape(out) != shape:
+            msg = _locate_bad_shape(self.scene, kind, t, q, v, self._where()) or (
+                f"{_COMPOSITE[kind]}{self._where()} has shape {np.shape(out)}, expected {shape}")
+            raise BadModelOutput(msg, self.k, self.t)
+        return out
+
+    def _where(self) -> str:
+        return f" at step {self.k} (t = {self.t:.9g})"
+
+    def force_at(self, t, q, v) -> np.ndarray:
+        """The scene's force f(t, q, v), its shape checked (:class:`BadModelOutput`)."""
+        return self._evaluate(self.scene.force, (t, q, v), self._shape_f, "force", t, q, v)
+
+    def gaps_at(self, q, v=None) -> np.ndarray:
+        """The scene's gaps g(q), their shape checked (:class:`BadModelOutput`)."""
+        return self._evaluate(self.scene.gaps, (q,), self._shape_g, "gaps", self.t, q, v)
+
+    def jacobian_at(self, q, v=None) -> np.ndarray:
+        """The scene's Jacobian G(q), its shape checked (:class:`BadModelOutput`)."""
+        return self._evaluate(self.scene.jacobian, (q,), self._shape_G, "jacobian", self.t, q, v)
 
     def _check_finite(self, q_new, v_new) -> None:
         s = float(v_new.sum()) + float(q_new.sum())
@@ -265,6 +332,49 @@ def check_initial_state(scene: Scene, t0: Any, q0: Any, v0: Any,
     return t0, q0, v0
 
 
+def _solve_with(L: np.ndarray, f) -> np.ndarray:
+    """M⁻¹ f with the Cholesky factor L of M."""
+    out = np.empty(L.shape[0])
+    _cho_solve(L, np.asarray(f, dtype=float), out, L.shape[0])
+    return out
+
+
+_COMPOSITE = {"mass": "mass matrix", "force": "force of the scene", "gaps": "gaps of the scene",
+              "jacobian": "Jacobian of the scene"}
+
+
+def _locate_bad_shape(scene: Scene, kind: str, t, q, v, where: str) -> str | None:
+    """The part of ``scene`` behind a composite of another shape: evaluate its parts of
+    ``kind`` one by one and name the first whose shape is not the expected one (as
+    :meth:`Scene.check_state` names them at the initial state); None when every part that
+    evaluates has its shape (a part that raises is skipped: its own error stands)."""
+    n = scene.ndof
+    parts: list[tuple[str, Callable[[], Any], tuple[int, ...]]] = []
+    if kind == "mass":
+        parts.append(("mass matrix", partial(scene.system.mass_matrix, q), (n, n)))
+    elif kind == "force":
+        vv = np.zeros(n) if v is None else v
+        if scene.system.has_bias:
+            parts.append(("bias force", partial(scene.system.bias_force, q, vv), (n,)))
+        for e in scene.effects:
+            parts.append((f"force of effect {e.name!r}", partial(e.force, t, q, vv), (n,)))
+    else:
+        for c in scene.contacts:
+            b = c.barrier
+            if kind == "gaps":
+                parts.append((f"gap of contact {c.name!r}", partial(b.gap, q), (b.nrows,)))
+            else:
+                parts.append((f"Jacobian of contact {c.name!r}", partial(b.jacobian, q), (b.nrows, n)))
+    for what, call, shape in parts:
+        try:
+            got = np.shape(call())
+        except Exception:  # noqa: BLE001 - its own error is reported by the caller
+            continue
+        if got != shape:
+            return f"{what}{where} has shape {got}, expected {shape}"
+    return None
+
+
 class ContactDetails(NamedTuple):
     """What the last step did at some contact rows; each field has shape (len(rows),).
 
@@ -320,18 +430,22 @@ class MoreauJeanMidpoint(OneStepIntegrator):
         h = self.h
         v = self.v
         qm = self.q + (0.5 * h) * v
-        M = self._M if self._M is not None else self._mass_at(qm)
-        f = self.scene.force(self.t + 0.5 * h, qm, v)
-        v_new, contact = self._velocity_update(qm, M, f, v)
+        if self._M is not None and self._L is not None:  # a constant mass matrix
+            M, L = self._M, self._L
+        else:
+            M, L = self._mass_at(qm, v)
+        f = self.force_at(self.t + 0.5 * h, qm, v)
+        v_new, contact = self._velocity_update(qm, M, L, f, v)
         return self._finish(qm, v_new, contact, f)
 
     # -- shared by the midpoint family ----------------------------------------------------
-    def _velocity_update(self, qm, M, f, v):
-        """v⁺ from ``M (v⁺ − v) = h f + Gᵀ P`` with the contacts closed at ``qm``."""
+    def _velocity_update(self, qm, M, L, f, v):
+        """v⁺ from ``M (v⁺ − v) = h f + Gᵀ P`` with the contacts closed at ``qm``; L is the
+        Cholesky factor of M."""
         h = self.h
         scene = self.scene
         if scene.gaps is not None:
-            g = scene.gaps(qm)
+            g = self.gaps_at(qm, v)
             gs = float(g.sum())
             if gs - gs != 0.0:  # NaN or inf: a NaN gap would otherwise count as open
                 raise NonFiniteState(
@@ -340,23 +454,22 @@ class MoreauJeanMidpoint(OneStepIntegrator):
             active = g <= scene.activation_tol  # g <= 0 up to the gap's own round-off
             if self._impacts_only:  # CombinedProjection: a persistent contact stays in the problem,
                 # and a row that reaches the barrier by the end of the step enters it now
-                g_start = scene.gaps(self.q)
+                g_start = self.gaps_at(self.q, v)
                 active = active | self.pinned | (2.0 * g - g_start <= 0.0)
             if active.any():
                 rows = np.flatnonzero(active)
-                assert scene.jacobian is not None  # set with the gaps
-                G = scene.jacobian(qm)
+                G = self.jacobian_at(qm, v)
                 U = G @ v
                 e = self._e
                 if self._impacts_only:  # restitution at impacts only (CombinedProjection)
-                    a = self._Minv @ f if self._constant_mass else np.linalg.solve(M, f)
+                    a = self._Minv @ f if self._Minv is not None else _solve_with(L, f)
                     impact = (-U > np.abs(h * (G @ a))) & (self.k - self.last_impulse_step > self._memory)
                     e = np.where(impact, e, 0.0)
                     self.bounced = np.zeros(scene.nrows, dtype=bool)
                     self.bounced[rows] = e[rows] > 0.0
                 c = -e * U
                 b = M @ v + h * f
-                v_new, PA = self._solve_contact(M, b, G, c, rows)
+                v_new, PA = self._solve_contact(M, b, G, c, rows, L=L)
                 P = np.zeros(scene.nrows)
                 P[rows] = PA
                 self.active, self.P = active, P
@@ -364,7 +477,7 @@ class MoreauJeanMidpoint(OneStepIntegrator):
                 return v_new, True
         if self._Minv is not None:  # a constant mass matrix
             return v + h * (self._Minv @ f), False
-        return v + h * np.linalg.solve(M, f), False
+        return v + h * _solve_with(L, f), False  # the step's one factorization
 
     def _finish(self, qm, v_new, contact: bool, f) -> bool:
         """Move to q⁺ = q_m + h/2 v⁺ (then drift control), check, advance time; add the
@@ -425,11 +538,14 @@ class MoreauJeanPredictorCorrector(MoreauJeanMidpoint):
         v = self.v
         qm = self.q + (0.5 * h) * v
         tm = self.t + 0.5 * h
-        M = self._M if self._M is not None else self._mass_at(qm)
-        force = self.scene.force
-        v_pred, _ = self._velocity_update(qm, M, force(tm, qm, v), v)
+        if self._M is not None and self._L is not None:  # a constant mass matrix
+            M, L = self._M, self._L
+        else:
+            M, L = self._mass_at(qm, v)
+        force = self.force_at
+        v_pred, _ = self._velocity_update(qm, M, L, force(tm, qm, v), v)
         f = force(tm, qm, 0.5 * (v + v_pred))
-        v_new, contact = self._velocity_update(qm, M, f, v)
+        v_new, contact = self._velocity_update(qm, M, L, f, v)
         return self._finish(qm, v_new, contact, f)
 
 

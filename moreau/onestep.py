@@ -89,7 +89,7 @@ class Residuals:
 
 
 def kkt_residuals(M: np.ndarray, b: np.ndarray, G: np.ndarray, c: np.ndarray, v: np.ndarray,
-                  P: np.ndarray) -> Residuals:
+                  P: np.ndarray, L: np.ndarray | None = None) -> Residuals:
     """Scaled KKT residuals of the one-step QP (see module docstring), the same check
     the compiled loop runs (:func:`moreau.lcp.kkt_residuals_kernel`).
 
@@ -102,16 +102,22 @@ def kkt_residuals(M: np.ndarray, b: np.ndarray, G: np.ndarray, c: np.ndarray, v:
     coordinate, against that coordinate's own velocity scale, so every measure is
     invariant under rescaling any single coordinate (a change of units): a light
     coordinate's error is not hidden behind the momenta of heavy ones.
+
+    ``L``: the lower Cholesky factor of M when the caller has it (else M is factorized
+    here; a matrix that is not positive definite gives infinite residuals).
     """
     from .kernels import cholesky
     from .lcp import kkt_residuals_kernel
 
     M = np.ascontiguousarray(M, dtype=float)
     n = M.shape[0]
-    L = np.empty((n, n))
-    if cholesky(M, L, n) >= 0:
-        inf = float("inf")
-        return Residuals(inf, inf, inf, inf)
+    if L is None:
+        L = np.empty((n, n))
+        if cholesky(M, L, n) >= 0:
+            inf = float("inf")
+            return Residuals(inf, inf, inf, inf)
+    else:
+        L = np.ascontiguousarray(L, dtype=float)
     out = np.empty(4)
     kkt_residuals_kernel(M, L, np.ascontiguousarray(b, dtype=float), np.ascontiguousarray(G, dtype=float),
                          np.ascontiguousarray(c, dtype=float), np.ascontiguousarray(v, dtype=float),

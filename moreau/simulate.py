@@ -15,6 +15,7 @@ from ._validation import as_positive, as_record_every, as_time_span, checked_sta
 from .errors import SimulationError, SolverError, attach_trajectory
 from .flights import flight_gaps, initial_flight
 from .integrator import (
+    BadModelOutput,
     MoreauJeanMidpoint,
     MoreauJeanPredictorCorrector,
     NonFiniteState,
@@ -140,7 +141,10 @@ def simulate(
     SolverError
         Every backend failed on a step; ``exc.trajectory`` holds the run up to it.
     SimulationError
-        The state became non-finite, the mass matrix stopped being SPD, or a user
+        The state became non-finite, the mass matrix stopped being SPD, a model function
+        (mass matrix, force, gap, Jacobian) returned an array of another shape (the
+        message names it, with the expected and the received shape; checked at every
+        call on the Python path, at the initial state on the compiled one), or a user
         callable raised; ``exc.trajectory`` holds the run up to the last good step.
     KeyboardInterrupt
         Re-raised after Ctrl-C with the part computed so far as ``exc.trajectory``
@@ -296,7 +300,6 @@ def _run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, 
 
     bar = _progress_bar(progress, n_steps, scene.name)
     pen = np.zeros(m)
-    gaps_of = scene.gaps if scene.gaps is not None else _no_gaps
     chunk = max(1, min(10_000, n_steps // 200))
 
     status, message = "completed", ""
@@ -304,7 +307,7 @@ def _run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, 
     wall0 = time.perf_counter()
     k = 0
     try:
-        step = integ.step
+        step, gaps_at = integ.step, integ.gaps_at
         for k in range(1, n_steps + 1):
             contact = step()
             if has_contacts:
@@ -319,7 +322,7 @@ def _run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, 
                     in_contact = now
                 elif in_contact.any():
                     in_contact = np.zeros(m, dtype=bool)
-                g_end = gaps_of(integ.q)
+                g_end = gaps_at(integ.q, integ.v)
                 np.maximum(pen, -g_end, out=pen)
                 gmax = np.where(in_contact, -np.inf, np.maximum(gmax, g_end))
             if k % stride == 0 or k == n_steps:
@@ -338,7 +341,7 @@ def _run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, 
         error = exc
     except SolverError as exc:
         status, message, error = "failed", str(exc), exc
-    except NonFiniteState as exc:
+    except (NonFiniteState, BadModelOutput) as exc:
         status, message = "failed", str(exc)
         error = SimulationError(message, None, exc.step)
         error.__cause__ = exc

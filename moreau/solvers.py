@@ -11,8 +11,10 @@ Backends
 --------
 ``"osqp"`` : :class:`OSQPSolver` (default). Set up once per scene, changed each step with
     OSQP's ``update()`` on a fixed sparsity pattern (inactive rows opened with l = −∞),
-    warm-started, eps 1e-9 with polishing. Rebuilding OSQP every step through
-    ``qpsolvers.solve_qp`` costs ~20x more (see ``benchmarks/step_cost.py``).
+    warm-started, eps 1e-9 with polishing, on the QP in mass-normalized units (identity
+    Hessian, rows of unit length); its active set is then made exact (and corrected where
+    it is not complementary). Rebuilding OSQP every step through ``qpsolvers.solve_qp``
+    costs ~20x more (see ``benchmarks/step_cost.py``).
 ``"enum"`` : :class:`EnumerationSolver`, exact: enumerates the active sets of the LCP,
     smallest first. Fast for the few active rows of a typical step; the default fallback.
 ``"daqp"``, ``"quadprog"``, ``"qpsolvers:<name>"`` : :class:`QpsolversSolver`, exact
@@ -21,9 +23,11 @@ Backends
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 
 import numpy as np
+from numba import njit
 
 __all__ = [
     "ContactSolver",
@@ -35,6 +39,9 @@ __all__ = [
     "make_solver",
     "available_solvers",
 ]
+
+
+_jit = njit(cache=True, nogil=True)
 
 
 class SolveFailed(RuntimeError):
@@ -71,27 +78,21 @@ class ContactSolver(ABC):
         return {"name": self.name}
 
 
-def _unconstrained_if_feasible(M, b, G, c, rows, factor=None):
+def _unconstrained_if_feasible(M, b, G, c, rows):
     """The unconstrained minimizer ``v = M⁻¹ b`` when it satisfies every active row, else None.
 
     Then it is the exact solution, with P = 0 (the QP is strictly convex). OSQP (1.x)
     prints "Polishing not needed - no active set detected at optimal point" through
     ``sys.stdout`` whenever polishing finds no active row, whatever ``verbose`` says; the
-    OSQP backends use this test to switch polishing off for such a solve (polishing would
-    not change the answer). Redirecting ``sys.stdout`` or file descriptor 1 around each
-    solve instead is process-global state and breaks under threads. What remains: a solve
-    whose true impulses are nonzero but below OSQP's detection threshold can still print
-    that line (measured: 1 in ~6 000 piston solves); it changes no result.
-
-    ``factor`` is a Cholesky factor of a constant M (``scipy.linalg.cho_factor``), or None.
+    OSQP backends use this test (:class:`OSQPSolver` in its own units) to switch polishing
+    off for such a solve (polishing would not change the answer). Redirecting
+    ``sys.stdout`` or file descriptor 1 around each solve instead is process-global state
+    and breaks under threads. What remains: a solve whose true impulses are nonzero but
+    below OSQP's detection threshold can still print that line (measured: 1 in ~6 000
+    piston solves); it changes no result.
     """
     try:
-        if factor is not None:
-            import scipy.linalg as sla
-
-            v = sla.cho_solve(factor, b)
-        else:
-            v = np.linalg.solve(M, b)
+        v = np.linalg.solve(M, b)
     except (np.linalg.LinAlgError, ValueError):
         return None
     if not np.all(np.isfinite(v)) or not np.all(G[rows] @ v >= c[rows]):
@@ -100,23 +101,47 @@ def _unconstrained_if_feasible(M, b, G, c, rows, factor=None):
 
 
 class OSQPSolver(ContactSolver):
-    """OSQP, set up once and updated every step.
+    """OSQP, set up once and updated every step, on the QP in mass-normalized units.
+
+    The one-step QP ``min ½ vᵀMv − bᵀv, G v >= c`` is handed to OSQP in the variables
+    ``u = Lᵀ v`` (``M = L Lᵀ``, Cholesky) with every row scaled to unit length:
+
+        minimize ½ uᵀu − u_freeᵀ u   subject to   Â u >= ĉ,
+        u_free = L⁻¹ b,   Â = R G L⁻ᵀ,   ĉ = R c,   R = diag(1 / ‖(G L⁻ᵀ)_i‖)
+
+    so that its Hessian is the identity and its Delassus matrix ``Â Âᵀ`` has a unit
+    diagonal, whatever the units of the coordinates (a change of units rescales M, G and
+    b and leaves this problem unchanged): ADMM's convergence and its tolerances no longer
+    depend on how the mass matrix is scaled. OSQP's answer then only proposes the
+    active set; the answer returned is the exact solution on that set (see ``refine``).
 
     Parameters
     ----------
     eps : float
-        Absolute and relative tolerance (``eps_abs = eps_rel``). The default 1e-9 with
-        polishing matches an exact solve; at eps >= 1e-5 impact counts change.
+        Absolute and relative tolerance (``eps_abs = eps_rel``) of ADMM, in the units
+        above (default 1e-9).
     polish : bool
         Polish the solution (solve the reduced KKT system on the detected active set).
     max_iter : int
         Iteration limit.
     refine : bool
-        Make the answer exact on the active set OSQP found (default True): the KKT
-        check measures velocities per coordinate, and ADMM alone leaves errors of
-        1e-6 … 1e-4 in light coordinates of ill-scaled mass matrices.
+        Make the answer exact (default True): solve the LCP ``0 <= p ⟂ ŵ + Ŵ p >= 0``
+        (``Ŵ = Â Âᵀ``, ``ŵ = Â u_free − ĉ``) exactly on the active set OSQP found (also
+        from an iterate ADMM stopped short of its tolerance), check complementarity (no
+        negative impulse, no violated row), and correct the set where it fails, by the
+        steps of the exact solver's dual active-set method (:func:`_exact_from_proposed_set`).
+        What does not settle (an infeasible problem, or rows that lose independence to
+        round-off) is returned as OSQP answered and left to the integrator's KKT check and
+        its fallback. With False: OSQP's own answer, in the original units.
     name : str, optional
         Name in results (default ``"osqp"`` or ``"osqp(eps=...)"``).
+
+    Attributes
+    ----------
+    n_corrections : int
+        Solves whose active set had to be corrected after OSQP (statistics).
+    n_unsettled : int
+        Solves whose refinement did not settle (their answer is OSQP's).
     """
 
     exact = False
@@ -131,6 +156,7 @@ class OSQPSolver(ContactSolver):
         self.refine = bool(refine)
         self.name = name or ("osqp" if (eps == 1e-9 and polish) else f"osqp(eps={eps:g},polish={polish})")
         self._solver = None
+        self.n_corrections = self.n_unsettled = 0
 
     def setup(self, ndof, nrows, mass=None):
         import osqp
@@ -138,28 +164,15 @@ class OSQPSolver(ContactSolver):
 
         n, m = ndof, nrows
         self._n, self._m = n, m
-        # Dense patterns, kept fixed: upper triangle of P (CSC order), all of A.
-        Ppat = sp.csc_matrix(np.triu(np.ones((n, n))))
-        triu = [(i, j) for j in range(n) for i in range(j + 1)]
-        self._p_rows = np.array([i for i, _ in triu])
-        self._p_cols = np.array([j for _, j in triu])
-        Ppat.data = (np.eye(n) if mass is None else mass)[self._p_rows, self._p_cols].astype(float)
-        Apat = sp.csc_matrix(np.ones((m, n)))
         self._l = np.full(m, -np.inf)
         self._u = np.full(m, np.inf)
-        self._constant_mass = mass is not None
-        self._last_A = None
-        self._factor = None
-        if mass is not None:
-            import scipy.linalg as sla
-
-            try:
-                self._factor = sla.cho_factor(np.asarray(mass, dtype=float))
-            except (np.linalg.LinAlgError, ValueError):
-                self._factor = None
+        self._L = None
+        if mass is not None:  # constant M: factorized once
+            self._L = _cholesky(np.asarray(mass, dtype=float))
+        self._last_G = None
         s = osqp.OSQP()
         s.setup(
-            Ppat, np.zeros(n), Apat, self._l, self._u,
+            sp.identity(n, format="csc"), np.zeros(n), sp.csc_matrix(np.ones((m, n))), self._l, self._u,
             verbose=False, eps_abs=self.eps, eps_rel=self.eps, polishing=self.polish,
             warm_starting=True, max_iter=self.max_iter, eps_prim_inf=1e-12, eps_dual_inf=1e-12,
         )
@@ -167,75 +180,362 @@ class OSQPSolver(ContactSolver):
         self._solved_status = osqp.SolverStatus.OSQP_SOLVED
 
     def solve(self, M, b, G, c, rows):
+        import osqp
+
         if self._solver is None:
             raise SolveFailed("OSQPSolver.solve called before setup()")
-        # the QP is homogeneous in (b, c): solve small data in units where they are O(1)
-        # and scale (v, P) back. OSQP's absolute tolerance would otherwise swamp the 1e-10 m
-        # corrections of a drift-control projection (b = 0, c = −g).
-        scale = min(1.0, max(float(np.abs(c[rows]).max()) if rows.size else 0.0,
-                             float(np.abs(b).max()) / float(np.abs(np.diag(M)).max())
-                             * float(np.abs(G[rows]).max()) if rows.size else 0.0, 1e-300))
+        L = self._L if self._L is not None else _cholesky(M)
+        if L is None:
+            raise SolveFailed("the mass matrix is not positive definite")
+        n, m = self._n, self._m
+        uf = np.empty(n)
+        kw = {}
+        if self._L is None or G is not self._last_G:  # Â is kept for a constant M and Jacobian
+            A, r = np.empty((m, n)), np.empty(m)
+            _normalized(L, np.ascontiguousarray(b, dtype=float), np.ascontiguousarray(G, dtype=float), A, r, uf)
+            self._last_G = G
+            self._A, self._r = A, r
+            kw["Ax"] = A.ravel(order="F")
+        else:
+            A, r = self._A, self._r
+            _normalized(L, np.ascontiguousarray(b, dtype=float), np.zeros((0, n)), A[:0], r[:0], uf)
+        AR = A[rows]
+        cR = c[rows] * r[rows]
+        # the QP is homogeneous in (u_free, ĉ): solve it in units where they are O(1) (the
+        # 1e-10 corrections of a drift-control projection, b = 0 and c = −g, would
+        # otherwise drown in OSQP's absolute tolerance) and scale (u, p) back
+        scale = max(float(np.abs(uf).max()) if n else 0.0, float(np.abs(cR).max()) if rows.size else 0.0)
+        if scale == 0.0:  # b = 0, c = 0: v = 0 is the solution
+            scale = 1.0
         l = self._l
         l.fill(-np.inf)
-        l[rows] = c[rows] / scale
-        kw = {"q": -b / scale, "l": l}
-        if not self._constant_mass:
-            kw["Px"] = M[self._p_rows, self._p_cols]
-        if G is not self._last_A:
-            kw["Ax"] = G.ravel(order="F")
-            self._last_A = G
+        l[rows] = cR / scale
+        self._solver.update(q=-uf / scale, l=l, **kw)
         # polishing would find no active row: skip it, it would only print that (see
         # _unconstrained_if_feasible); the answer is the same
-        quiet = self.polish and _unconstrained_if_feasible(M, b, G, c, rows, self._factor) is not None
-        self._solver.update(**kw)
-        if quiet:
+        if self.polish and bool(np.all(AR @ uf >= cR)):
             self._solver.update_settings(polishing=False)
             res = self._solver.solve(raise_error=False)
             self._solver.update_settings(polishing=True)
         else:
             res = self._solver.solve(raise_error=False)
-        import osqp
-
         st = res.info.status_val  # an IntEnum: compares with the int
         nearly = st in (osqp.SolverStatus.OSQP_SOLVED_INACCURATE, osqp.SolverStatus.OSQP_MAX_ITER_REACHED)
         if st != self._solved_status and not (self.refine and nearly):
             raise SolveFailed(f"OSQP status {res.info.status!r} after {res.info.iter} iterations")
-        # OSQP: l <= Ax <= u with y < 0 on active lower bounds; P = -y.
-        v, P = scale * res.x, -scale * res.y[rows]
+        # OSQP: l <= Ax <= u with y < 0 on active lower bounds; p = -y
+        u, p = scale * res.x, -scale * res.y[rows]
         if self.refine:
-            # also from an iterate ADMM stopped short of its tolerance (ill-scaled M): the
-            # active set it found is usually right, and the KKT check judges the result
-            v, P = _refine_on_active_set(M, b, G[rows], c[rows], v, P)
-        return v, P
+            k = rows.shape[0]
+            v, P, info = np.empty(n), np.empty(k), np.zeros(2, dtype=np.int64)
+            if _exact_from_proposed_set(L, np.ascontiguousarray(G[rows], dtype=float),
+                                        np.ascontiguousarray(c[rows], dtype=float), AR, uf, cR, r[rows], u, p,
+                                        v, P, info):
+                self.n_corrections += bool(info[0])
+                return v, P
+            self.n_unsettled += 1
+        return _upper_solve(L, u), p * r[rows]
 
     def describe(self):
         return {"name": self.name, "eps": self.eps, "polish": self.polish}
 
 
-def _refine_on_active_set(M, b, GA, cA, v, P):
-    """OSQP's answer made exact on the active set it found (rows with P > 0, possibly none): solve the
-    equality-constrained KKT system there, ``W_SS P_S = c_S − G_S M⁻¹ b``, and keep the
-    result when its impulses are non-negative and every row is feasible (to round-off);
-    otherwise OSQP's own answer (the KKT check then judges it). ADMM converges slowly in
-    a light coordinate of an ill-scaled M; this step does not depend on the scaling."""
-    S = np.flatnonzero(P > 0.0)
-    if S.size > M.shape[0]:
-        return v, P
-    try:
-        sol = np.linalg.solve(M, np.column_stack([b, GA[S].T]))
-        GS = GA[S]
-        PS = np.linalg.solve(GS @ sol[:, 1:], cA[S] - GS @ sol[:, 0]) if S.size else np.zeros(0)
-    except np.linalg.LinAlgError:
-        return v, P
-    if S.size and PS.min() < 0.0:
-        return v, P
-    v2 = sol[:, 0] + sol[:, 1:] @ PS
-    slack = GA @ v2 - cA
-    if slack.min() < -1e-12 * max(1e-300, float(np.abs(cA).max()), float(np.abs(GA @ v2).max())):
-        return v, P
-    P2 = np.zeros_like(P)
-    P2[S] = PS
-    return v2, P2
+def _cholesky(M):
+    """Lower Cholesky factor of M, or None when M is not positive definite."""
+    from .kernels import cholesky
+
+    M = np.ascontiguousarray(M, dtype=float)
+    n = M.shape[0]
+    L = np.empty((n, n))
+    return None if cholesky(M, L, n) >= 0 else L
+
+
+# -- the exact refinement (numba: small dense loops, called at every solve; LAPACK's
+# -- triangular solves go through a threaded BLAS whose start-up costs milliseconds here)
+@_jit
+def _normalized(L, b, G, A, r, uf):
+    """``u_free = L⁻¹ b`` into uf and the rows of ``G L⁻ᵀ`` scaled to unit length into A,
+    their scales ``1 / ‖(G L⁻ᵀ)_i‖`` into r (1 for a zero row)."""
+    n = L.shape[0]
+    for i in range(n):
+        t = b[i]
+        for j in range(i):
+            t -= L[i, j] * uf[j]
+        uf[i] = t / L[i, i]
+    for row in range(G.shape[0]):
+        nrm = 0.0
+        for i in range(n):
+            t = G[row, i]
+            for j in range(i):
+                t -= L[i, j] * A[row, j]
+            A[row, i] = t / L[i, i]
+            nrm += A[row, i] * A[row, i]
+        s = 1.0 / math.sqrt(nrm) if nrm > 0.0 else 1.0
+        r[row] = s
+        for i in range(n):
+            A[row, i] *= s
+
+
+@_jit
+def _upper_solve(L, x):
+    """L⁻ᵀ x for a lower triangular L."""
+    n = x.shape[0]
+    y = np.empty(n)
+    for i in range(n - 1, -1, -1):
+        t = x[i]
+        for m in range(i + 1, n):
+            t -= L[m, i] * y[m]
+        y[i] = t / L[i, i]
+    return y
+
+
+@_jit
+def _solve_on(W, w, S, ns, kept, out, F):
+    """``W_SS p_S = −w_S`` on the rows ``S[:ns]`` by Cholesky, taking them in order and
+    leaving out a row whose pivot shows it dependent on those before it (below 1e-13 of its
+    W_ii, the exact solver's test: a redundant contact gets no impulse). The rows kept go
+    to ``kept``, their impulses to ``out``; returns how many were kept. F: work (>= ns)²."""
+    nk = 0
+    for a in range(ns):
+        i = S[a]
+        d = W[i, i]
+        for r in range(nk):  # row nk of F: F[:nk, :nk]⁻¹ W[kept, i]
+            t = W[i, kept[r]]
+            for m in range(r):
+                t -= F[nk, m] * F[r, m]
+            F[nk, r] = t / F[r, r]
+            d -= F[nk, r] * F[nk, r]
+        if not d > 1e-13 * W[i, i]:
+            continue
+        F[nk, nk] = math.sqrt(d)
+        kept[nk] = i
+        nk += 1
+    for r in range(nk):
+        t = -w[kept[r]]
+        for m in range(r):
+            t -= F[r, m] * out[m]
+        out[r] = t / F[r, r]
+    for r in range(nk - 1, -1, -1):
+        t = out[r]
+        for m in range(r + 1, nk):
+            t -= F[m, r] * out[m]
+        out[r] = t / F[r, r]
+    return nk
+
+
+@_jit
+def _nonnegative_on(W, w, S, ns, kept, out, F):
+    """:func:`_solve_on` on ``S[:ns]``, dropping the most negative impulse and solving again
+    until none is negative; S[:returned] holds the rows, ``out`` their impulses. Returns
+    ``(rows, rows dropped)``."""
+    dropped = 0
+    while True:
+        nk = _solve_on(W, w, S, ns, kept, out, F)
+        for a in range(nk):
+            S[a] = kept[a]
+        ns = nk
+        worst = -1
+        for a in range(nk):
+            if out[a] < 0.0 and (worst < 0 or out[a] < out[worst]):
+                worst = a
+        if worst < 0:
+            return ns, dropped
+        for a in range(worst, ns - 1):
+            S[a] = S[a + 1]
+        ns -= 1
+        dropped += 1
+
+
+@_jit
+def _exact_from_proposed_set(L, GR, cRo, A, uf, c, rR, u, p, v, P, info):
+    """The exact solution of the normalized one-step problem ``min ½|u|² − u_freeᵀu,
+    A u >= c`` (rows of A of unit length) from the active set an approximate ``(u, p)``
+    proposes: v (original units) and P into ``v``, ``P``; returns False when it does not
+    settle (an infeasible problem, or active rows that lose independence to round-off).
+    ``info[0]``: the corrections the proposed set needed.
+
+    In the LCP form ``0 <= p ⟂ s = w + W p >= 0`` (``W = A Aᵀ``, unit diagonal;
+    ``w = A u_free − c``) p and s are both velocities, and the proposed set is
+    ``{i : p_i > s_i, p_i > 0}`` (the primal–dual active-set rule: for OSQP's polished
+    answer, the rows it holds at their bound with an impulse), taken in decreasing
+    ``p_i − s_i``. On that set solve ``W_SS p_S = −w_S`` (a row dependent on those before
+    it, a redundant contact, gets no impulse) and drop the most negative impulse until
+    none is negative: a dual-feasible start. Then check complementarity, and while a row is
+    violated (slack below ``−tol``, 1e-12 of the problem's velocity scale as in the exact
+    solver, less the round-off of ``W p``) correct the set as the dual active-set method of
+    Goldfarb & Idnani does (the exact solver's, :mod:`moreau.lcp`): add the most violated
+    row, moving the impulses of the set so that their slacks stay zero, and drop a row
+    whose impulse reaches zero first. From a right proposal this is one solve. Last,
+    ``u = u_free + Aᵀ p``, ``v = L⁻ᵀ u`` and iterative refinement in the original units
+    (``G v − c`` on the set, back through W) while it reduces that residual: large
+    cancelling impulses (nearly opposed rows) leave it at round-off of the large terms.
+    """
+    k, n = A.shape
+    eps = 2.220446049250313e-16
+    W = np.empty((k, k))
+    w = np.empty(k)
+    s = np.empty(k)
+    scale = 1e-300
+    for j in range(n):
+        scale = max(scale, abs(uf[j]))
+    for i in range(k):
+        t = -c[i]
+        t0 = -c[i]
+        for j in range(n):
+            t += A[i, j] * uf[j]
+            t0 += A[i, j] * u[j]
+        w[i] = t
+        s[i] = t0
+        scale = max(scale, abs(t), abs(c[i]))
+        for j in range(i + 1):
+            d = 0.0
+            for m in range(n):
+                d += A[i, m] * A[j, m]
+            W[i, j] = d
+            W[j, i] = d
+    tol = 1e-12 * scale
+    # the proposed set, in decreasing p − s
+    S = np.empty(k, dtype=np.int64)
+    key = np.empty(k)
+    ns = 0
+    for i in range(k):
+        if p[i] > s[i] and p[i] > 0.0:
+            S[ns] = i
+            key[ns] = s[i] - p[i]
+            ns += 1
+    order = np.argsort(key[:ns])
+    Ssorted = np.empty(k, dtype=np.int64)
+    for a in range(ns):
+        Ssorted[a] = S[order[a]]
+    S = Ssorted
+    kept = np.empty(k, dtype=np.int64)
+    out = np.empty(k)
+    F = np.empty((k, k))
+    ns, corrections = _nonnegative_on(W, w, S, ns, kept, out, F)
+    q = np.zeros(k)
+    inA = np.zeros(k, dtype=np.bool_)
+    for a in range(ns):
+        q[S[a]] = out[a]
+        inA[S[a]] = True
+    dp = np.empty(k)
+    settled = False
+    for _ in range(4 * k + 10):
+        # the most violated row outside the set (those in it have zero slack)
+        j = -1
+        worst = 0.0
+        for i in range(k):
+            if inA[i]:
+                continue
+            t = w[i]
+            fl = 0.0
+            for m in range(k):
+                t += W[i, m] * q[m]
+                fl += abs(W[i, m] * q[m])
+            t += 8.0 * eps * fl
+            if t < -tol and (j < 0 or t < worst):
+                j, worst = i, t
+        if j < 0:
+            settled = True
+            break
+        corrections += 1
+        slj = w[j]
+        for m in range(k):
+            slj += W[j, m] * q[m]
+        added = False
+        for _inner in range(k + 1):  # bring row j to its bound (Goldfarb–Idnani step)
+            ds = W[j, j]
+            if ns > 0:
+                if _solve_on(W, W[j], S, ns, kept, dp, F) != ns:  # dp = −W_AA⁻¹ W_Aj
+                    return False  # the set lost independence to round-off
+                for a in range(ns):
+                    ds += W[j, S[a]] * dp[a]
+            t_full = -slj / ds if ds > 1e-13 * W[j, j] else math.inf
+            t_part = math.inf
+            blocking = -1
+            for a in range(ns):
+                if dp[a] < 0.0:
+                    ratio = -q[S[a]] / dp[a]
+                    if ratio < t_part:
+                        t_part, blocking = ratio, a
+            t = min(t_full, t_part)
+            if t == math.inf:
+                return False  # row j cannot be satisfied: infeasible
+            for a in range(ns):
+                q[S[a]] += t * dp[a]
+            q[j] += t
+            slj += t * ds
+            if t_full <= t_part:
+                S[ns] = j
+                ns += 1
+                ns, dropped = _nonnegative_on(W, w, S, ns, kept, out, F)  # exactly on the new set
+                corrections += dropped
+                q[:] = 0.0
+                inA[:] = False
+                for a in range(ns):
+                    q[S[a]] = out[a]
+                    inA[S[a]] = True
+                added = True
+                break
+            q[S[blocking]] = 0.0
+            inA[S[blocking]] = False
+            for a in range(blocking, ns - 1):
+                S[a] = S[a + 1]
+            ns -= 1
+        if not added:
+            return False
+    if not settled:
+        return False
+    info[0] = corrections
+    ut = uf.copy()
+    for i in range(k):
+        if q[i] != 0.0:
+            for j in range(n):
+                ut[j] += A[i, j] * q[i]
+    vv = _upper_solve(L, ut)
+    # iterative refinement in the original units, keeping the best answer
+    best = math.inf
+    vbest = vv.copy()
+    qbest = q.copy()
+    t = np.zeros(k)
+    for step in range(4 if ns > 0 else 0):
+        err = 0.0
+        for i in range(k):
+            t[i] = 0.0
+        for a in range(ns):
+            i = S[a]
+            g = -cRo[i]
+            for j in range(n):
+                g += GR[i, j] * vv[j]
+            t[i] = rR[i] * g  # the set's slacks, in the normalized units
+            err = max(err, abs(t[i]))
+        if not err < best:
+            break
+        best = err
+        vbest[:] = vv
+        qbest[:] = q
+        if err == 0.0 or step == 3:
+            break
+        if _solve_on(W, t, S, ns, kept, dp, F) != ns:
+            break
+        ok = True
+        for a in range(ns):
+            if q[S[a]] + dp[a] < 0.0:
+                ok = False
+        if not ok:
+            break
+        du = np.zeros(n)
+        for a in range(ns):
+            q[S[a]] += dp[a]
+            for j in range(n):
+                du[j] += A[S[a], j] * dp[a]
+        dv = _upper_solve(L, du)
+        for j in range(n):
+            vv[j] += dv[j]
+    for j in range(n):
+        v[j] = vbest[j]
+    for i in range(k):
+        P[i] = qbest[i] * rR[i]
+    return True
 
 
 class _CompiledLCPSolver(ContactSolver):

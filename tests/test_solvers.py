@@ -142,3 +142,23 @@ def test_lcp_form_matches_qp_form(rng):
         slack = w + W @ P
         assert slack.min() > -1e-9 and P.min() >= 0
         assert np.abs(P * slack).max() < 1e-9
+
+
+def test_the_fallback_is_never_the_main_solver_and_every_backends_failure_is_kept():
+    """Issue 11 B: an integrator built by hand with ``solver="enum"`` took ``"enum"`` as its
+    fallback too (the default), and the error of a step both failed kept only one of the
+    two failures (both keyed "enum"). Now the default fallback is ``"exact"`` for enum,
+    a fallback of the main solver's name is refused, and a failed step names both."""
+    integ = mo.MoreauJeanMidpoint(bouncing_ball(0.5), 1e-3, solver="enum")
+    assert (integ.solver.name, integ.fallback.name) == ("enum", "exact")
+    for main, fallback in (("enum", "enum"), (mo.OSQPSolver(), mo.OSQPSolver()), ("exact", mo.ExactSolver())):
+        with pytest.raises(ValueError, match="fallback must be another solver than the main one"):
+            mo.MoreauJeanMidpoint(bouncing_ball(0.5), 1e-3, solver=main, fallback=fallback)
+    with pytest.raises(ValueError, match="fallback must be another solver than the main one, got 'osqp' twice"):
+        mo.simulate(bouncing_ball(0.5), (0.0, 1.0), [1.0], [0.0], 1e-3, solver=mo.OSQPSolver(),
+                    fallback=mo.OSQPSolver())
+    other = FailingSolver()
+    other.name = "failing too"
+    with pytest.raises(mo.SolverError) as info:
+        mo.simulate(bouncing_ball(0.5), (0.0, 1.0), [1.0], [0.0], 1e-3, solver=FailingSolver(), fallback=other)
+    assert set(info.value.residuals) == {"failing", "failing too"}

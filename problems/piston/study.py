@@ -35,6 +35,7 @@ from .analysis import (
     cycle_figures,
     cycle_index,
     lateral_position,
+    max_penetration_ratio,
     sliding_phases,
     steady_speed_rpm,
     tilt,
@@ -178,7 +179,9 @@ def piston_point(e: float, D_mm: float = 80.04, cycles: int = 5, transient: int 
         in contact, degrees), ``sliding_phases`` (one wall alone carrying the piston for
         at least 1° of crank angle); ``side_change_angles_deg`` (last cycle),
         ``rpm`` (mean crank speed over the analyzed cycles, rev/min),
-        ``max_penetration_ratio`` (largest penetration over the analyzed cycles / (D − d)),
+        ``max_penetration_ratio`` (largest penetration over every step of the run, the
+        transient included, / (D − d): the figure ``moreau piston`` reports, not the
+        recorded states'),
         ``max_impulse_Ns`` (largest single impact), ``fallbacks`` (contact solves
         the main backend failed) and ``wall_time_s`` (the only non-reproducible value);
         with ``section_deg``, also ``cycle``, ``angle_deg``, ``x_O3``, ``phi3_mrad``
@@ -229,7 +232,7 @@ def piston_point(e: float, D_mm: float = 80.04, cycles: int = 5, transient: int 
         "flight_deg_mean": mean(flight),
         "sliding_phases_mean": mean(n_phases),
         "rpm": steady_speed_rpm(traj, params, skip_cycles=transient),
-        "max_penetration_ratio": max(c.max_penetration for c in figs),
+        "max_penetration_ratio": max_penetration_ratio(traj, params),  # every step, not the records
         "max_impulse_Ns": max(c.max_impulse for c in figs),
         "side_changes": [c.side_changes for c in figs],
         "impacts": [c.impacts for c in figs],
