@@ -535,14 +535,15 @@ def fit_orders(runs: Sequence[Run], metric: str | None = None) -> dict[tuple[str
     return out
 
 
-def drift_cost(runs: Sequence[Run], solver: str = "enum") -> list[dict]:
+def drift_cost(runs: Sequence[Run], solver: str | None = None) -> list[dict]:
     """Cost of drift control on the piston: wall time with/without at the same h (same
     integrator and solver), and the penetration each leaves."""
     by = {(r.problem, r.config, r.h): r for r in runs}
     out = []
     for r in runs:
         c = r.config
-        if not r.problem.startswith("piston") or c.drift != "none" or c.solver != solver:
+        if not r.problem.startswith("piston") or c.drift != "none" or c.solver not in (
+                (solver,) if solver else ("exact", "enum")):
             continue
         w = by.get((r.problem, Config(c.integrator, c.solver, "comb"), r.h))
         if w is None:
