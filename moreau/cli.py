@@ -5,7 +5,7 @@
 
 The core defines no problem-specific command. Every subcommand — the bundled ``piston``,
 ``ball`` and ``sweep`` as well as a user's own — is found through the Python entry-point
-group ``moreau.commands`` (:data:`ENTRY_POINT_GROUP`), so the library never imports a
+group ``moreau.commands`` (``ENTRY_POINT_GROUP``), so the library never imports a
 problem, and any installed package can add ``moreau <name>``.
 
 Adding a command
@@ -35,13 +35,13 @@ that fails, or adds no parser of its name, is skipped with a logged warning; the
 commands still work. When two packages register the same name, the first one found is
 used and the other is named in a warning.
 
-The handler's exceptions are reported in one line by :func:`main`: :class:`CLIError`
-(its ``code``), :class:`Stopped` (130/143), ``ValueError`` (2), ``ImportError`` (2: a
+The handler's exceptions are reported in one line by ``main``: ``CLIError``
+(its ``code``), ``Stopped`` (130/143), ``ValueError`` (2), ``ImportError`` (2: a
 missing optional dependency), ``OSError`` (1); Ctrl-C and SIGTERM are handled alike. The
-helpers a command needs are exported here: :func:`output_dir`, :func:`write_summary`,
-:func:`simulate_and_save`, the option types :func:`float_in`, :func:`positive_int`,
-:func:`int_at_least`, :func:`add_backend_option`, and :func:`interrupt_exit_code` (the exit
-code of a Ctrl-C or SIGTERM, for :class:`Stopped`).
+helpers a command needs are exported here: ``output_dir``, ``write_summary``,
+``simulate_and_save``, the option types ``float_in``, ``positive_int``,
+``int_at_least``, ``add_backend_option``, and ``interrupt_exit_code`` (the exit
+code of a Ctrl-C or SIGTERM, for ``Stopped``).
 
 Exit codes (the same for every subcommand)
 ------------------------------------------

@@ -138,7 +138,7 @@ class CombinedProjection(PositionProjection):
        persists (pressed, sliding, or re-closing after the drift opened it for a step)
        and takes e = 0, i.e. ``U⁺ >= 0``: no approach velocity is left for the next step
        and none is turned into a bounce. This is the limit of Newton's law as the approach
-       velocity goes to 0 relative to h |a_n|; the difference to the plain law is O(h).
+       velocity goes to 0 relative to ``h |a_n|``; the difference to the plain law is O(h).
     2. **Positions.** After every step the persistent contacts of the step (closed, no
        restitution applied) are projected back onto ``g >= 0`` in the metric of M (the
        QP of :class:`PositionProjection`), whatever their coefficient e. Rows that just

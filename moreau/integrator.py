@@ -101,7 +101,7 @@ class OneStepIntegrator(ABC):
         Largest accepted scaled KKT residual so far.
 
     Every call of the scene's mass matrix, force, gaps and Jacobian in a step is checked
-    for its shape: another shape raises :class:`BadModelOutput` naming the part (the
+    for its shape: another shape raises ``BadModelOutput`` naming the part (the
     contact or effect), the expected and the received shape. A configuration-dependent M
     is factorized once per step (Cholesky), and that factor serves the step's solves and
     the KKT check.
@@ -226,7 +226,7 @@ class OneStepIntegrator(ABC):
     def _mass_at(self, q, v) -> tuple[np.ndarray, np.ndarray]:
         """``(M(q), L)`` with L its Cholesky factor, factorized once as the compiled step
         does (the step's solves use L): a matrix of another shape raises
-        :class:`BadModelOutput`, one that stops being symmetric positive definite
+        ``BadModelOutput``, one that stops being symmetric positive definite
         :class:`NonFiniteState`, at this step."""
         M = self._evaluate(self.scene.system.mass_matrix, (q,), self._shape_M, "mass", self.t, q, v)
         M = np.ascontiguousarray(M, dtype=float)
@@ -240,7 +240,7 @@ class OneStepIntegrator(ABC):
 
     # -- model calls, checked at every call ------------------------------------------------
     def _evaluate(self, fun, args, shape, kind, t, q, v):
-        """``fun(*args)``, checked to have ``shape``; else :class:`BadModelOutput` naming the
+        """``fun(*args)``, checked to have ``shape``; else ``BadModelOutput`` naming the
         part of the scene that returned another shape (``kind``: ``"mass"``, ``"force"``,
         ``"gaps"`` or ``"jacobian"``; t, q, v: where it was evaluated)."""
         try:
@@ -260,15 +260,15 @@ class OneStepIntegrator(ABC):
         return f" at step {self.k} (t = {self.t:.9g})"
 
     def force_at(self, t, q, v) -> np.ndarray:
-        """The scene's force f(t, q, v), its shape checked (:class:`BadModelOutput`)."""
+        """The scene's force f(t, q, v), its shape checked (``BadModelOutput``)."""
         return self._evaluate(self.scene.force, (t, q, v), self._shape_f, "force", t, q, v)
 
     def gaps_at(self, q, v=None) -> np.ndarray:
-        """The scene's gaps g(q), their shape checked (:class:`BadModelOutput`)."""
+        """The scene's gaps g(q), their shape checked (``BadModelOutput``)."""
         return self._evaluate(self.scene.gaps, (q,), self._shape_g, "gaps", self.t, q, v)
 
     def jacobian_at(self, q, v=None) -> np.ndarray:
-        """The scene's Jacobian G(q), its shape checked (:class:`BadModelOutput`)."""
+        """The scene's Jacobian G(q), its shape checked (``BadModelOutput``)."""
         return self._evaluate(self.scene.jacobian, (q,), self._shape_G, "jacobian", self.t, q, v)
 
     def _check_finite(self, q_new, v_new) -> None:

@@ -250,7 +250,7 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
     step of its last impulse ``last_imp`` and its largest gap since then ``gmax``) is
     updated in place, so a chunk resumes where the previous one stopped. ``fgap`` (m,)
     is each row's flight gap: a contact onset after the gap exceeded it is an impact.
-    ``rs`` (m, 4) is the per-row state of CombinedProjection (see :func:`_velocity_update`).
+    ``rs`` (m, 4) is the per-row state of CombinedProjection (see ``_velocity_update``).
     """
     ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e, atol = model
     n, m = ints[0], ints[1]

@@ -1,7 +1,7 @@
 """Results: the trajectory of a run, its impact log and solver statistics; save/load.
 
 Every quantity is in the units of the scene (``traj.units``, declared by
-``Scene(units=...)``; see :mod:`moreau.units`): times in the scene's time unit,
+``Scene(units=...)``; see ``moreau.units``): times in the scene's time unit,
 impulses in its momentum unit, energies in its energy unit.
 """
 
@@ -72,7 +72,7 @@ class ImpactLog:
     row_names : list of str
         Names of the trajectory's contact rows (``row`` indexes them).
     units : dict
-        The trajectory's units (:mod:`moreau.units`).
+        The trajectory's units (``moreau.units``).
     """
 
     t: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -100,7 +100,7 @@ class ImpactLog:
     def to_dataframe(self) -> pandas.DataFrame:
         """The log as a pandas DataFrame, one row per impact, with a ``row_name`` column and
         each column's unit in ``df.attrs["units"]``; see
-        :func:`moreau.export.impacts_to_dataframe`. ``ImportError`` naming the ``export``
+        ``moreau.export.impacts_to_dataframe``. ``ImportError`` naming the ``export``
         extra when pandas is missing."""
         from .export import impacts_to_dataframe
 
@@ -108,7 +108,7 @@ class ImpactLog:
 
     @classmethod
     def from_rows(cls, rows: list[ImpactRow]) -> ImpactLog:
-        """The log of the rows the loops collect (see :data:`ImpactRow`)."""
+        """The log of the rows the loops collect (see ``ImpactRow``)."""
         if not rows:
             return cls()
         cols = list(zip(*rows))
@@ -181,7 +181,7 @@ class SolverStats:
 @dataclass
 class Trajectory:
     """The recorded result of :func:`moreau.simulate`. Arrays are time-major; every quantity
-    is in the scene's units, named in :attr:`units`.
+    is in the scene's units, named in ``units``.
 
     Attributes
     ----------
@@ -230,7 +230,7 @@ class Trajectory:
         What the run-level checks found (a penetration beyond its limit, see
         :mod:`moreau.trust`); empty for a clean run. Kept by ``save``/``load``.
     units : dict
-        The units of every field (:mod:`moreau.units`: ``t``, ``q`` and ``v`` per
+        The units of every field (``moreau.units``: ``t``, ``q`` and ``v`` per
         coordinate, ``gaps`` and ``impulses`` per row, ``energy``, a ``description`` and,
         for non-dimensional models, the ``scales`` to SI). Taken from the scene
         (``Scene(units=...)``); ``""`` where it declared none. Kept by ``save``/``load``
@@ -288,7 +288,7 @@ class Trajectory:
     def to_xarray(self) -> xarray.Dataset:
         """The trajectory as an xarray Dataset (dims ``time``, ``dof``, ``row``; a ``units``
         attribute on each variable; scene, solver, version and units in ``attrs``); see
-        :func:`moreau.export.trajectory_to_xarray`. ``ImportError`` naming the ``export``
+        ``moreau.export.trajectory_to_xarray``. ``ImportError`` naming the ``export``
         extra when xarray is missing."""
         from .export import trajectory_to_xarray
 

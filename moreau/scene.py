@@ -83,7 +83,7 @@ class Scene:
         Label in results.
     units : dict, optional
         The units the scene is written in (``t``, ``q``, ``v``, ``gaps``, ``impulses``,
-        ``energy``, ``description``, ``scales``, ``si``; see :mod:`moreau.units`), carried
+        ``energy``, ``description``, ``scales``, ``si``; see ``moreau.units``), carried
         by its trajectories as ``traj.units``. moreau converts nothing: this only labels
         the numbers. Undeclared entries are ``""``.
 

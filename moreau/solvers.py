@@ -129,7 +129,7 @@ class OSQPSolver(ContactSolver):
         (``Ŵ = Â Âᵀ``, ``ŵ = Â u_free − ĉ``) exactly on the active set OSQP found (also
         from an iterate ADMM stopped short of its tolerance), check complementarity (no
         negative impulse, no violated row), and correct the set where it fails, by the
-        steps of the exact solver's dual active-set method (:func:`_exact_from_proposed_set`).
+        steps of the exact solver's dual active-set method (``_exact_from_proposed_set``).
         What does not settle (an infeasible problem, or rows that lose independence to
         round-off) is returned as OSQP answered and left to the integrator's KKT check and
         its fallback. With False: OSQP's own answer, in the original units.
