@@ -170,13 +170,15 @@ class FunctionBarrier(Barrier):
         return None
 
 
-def finite_difference_jacobian(fun: Callable[[np.ndarray], np.ndarray], q: np.ndarray, eps: float = 1e-6) -> np.ndarray:
-    """Central finite-difference Jacobian of ``fun`` at ``q``, shape (m, n)."""
+def finite_difference_jacobian(fun: Callable[[np.ndarray], np.ndarray], q: np.ndarray, eps: float = 1e-6, *,
+                               relative: bool = True) -> np.ndarray:
+    """Central finite-difference Jacobian of ``fun`` at ``q``, shape (m, n); steps
+    ``eps·max(1, |q_j|)`` (``relative``) or ``eps``."""
     q = np.asarray(q, dtype=float)
     f0 = np.atleast_1d(fun(q))
     J = np.empty((f0.shape[0], q.shape[0]))
     for j in range(q.shape[0]):
-        step = eps * max(1.0, abs(q[j]))
+        step = eps * max(1.0, abs(q[j])) if relative else eps
         qp = q.copy()
         qm = q.copy()
         qp[j] += step

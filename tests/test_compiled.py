@@ -87,6 +87,31 @@ def test_compiled_equals_python_on_the_piston_over_10000_steps(e, drift):
     assert c.stats.projections == p.stats.projections
 
 
+@pytest.mark.slow  # the Python path: 4 x 50 000 steps, ~1 min
+# without drift control the plastic piston sinks a clearance deep at this h, and both paths say so
+@pytest.mark.filterwarnings("ignore:row 'cylinder:RuntimeWarning")
+@pytest.mark.parametrize("e, drift", [(0.0, True), (0.0, False), (0.9, True), (0.9, False)])
+def test_piston_structural_figures_after_4_cycles_are_identical_on_both_paths(e, drift):
+    """Side changes and their angles, impacts per cycle, penetration and speed of every
+    cycle of a 4-cycle run (h = 1e-3, the default CombinedProjection or none)."""
+    from moreau.problems.piston.analysis import cycle_figures
+
+    model = piston_model(e=e)
+    dc = mo.CombinedProjection() if drift else None
+    c, p = (model.simulate(4, 1e-3, backend=b, solver="exact", drift_control=dc, record_every=1)
+            for b in ("compiled", "python"))
+    assert c.warnings == p.warnings
+    fc, fp = cycle_figures(c, model.params), cycle_figures(p, model.params)
+    assert len(fc) == len(fp) == 4
+    assert sum(f.impacts for f in fc) > 10
+    for a, b in zip(fc, fp):
+        assert (a.side_changes, a.impacts) == (b.side_changes, b.impacts)
+        np.testing.assert_allclose(a.change_angles_deg, b.change_angles_deg, rtol=0, atol=1e-6)
+        assert a.mean_rpm == pytest.approx(b.mean_rpm, rel=1e-9)
+        assert a.max_penetration == pytest.approx(b.max_penetration, rel=1e-6, abs=1e-9)
+        assert a.energy_lost == pytest.approx(b.energy_lost, rel=1e-6, abs=1e-12)
+
+
 def test_theta_integrator_compiled_equals_python():
     scene, q0, v0, h = triple_with_walls()
     runs = [mo.simulate(scene, (0.0, 2.0), q0, v0, h, backend=b, solver="exact",

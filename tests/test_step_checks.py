@@ -109,3 +109,19 @@ def test_a_configuration_dependent_mass_matrix_is_factorized_once_per_step(monke
     comp = mo.simulate(scene, (0.0, steps * h), q0, v0, h, backend="compiled")
     scale = np.abs(py.q).max(axis=0) + np.abs(py.v).max(axis=0)
     assert np.all(np.abs(comp.q - py.q) <= 1e-12 * scale) and np.all(np.abs(comp.v - py.v) <= 1e-12 * scale)
+
+
+def test_the_jacobian_check_has_no_false_alarm_at_a_large_crank_angle():
+    """After a thousand engine cycles the crank angle is 12 566 rad: a finite-difference
+    step relative to it (1e-2 rad) is too coarse for the corners' gaps, and the check
+    falls back to absolute steps instead of refusing a correct Jacobian."""
+    from moreau.problems.piston import piston_model
+    from moreau.trust import check_jacobians
+
+    model = piston_model(e=0.0)
+    q0, _ = model.initial_state()
+    q = q0 + np.array([4 * np.pi * 1000, 0.0, 0.0])
+    check_jacobians(model.scene, q)
+    bad = mo.FunctionBarrier(lambda q: np.array([1.0 + np.sin(q[0])]), lambda q: np.array([[-np.cos(q[0])]]))
+    with pytest.raises(ValueError, match="does not match its gap"):  # a wrong sign is still caught there
+        check_jacobians(mo.Scene(mo.FunctionSystem(np.eye(1)), [], [mo.Contact(bad, 0.0)]), np.array([1e4]))
