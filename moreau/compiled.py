@@ -87,6 +87,9 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     acc = np.zeros(3)
     fail = np.zeros((2, 4))
     model = cs.arrays()
+    # a scene of built-in kernels runs in the loop compiled without reference counting
+    run = lp.run_chunk_builtin if cs.builtin else lp.run_chunk
+    work = lp.loop_workspace(n, m)
 
     status, message, interrupt = "completed", "", None
     chunk = 2000
@@ -110,10 +113,10 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
             while cnt[lp.C_K] < n_steps:
                 k_before = int(cnt[lp.C_K])
                 c0 = time.perf_counter()
-                code = lp.run_chunk(model, cs.user, iset, fset, Minv, eligible, q, v,
-                                    min(n_steps, k_before + chunk), in_contact, P_acc, act_acc,
-                                    T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax,
-                                    fgap, rs)
+                code = run(model, cs.user, iset, fset, Minv, eligible, q, v,
+                           min(n_steps, k_before + chunk), in_contact, P_acc, act_acc,
+                           T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax,
+                           fgap, rs, work)
                 if bar is not None:
                     bar.update(int(cnt[lp.C_K]) - k_before)
                 if code == lp.IMPACTS_FULL:

@@ -14,7 +14,7 @@ from numba.extending import overload
 
 from . import kernels as _k
 
-_jit = njit(cache=True, nogil=True)
+_jit = njit(cache=True, nogil=True, inline="always")
 
 
 # -- user callables (specialized per tuple type; empty tuples compile to nothing) --------
@@ -124,7 +124,8 @@ def mass(ints, pool, user, q, c, s, M):
 def force(ints, ekind, eoff, pool, user, t, q, c, s, v, f):
     """f(t, q, v) into ``f`` (n,): the bias terms and exactly the scene's effects;
     ``c, s`` = cos q, sin q."""
-    f[:] = 0.0
+    for i in range(f.shape[0]):
+        f[i] = 0.0
     if ints[3]:
         if ints[2] == _k.MASS_CHAIN:
             _k.add_chain_bias(pool, ints[4], c, s, v, f)

@@ -50,7 +50,7 @@ BAR_LINEAR, BAR_TRIG, BAR_USER = 0, 1, 99
 # mass kinds
 MASS_CONST, MASS_CHAIN, MASS_USER = 0, 1, 99
 
-_jit = njit(cache=True, nogil=True)
+_jit = njit(cache=True, nogil=True, inline="always")
 # small helpers called in inner loops: inlined where called (no call boundary, whose
 # reference counting of array arguments would cost more than the arithmetic)
 _inline = njit(cache=True, nogil=True, inline="always")

@@ -242,47 +242,34 @@ def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fai
 
 
 @_jit
-def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
-              T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs):
-    """Advance the run to step ``k_end`` (see the module docstring); returns a status.
+def loop_workspace(n, m):
+    """The work arrays of :func:`run_chunk` for n coordinates and m rows (allocated once
+    per run, outside the loop: the loop itself allocates nothing)."""
+    mm = max(m, 1)
+    own = (np.empty((n, n)), np.empty((n, n)), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n),
+           np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(m), np.empty(m),
+           np.zeros(m), np.zeros(m, dtype=np.bool_), np.empty((m, n)), np.empty(n))
+    lw = (np.empty((mm, n)), np.empty(mm), np.empty(n), np.empty(n), np.empty(mm),
+          np.empty((mm, n)), np.empty(n), np.zeros(n), np.zeros(mm, dtype=np.bool_))
+    return own, workspace(n, m), lw
 
-    State (q, v, step ``cnt[C_K]``, contact flags, impulse accumulators, per row the
-    step of its last impulse ``last_imp`` and its largest gap since then ``gmax``) is
-    updated in place, so a chunk resumes where the previous one stopped. ``fgap`` (m,)
-    is each row's flight gap: a contact onset after the gap exceeded it is an impact.
-    ``rs`` (m, 4) is the per-row state of CombinedProjection (see ``_velocity_update``).
-    """
+
+@_inline
+def _advance(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
+             T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work):
+    """The body of :func:`run_chunk` (inlined into its two entry points)."""
     ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e, atol = model
     n, m = ints[0], ints[1]
     h, t0 = fset[F_H], fset[F_T0]
     stride, nsteps = iset[S_STRIDE], iset[S_NSTEPS]
     theta = iset[S_THETA] == 1 and ints[7] == 1
     const_mass = ints[2] == _k.MASS_CONST
-    M = np.empty((n, n))
-    L = np.empty((n, n))
-    cm = np.zeros(n)
-    sm = np.zeros(n)
-    cq = np.zeros(n)
-    sq = np.zeros(n)
+    own, ws, lw = work
+    M, L, cm, sm, cq, sq, qm, f, v_new, vbar, q_new, gm, gq, P, active, G, vfree = own
     if const_mass:
         ev.mass(ints, pool, user, q, cq, sq, M)
         if _k.cholesky(M, L, n) >= 0:
             return NOT_SPD
-    qm = np.empty(n)
-    f = np.empty(n)
-    v_new = np.empty(n)
-    vbar = np.empty(n)
-    q_new = np.empty(n)
-    gm = np.empty(m)
-    gq = np.empty(m)
-    P = np.zeros(m)
-    active = np.zeros(m, dtype=np.bool_)
-    G = np.empty((m, n))
-    vfree = np.empty(n)
-    ws = workspace(n, m)
-    mm = max(m, 1)
-    lw = (np.empty((mm, n)), np.empty(mm), np.empty(n), np.empty(n), np.empty(mm),
-          np.empty((mm, n)), np.empty(n), np.zeros(n), np.zeros(mm, dtype=np.bool_))
     cap = IMP.shape[0]
     while cnt[C_K] < k_end:
         if m > 0 and cnt[C_NIMP] + m > cap:
@@ -397,21 +384,23 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
                 elif gq[r] > gmax[r]:
                     gmax[r] = gq[r]
                 rs[r, R_GAP] = gq[r]
-        q[:] = q_new
-        v[:] = v_new
+        for i in range(n):  # element loops: a slice copy would allocate a temporary
+            q[i] = q_new[i]
+            v[i] = v_new[i]
         k += 1
         cnt[C_K] = k
         if k % stride == 0 or k == nsteps:
             rec = cnt[C_REC]
             T[rec] = t0 + k * h
-            Q[rec, :] = q
-            V[rec, :] = v
-            if m > 0:
-                PS[rec, :] = P_acc
-                ACT[rec, :] = act_acc
-                GP[rec, :] = gq
-                P_acc[:] = 0.0
-                act_acc[:] = False
+            for i in range(n):
+                Q[rec, i] = q[i]
+                V[rec, i] = v[i]
+            for r in range(m):
+                PS[rec, r] = P_acc[r]
+                ACT[rec, r] = act_acc[r]
+                GP[rec, r] = gq[r]
+                P_acc[r] = 0.0
+                act_acc[r] = False
             if iset[S_ENERGY] == 1:
                 ev.mass(ints, pool, user, q, cq, sq, M)
                 ke = 0.0
@@ -422,3 +411,31 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
                 PE[rec] = ev.potential(ints, ekind, eoff, pool, q, cq, sq) + fset[F_PE0]
             cnt[C_REC] = rec + 1
     return DONE
+
+
+@_jit
+def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
+              T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work):
+    """Advance the run to step ``k_end`` (see the module docstring); returns a status.
+
+    State (q, v, step ``cnt[C_K]``, contact flags, impulse accumulators, per row the
+    step of its last impulse ``last_imp`` and its largest gap since then ``gmax``) is
+    updated in place, so a chunk resumes where the previous one stopped. ``fgap`` (m,)
+    is each row's flight gap: a contact onset after the gap exceeded it is an impact.
+    ``rs`` (m, 4) is the per-row state of CombinedProjection (see ``_velocity_update``);
+    ``work`` comes from :func:`loop_workspace`. This entry point keeps numba's reference
+    counting, which user callables returning new arrays need.
+    """
+    return _advance(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
+                    T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work)
+
+
+@njit(cache=True, nogil=True, _nrt=False)
+def run_chunk_builtin(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
+                      T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work):
+    """:func:`run_chunk` for a scene of built-in kernels only, compiled without reference
+    counting: every array it touches is owned by the caller and nothing is allocated, so
+    the counts (an atomic increment and decrement per array per use, measured at two
+    thirds of a contact step's time) are pure overhead."""
+    return _advance(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
+                    T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work)
