@@ -123,7 +123,7 @@ def main(argv=None) -> None:
     t0 = time.perf_counter()
     for h in [args.h] + ([args.check_h] if args.check_h else []):
         start = args.rpm0
-        for it in range(args.iterate):
+        for _ in range(args.iterate):
             q, v = model.initial_state(speed=start / RPM)
             warm = _run(model, 0.0, q, v, h, args.warmup * CYCLE / max(v[0], 0.5), 100)
             r, S, Wd, est = energy_balance(model, warm.t[-1], warm.q[-1], warm.v[-1], h)
