@@ -17,8 +17,12 @@ Two methods, both on :func:`moreau.simulate` (any scene, impacts included):
   like 1 / velocity and finite differences of size delta cannot follow it; on the
   chaotic triple pendulum of ``notebooks/triple_pendulum.py`` the spectrum's sum does not
   reach the flow's contraction at the steps tried (T/h ≤ 6400), while the sign of the
-  largest exponent is robust. A tangent integration with saltation matrices at the
-  logged impacts (Müller 1995) is the method for that case; it is not built yet.
+  largest exponent is robust. For that case use
+  :func:`~moreau.dynamics.lyapunov_spectrum_tangent` (:mod:`moreau.dynamics.tangent`):
+  the variational equation along the simulated trajectory with the saltation matrix of
+  Müller (1995) at every logged impact. On the triple pendulum (T/h = 1600) its sum is
+  the flow's mean contraction (-2.83 1/s) and its largest exponent, 2.46 ± 0.23 1/s,
+  agrees with the two-trajectory estimate, 2.61 ± 0.24 1/s.
 
 Distances are measured in the scaled state ``x / scale`` (default scale 1: choose
 ``scale`` so that position and velocity perturbations are comparable). Exponents are per
@@ -64,7 +68,10 @@ class LyapunovResult:
     x_final : ndarray, shape (2n,)
         Final state of the reference trajectory.
     method : str
-        ``"two-trajectory"`` or ``"fd-qr"``.
+        ``"two-trajectory"``, ``"fd-qr"`` or ``"saltation"``
+        (:func:`~moreau.dynamics.lyapunov_spectrum_tangent`).
+    meta : dict
+        Parameters of the run (``h``, ``interval``, ...) and method-specific counters.
     """
 
     exponents: np.ndarray

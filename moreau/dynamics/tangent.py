@@ -60,7 +60,7 @@ import numpy as np
 import moreau as mo
 
 from .lyapunov import LyapunovResult, _setup, _stats, _transient
-from .maps import join_state, restart, split_state
+from .maps import restart, split_state
 
 __all__ = ["lyapunov_spectrum_tangent"]
 
@@ -76,6 +76,16 @@ class _Flow:
         self.eps = eps
         self.Minv = np.linalg.inv(scene.system.mass_matrix(np.zeros(self.n))) \
             if scene.system.constant_mass else None
+
+    def jac(self, q: np.ndarray) -> np.ndarray:
+        """Contact Jacobian G(q), shape (m, n)."""
+        assert self.scene.jacobian is not None  # only called at contact steps
+        return np.asarray(self.scene.jacobian(q), float)
+
+    def gaps(self, q: np.ndarray) -> np.ndarray:
+        """Gaps g(q), shape (m,)."""
+        assert self.scene.gaps is not None  # only called at contact steps
+        return np.asarray(self.scene.gaps(q), float)
 
     def solve_M(self, q: np.ndarray, b: np.ndarray) -> np.ndarray:
         if self.Minv is not None:
@@ -114,7 +124,7 @@ class _Flow:
 
     def newton(self, q: np.ndarray, v: np.ndarray, row: int) -> np.ndarray:
         """Post-impact velocity of one row, shape (n,)."""
-        G = np.asarray(self.scene.jacobian(q), float)[row]
+        G = self.jac(q)[row]
         w = self.solve_M(q, G)
         return v - (1.0 + self.scene.restitution[row]) * w * (G @ v) / (G @ w)
 
@@ -123,7 +133,7 @@ class _Flow:
         n = self.n
         q, v = split_state(x)
         e = self.scene.restitution[row]
-        G = np.asarray(self.scene.jacobian(q), float)[row]
+        G = self.jac(q)[row]
         w = self.solve_M(q, G)
         U = float(G @ v)
         vp = self.newton(q, v, row)
@@ -147,7 +157,7 @@ class _Flow:
         q, v = split_state(x)
         qm = q + 0.5 * h * v
         vf = v + h * self.accel(t + 0.5 * h, qm, v)
-        G = np.asarray(self.scene.jacobian(qm), float)[rows]
+        G = self.jac(qm)[rows]
         W = np.column_stack([self.solve_M(qm, g) for g in G])  # M⁻¹Gᵀ, (n, r)
         lam = np.linalg.solve(G @ W, G @ vf + self.scene.restitution[rows] * (G @ v))
         vp = vf - W @ lam
@@ -231,7 +241,6 @@ def lyapunov_spectrum_tangent(scene: mo.Scene, q0, v0, h: float, *, interval: fl
         raise ValueError(f"persistent must be 'raise' or 'scheme', got {persistent!r}")
     x, _, fmap = _setup(scene, q0, v0, h, interval, t0, None, simulate_kwargs)
     dim = x.shape[0]
-    n = dim // 2
     k = dim if k is None else int(k)
     if not 1 <= k <= dim:
         raise ValueError(f"k must be in [1, {dim}], got {k}")
@@ -293,8 +302,8 @@ def lyapunov_spectrum_tangent(scene: mo.Scene, q0, v0, h: float, *, interval: fl
                 tr_step, ld_step = 0.0, float(np.log(abs(np.linalg.det(Js))))
             else:
                 qs, vs = split_state(xs)
-                g = np.asarray(scene.gaps(qs), float)
-                U = np.asarray(scene.jacobian(qs), float) @ vs
+                g = flow.gaps(qs)
+                U = flow.jac(qs) @ vs
                 tau = {int(r): (float(np.clip(g[r] / -U[r], -0.5 * hh, hh)) if U[r] < 0 else 0.5 * hh)
                        for r in hit}
                 order = sorted(tau, key=tau.get)  # type: ignore[arg-type]
@@ -308,11 +317,11 @@ def lyapunov_spectrum_tangent(scene: mo.Scene, q0, v0, h: float, *, interval: fl
                     tr_step += dt * np.trace(A)
                     tau_done = tau[r]
                     qy, vy = split_state(y)
-                    Ur = float(np.asarray(scene.jacobian(qy), float)[r] @ vy)
+                    Ur = float(flow.jac(qy)[r] @ vy)
                     if Ur >= 0.0:
                         stats["skipped_rows"] += counted
                         continue
-                    an = float(np.asarray(scene.jacobian(qy), float)[r] @ flow.accel(ts + tau_done, qy, vy))
+                    an = float(flow.jac(qy)[r] @ flow.accel(ts + tau_done, qy, vy))
                     S, y = flow.saltation(ts + tau_done, y, r)
                     Q = S @ Q
                     ld_step += float(np.log(abs(np.linalg.det(S))))
