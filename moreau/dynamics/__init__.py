@@ -12,6 +12,8 @@ speed up with the simulation backend.
   from the monodromy of the section map;
 * :mod:`~moreau.dynamics.lyapunov`: the largest exponent from two nearby trajectories, the
   spectrum from finite-difference Jacobians of the interval map with QR;
+* :mod:`~moreau.dynamics.tangent`: the spectrum from the tangent dynamics with saltation
+  matrices at the impacts (Müller 1995);
 * :mod:`~moreau.dynamics.bifurcation`: bifurcation diagrams on :func:`moreau.sweeps.sweep`.
 """
 
@@ -20,11 +22,12 @@ from .floquet import FloquetResult, detect_period, find_fixed_point, floquet_mul
 from .lyapunov import LyapunovResult, largest_lyapunov, lyapunov_spectrum
 from .maps import PoincareMap, TimeMap, jacobian_fd, join_state, split_state
 from .sections import Section, poincare, poincare_on_the_fly, stroboscopic
+from .tangent import lyapunov_spectrum_tangent
 
 __all__ = [
     "Section", "stroboscopic", "poincare", "poincare_on_the_fly",
     "TimeMap", "PoincareMap", "jacobian_fd", "join_state", "split_state",
     "FloquetResult", "detect_period", "find_fixed_point", "floquet_multipliers",
-    "LyapunovResult", "largest_lyapunov", "lyapunov_spectrum",
+    "LyapunovResult", "largest_lyapunov", "lyapunov_spectrum", "lyapunov_spectrum_tangent",
     "bifurcation_diagram", "bifurcation_point", "plot_bifurcation",
 ]
