@@ -242,9 +242,10 @@ def kkt_residuals_kernel(M, L, b, G, c, v, P, k, out, Gv, GtP, r, d, x, y):
     (an impulse that stops a heavy motion leaves a residual that cancels large momenta;
     a chain of 24 links stopped flat on a floor is exact only to 3e-6 by this measure,
     the piston to 1e-13). When ``max |δ_i| / max(|v_i|, |(M⁻¹ b)_i|)`` is at most 1e-12,
-    that bound of the measure is returned and the floor (O(n³)) is not computed. Every measure is invariant under a rescaling of any single
-    coordinate (a change of units), so a light coordinate's velocity error is not hidden
-    behind a heavy one's momentum. ``L`` is the Cholesky factor of M; Gv (>= k), GtP, r, d, x (n) are work arrays.
+    that bound of the measure is returned and the floor (O(n³)) is not computed. Every
+    measure is invariant under a rescaling of any single coordinate (a change of units),
+    so a light coordinate's velocity error is not hidden behind a heavy one's momentum.
+    ``L`` is the Cholesky factor of M; Gv (>= k), GtP, r, d, x (n) are work arrays.
     """
     n = M.shape[0]
     for j in range(n):

@@ -430,7 +430,7 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
                     T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work)
 
 
-@njit(cache=True, nogil=True, _nrt=False)
+@njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]  # numba's internal flag
 def run_chunk_builtin(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
                       T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work):
     """:func:`run_chunk` for a scene of built-in kernels only, compiled without reference
