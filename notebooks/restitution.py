@@ -29,7 +29,9 @@
 # Here e runs over [0, 1] on the same engine. For every e the engine runs a transient
 # cycle and then the analyzed cycles (720° of crank angle each, from firing TDC), and we
 # count per cycle the **side changes**, the **impacts** (all four piston corners), the
-# **kinetic energy dissipated at the impacts** and the **steady crank speed**. The same
+# **kinetic energy dissipated at the impacts** and the **mean crank speed** of the
+# analyzed cycles (not the engine's own steady speed, which takes thousands of cycles to
+# reach: see `benchmarks/steady_speed.py` and the README). The same
 # runs also sample the pin's lateral position x_O3 and the piston tilt φ3 once per cycle
 # at fixed crank angles: a Poincaré section of the self-excited engine, drawn against e
 # like a bifurcation diagram.
@@ -131,8 +133,10 @@ plt.show()
 #   up to 27 % of the clearance into the wall at this step size.) The largest single
 #   impulse, in contrast, grows like (1 + e): 0.115 N s at e = 0, 0.173 N s at 0.5,
 #   0.238 N s at 0.9.
-# * **Speed.** 2005.79 rpm for every e, to within 0.01 rpm: the slap energy is a few 10⁻⁴
-#   of the ≈ 123 J of brake work per cycle (9.807 N m × 4π).
+# * **Mean speed of the analyzed cycles.** 2005.79 rpm for every e, to within 0.01 rpm:
+#   the slap energy is a few 10⁻⁴ of the ≈ 123 J of brake work per cycle (9.807 N m × 4π).
+#   Over a few cycles the speed only repeats the start; where the engine settles (about
+#   1997 rpm for e = 0 as h → 0) takes thousands of cycles (README).
 
 # %%
 fig = plot_side_change_angles(runs, "e", "restitution e", title="Where the piston changes sides")

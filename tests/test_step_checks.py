@@ -125,3 +125,19 @@ def test_the_jacobian_check_has_no_false_alarm_at_a_large_crank_angle():
     bad = mo.FunctionBarrier(lambda q: np.array([1.0 + np.sin(q[0])]), lambda q: np.array([[-np.cos(q[0])]]))
     with pytest.raises(ValueError, match="does not match its gap"):  # a wrong sign is still caught there
         check_jacobians(mo.Scene(mo.FunctionSystem(np.eye(1)), [], [mo.Contact(bad, 0.0)]), np.array([1e4]))
+
+
+@pytest.mark.parametrize("backend", ["compiled", "python"])
+def test_a_run_continues_from_a_slightly_penetrating_state_only_when_asked(backend):
+    """The state a run ended in may lie inside a barrier by round-off or by the midpoint's
+    impact step; ``initial_penetration`` accepts it explicitly, the default refuses it."""
+    from moreau.problems.bouncing_ball import bouncing_ball
+
+    scene = bouncing_ball(0.5)
+    with pytest.raises(ValueError, match="penetrates a barrier"):
+        mo.simulate(scene, (0.0, 0.01), [-1e-8], [-1.0], 1e-3, backend=backend)
+    traj = mo.simulate(scene, (0.0, 0.01), [-1e-8], [-1.0], 1e-3, backend=backend, initial_penetration=1e-6)
+    assert traj.completed and traj.v[1, 0] > 0  # the first step resolves the approach
+    for bad in (-1e-9, True, "1e-6", float("nan")):
+        with pytest.raises(ValueError, match="initial_penetration"):
+            mo.simulate(scene, (0.0, 0.01), [1.0], [0.0], 1e-3, backend=backend, initial_penetration=bad)

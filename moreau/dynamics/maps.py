@@ -96,31 +96,20 @@ class TimeMap:
         return np.hstack([traj.q, traj.v])
 
 
-_TOLERANT: dict[type, type] = {}
-
-
-def _tolerant(integrator: type) -> type:
-    """A subclass of ``integrator`` that accepts a slightly penetrating initial state."""
-    if integrator not in _TOLERANT:
-        def __init__(self, *args, **kwargs):
-            kwargs.setdefault("penetration_tol", 1e300)
-            integrator.__init__(self, *args, **kwargs)  # type: ignore[misc]  # the base class's
-        _TOLERANT[integrator] = type(f"Restart{integrator.__name__}", (integrator,), {"__init__": __init__})
-    return _TOLERANT[integrator]
-
-
 def restart(scene: mo.Scene, t_span, q, v, h: float, **simulate_kwargs) -> mo.Trajectory:
     """:func:`moreau.simulate` from a state a previous run ended in.
 
     The midpoint scheme ends an impact step with a penetration of up to ~ (1 - e)|v|h/2,
-    which :func:`moreau.simulate` refuses as an initial state; a run that continues from
-    such a state is what the uninterrupted run would have done, so the check is relaxed
-    for it (only then: otherwise the call is plain :func:`moreau.simulate`).
+    which :func:`moreau.simulate` refuses as an initial state by default; a run that
+    continues from such a state is what the uninterrupted run would have done, so that
+    state's own penetration is accepted (``initial_penetration``), on whichever path the
+    scene runs (the compiled loop when it compiles).
     """
-    if scene.gaps is not None and np.min(scene.gaps(np.asarray(q, float))) < -1e-12:
-        kw = dict(simulate_kwargs)
-        kw["integrator"] = _tolerant(kw.get("integrator", mo.MoreauJeanMidpoint))
-        return mo.simulate(scene, t_span, q, v, h, **kw)
+    if scene.gaps is not None and scene.nrows:
+        gmin = float(np.min(scene.gaps(np.asarray(q, float))))
+        if gmin < -1e-12:
+            simulate_kwargs = dict(simulate_kwargs)
+            simulate_kwargs.setdefault("initial_penetration", 2.0 * -gmin)
     return mo.simulate(scene, t_span, q, v, h, **simulate_kwargs)
 
 
