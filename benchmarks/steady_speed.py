@@ -139,7 +139,11 @@ def main(argv=None) -> None:
         np.save(args.save, rpm)
     c = np.arange(rpm.size)
     fit = lambda c, a, b, tau: a - b * np.exp(-c / tau)  # noqa: E731
-    p, _ = curve_fit(fit, c[20:], rpm[20:], p0=(rpm[-1], rpm[-1] - rpm[20], 3000.0), maxfev=20000)
+    try:
+        p, _ = curve_fit(fit, c[20:], rpm[20:], p0=(rpm[-1], rpm[-1] - rpm[20], 3000.0), maxfev=20000)
+    except (RuntimeError, ValueError, TypeError) as exc:  # a run started at its settled speed: nothing to fit
+        log.info("no relaxation fitted: %s", exc)
+        p = (np.nan, np.nan, np.nan)
     change = rpm[-100:].mean() - rpm[-200:-100].mean()
     r, S, Wd, est = energy_balance(model, t, q, v, args.h)
     print(f"{head}, h = {args.h:g}: {rpm.size} cycles in {time.perf_counter() - t0:.0f} s")
