@@ -452,18 +452,9 @@ class ChainWallsProblem(Problem):
 
     def __init__(self, ladder, config_list, t_end=1.5, h_ref=1e-6, record_dt=0.01):
         super().__init__(ladder, config_list)
-        from moreau.chain import ChainGravity, JointDamping, Link, PendulumChain, PointLineBarrier, PointLineRow
+        from moreau.problems.chain_walls import chain_walls
 
-        chain = PendulumChain([Link.rod(m=1.0, l=0.5), Link.rod(m=0.8, l=0.45),
-                               Link(m=0.5, J=0.01, l=0.4, com=0.25, com_lateral=0.02)])
-        walls = PointLineBarrier(chain, [
-            PointLineRow(2, (0.4, 0.0), line_point=(0.55, 0.0), normal=(-1.0, 0.1), name="right"),
-            PointLineRow(0, (0.5, 0.0), line_point=(-0.3, 0.0), normal=(1.0, 0.3), name="left"),
-            PointLineRow(2, (0.4, 0.0), line_point=(0.0, -1.2), normal=(0.2, 1.0), name="floor"),
-        ])
-        self.scene = mo.Scene(chain, [ChainGravity(chain, g=9.81), JointDamping(chain, [0.01, 0.005, 0.005])],
-                              [mo.Contact(walls, law=[0.8, 0.5, 0.9], name="walls")], name="triple chain, 3 walls")
-        self.q0, self.v0 = [1.2, 0.3, -0.5], [0.0, 0.0, 0.0]
+        self.scene, self.q0, self.v0 = chain_walls()
         self.t_end, self.h_ref, self.record_dt = t_end, h_ref, record_dt
         self.ref_config = Config("mid", "exact", "none")
         self.ref = None

@@ -244,7 +244,12 @@ fig.savefig(os.path.join(FIG_DIR, "triple_pendulum_lyapunov.png"), dpi=110)
 # period). The two methods agree within their error bars: 2.82 ± 0.22 1/s from two
 # trajectories, 3.10 ± 0.34 1/s for the largest exponent of the FD-QR spectrum (at
 # T/h = 400 and d0 = delta = 1e-4, below h·|v|: 2.23 ± 0.16 and 2.48 ± 0.23 1/s, the slow
-# test). The motion is chaotic. But the rest of the spectrum is not trustworthy here: its
+# test). The motion is chaotic. These error bars are wide enough to hide a bias: at
+# T/h = 1600, h·|v| ≈ 7e-3, and no perturbation size resolves the impacts while staying
+# linear. Compared interval by interval with the tangent method on the same reference
+# trajectory, the two-trajectory estimate at T/h = 1600 is off by +0.21 ± 0.09 (d0 = 3e-2)
+# to −0.46 ± 0.11 1/s (d0 = 1e-4), and agrees at T/h = 25 600 with d0 = 1e-2
+# (−0.03 ± 0.05 1/s; `benchmarks/lyapunov_window.py`, a slow test). But the rest of the spectrum is not trustworthy here: its
 # *sum* (+4.4 1/s; ≈ 0 at T/h = 400) should be the flow's mean phase-space contraction,
 # −⟨trace(M⁻¹C)⟩ + 2 ln(e) × impact rate ≈ −2.8 1/s. On the periodic orbit above and on
 # the ball on the table (`tests/test_dynamics_lyapunov.py`, 0.3 %) the same finite

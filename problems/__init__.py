@@ -2,6 +2,7 @@
 
 * :mod:`moreau.problems.bouncing_ball` — a ball on a floor, with the analytic solution;
 * :mod:`moreau.problems.pendulum_wall` — a pendulum whose bob hits a vertical wall;
+* :mod:`moreau.problems.chain_walls` — a triple pendulum chain falling against three walls;
 * :mod:`moreau.problems.piston` — the piston – connecting rod – crankshaft engine of
   Awrejcewicz & Kudra.
 """

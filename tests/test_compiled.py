@@ -16,20 +16,13 @@ from moreau import kernels as K
 from moreau.chain import ChainGravity, JointDamping, Link, PendulumChain, PointLineBarrier, PointLineRow
 from moreau.lowering import NotCompilable, lower
 from moreau.problems.bouncing_ball import bouncing_ball
+from moreau.problems.chain_walls import chain_walls
 from moreau.problems.piston import piston_model
 
 
 def triple_with_walls():
-    chain = PendulumChain([Link.rod(m=1.0, l=0.5), Link.rod(m=0.8, l=0.45),
-                           Link(m=0.5, J=0.01, l=0.4, com=0.25, com_lateral=0.02)])
-    walls = PointLineBarrier(chain, [
-        PointLineRow(2, (0.4, 0.0), line_point=(0.55, 0.0), normal=(-1.0, 0.1), name="right"),
-        PointLineRow(0, (0.5, 0.0), line_point=(-0.3, 0.0), normal=(1.0, 0.3), name="left"),
-        PointLineRow(2, (0.4, 0.0), line_point=(0.0, -1.2), normal=(0.2, 1.0), name="floor"),
-    ])
-    scene = mo.Scene(chain, [ChainGravity(chain, g=9.81), JointDamping(chain, [0.01, 0.005, 0.005])],
-                     [mo.Contact(walls, law=[0.8, 0.5, 0.9], name="walls")])
-    return scene, [1.2, 0.3, -0.5], [0.0, 0.0, 0.0], 1e-3
+    scene, q0, v0 = chain_walls()
+    return scene, q0, v0, 1e-3
 
 
 def piston_case(e, drift):

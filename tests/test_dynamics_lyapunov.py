@@ -97,7 +97,7 @@ def test_ueda_oscillator_largest_exponent_within_5_percent_of_published():
 
 
 @pytest.mark.slow
-def test_two_methods_agree_on_the_chaotic_triple_pendulum():
+def test_two_methods_agree_on_the_chaotic_triple_pendulum(chaotic_pendulum):
     """Triple pendulum with a wall, torque 3 sin(6 t) N m (notebooks/triple_pendulum.py):
     the two-trajectory estimate and the largest exponent of the FD-QR spectrum agree within
     two combined standard errors, both clearly positive. Measured: 2.23 ± 0.16 and
@@ -107,14 +107,7 @@ def test_two_methods_agree_on_the_chaotic_triple_pendulum():
     2.82 ± 0.22 and 3.10 ± 0.34 1/s. In neither case is the FD-QR spectrum's sum the flow's
     mean contraction (-2.8 1/s; measured +0.03 and +4.4): the spectrum beyond the largest
     exponent is not trustworthy in this grazing, chaotic regime."""
-    from moreau.dynamics.benchmarks import forced_triple_pendulum
-
-    w = 6.0
-    T = 2 * np.pi / w
-    scene = forced_triple_pendulum(w, 3.0)
-    tr = mo.simulate(scene, (0.0, 100 * T), [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], T / 400, solver="enum",
-                     record_every=400, progress=False)
-    q0, v0, t0 = tr.q[-1], tr.v[-1], tr.t[-1]
+    scene, q0, v0, t0, T = chaotic_pendulum
     two = largest_lyapunov(scene, q0, v0, T / 400, interval=T, n_intervals=200, n_align=5, t0=t0, d0=1e-4)
     spec = lyapunov_spectrum(scene, q0, v0, T / 400, interval=T, n_intervals=100, n_align=5, t0=t0, delta=1e-4)
     a, sa = two.exponents[0], two.stderr[0]

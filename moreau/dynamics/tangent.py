@@ -54,14 +54,17 @@ table and by the other methods.
 On the chaotic triple pendulum (``forced_triple_pendulum(6.0, 3.0)``, 100 periods, logs
 every half period) the spectrum is (2.46, 0.72, −0.09, −0.65, −1.35, −3.92) ± (0.23,
 0.10, 0.07, 0.08, 0.11, 0.28) 1/s at T/h = 1600; the largest exponent is 2.49 ± 0.28,
-2.46 ± 0.23, 2.43 ± 0.12 1/s at T/h = 400, 1600, 6400, against 2.71 ± 0.18, 2.61 ± 0.24,
-2.78 ± 0.14 from two trajectories 3e-2 apart on the same segments (paired difference at
-T/h = 1600: 0.15 ± 0.31); the sum, −2.89, −2.83, −2.91 1/s, is the flow's contraction
+2.46 ± 0.23, 2.43 ± 0.12 1/s at T/h = 400, 1600, 6400 (the segments' trajectories differ
+with h; the scatter between segments, 2.6–3.1 1/s at T/h = 25 600, exceeds these block
+error bars); the sum, −2.89, −2.83, −2.91 1/s, is the flow's contraction
 −⟨trace(M(q)⁻¹C)⟩ + 2 ln(e) × impact rate computed from a separate run (−2.83 at
 T/h = 1600). There are no persistent contacts and no grazing onsets in that regime (every
 contact step is a single impact, the slowest at 0.12–0.48 m/s); the finite-difference
 spectrum (:func:`~moreau.dynamics.lyapunov_spectrum`) misses the sum there for another
-reason, see :mod:`moreau.dynamics.lyapunov`.
+reason, see :mod:`moreau.dynamics.lyapunov`. On the same reference trajectory
+(``chunk`` = one interval) the largest exponent agrees with the two-trajectory estimate
+where that one resolves the impacts (T/h = 25 600, d0 = 1e-2: paired difference
+−0.03 ± 0.05 1/s; ``benchmarks/lyapunov_window.py``).
 """
 
 from __future__ import annotations
@@ -204,8 +207,6 @@ def lyapunov_spectrum_tangent(scene: mo.Scene, q0, v0, h: float, *, interval: fl
     ----------
     scene : Scene
         Any scene with frictionless Newton contacts.
-    q0, v0 : array_like, shape (n,)
-        Initial state at ``t0``.
     h : float
         Step size of the reference trajectory (adjusted to divide ``interval``); the
         error of the exponents is O(h).
@@ -215,14 +216,6 @@ def lyapunov_spectrum_tangent(scene: mo.Scene, q0, v0, h: float, *, interval: fl
         Intervals averaged after the transient and the alignment.
     k : int, optional
         Number of exponents (default all, 2n).
-    t0 : float
-        Start time.
-    n_transient : int
-        Intervals of the reference trajectory discarded first.
-    n_align : int
-        Intervals with the frame propagated but not averaged.
-    n_blocks : int
-        Blocks for the error bar (standard error of block means).
     persistent : {"raise", "scheme"}
         What to do at a step where a row carries an impulse after a step in which it
         already did (a persistent contact): raise ``RuntimeError`` (default), or use the
@@ -232,12 +225,14 @@ def lyapunov_spectrum_tangent(scene: mo.Scene, q0, v0, h: float, *, interval: fl
         Relative finite-difference step of ``∂F/∂x`` (forward) and, as ``sqrt(eps)``,
         of the Newton map's ``∂v⁺/∂q`` (central).
     chunk : int
-        Steps of the reference trajectory simulated (and held in memory) at once.
-    progress : bool
-        A tqdm bar over the intervals.
-    **simulate_kwargs
-        Passed to :func:`moreau.simulate` (``solver="enum"`` is the default for scenes
-        with contacts).
+        Steps of the reference trajectory simulated (and held in memory) at once. With
+        ``chunk`` equal to the steps of one interval the reference trajectory is, bit for
+        bit, the one :func:`~moreau.dynamics.largest_lyapunov` follows from the same
+        arguments (both restart every interval), so that the two estimates can be
+        compared interval by interval.
+    Other parameters
+        ``q0``, ``v0``, ``t0``, ``n_transient``, ``n_align``, ``n_blocks``, ``progress``
+        and ``**simulate_kwargs`` as in :func:`~moreau.dynamics.largest_lyapunov`.
 
     Returns
     -------
