@@ -89,9 +89,9 @@ print(f"{len(E)} values of e; per point {RUN['transient']} + {RUN['cycles']} cyc
 #
 # One row per value of e; the per-cycle lists (`side_changes`, `impacts`, `energy_lost_J`,
 # ...) hold one entry per analyzed cycle. `max_penetration_ratio` is the numerical
-# penetration of the corners into the wall divided by the clearance: ≈ 0 at e = 0 (drift
-# control), up to 0.27 at e = 0.05, where the piston, after a few small bounces, slides
-# along the wall without projection, and down to 0.01 at e = 0.9, where it bounces.
+# penetration of the corners into the wall divided by the clearance: below 0.004 for every
+# e (the engine's drift control projects the corners of every restitution back onto the
+# wall, accepting 1e-4 of the clearance; the step's own O(h²) drift is what remains).
 
 # %%
 t0 = time.perf_counter()
@@ -120,19 +120,22 @@ plt.show()
 #   contact and transits into the other side". At e = 0.95 there are 14–18, and at e = 1
 #   (no dissipation at the wall) the piston never settles: from 8 to 55 side changes, a
 #   different number in every cycle.
-# * **Impacts.** The slaps (impacts carrying at least 1 % of the cycle's largest impulse;
-#   all logged impacts, dashed, are 10–20 % more) grow steadily with e, from 18 per cycle
-#   at e = 0 (one per crossing plus the tilt settling) to 83 at e = 0.5, 132 at 0.7, 244
-#   at 0.85 and 350 at 0.9: each crossing ends in a longer train of bounces.
-# * **Energy.** The kinetic energy dissipated at the impacts hardly depends on e: 0.043 J
-#   per cycle at e = 0 and 0.048–0.054 J for every e in (0, 0.95]; only at e = 1 does it
+# * **Impacts.** The impacts (contact onsets after a flight of 2 % of the clearance) grow
+#   steadily with e, from 12 per cycle for e ≤ 0.15 (each of the six crossings lands on
+#   one corner, then the tilt brings the other one down) to 18 at e = 0.2, 34 at 0.5, 59
+#   at 0.7, 107 at 0.85, 147 at 0.9 and 255 at 0.95: each crossing ends in a longer train
+#   of bounces. Here every one of them is a slap (at least 1 % of the cycle's largest
+#   impulse): the dashed line of all logged impacts lies on the slaps'.
+# * **Energy.** The kinetic energy dissipated at the impacts hardly depends on e: 0.042 J
+#   per cycle at e = 0, 0.042–0.043 J up to e = 0.7 (with a dip to 0.038 J at e = 0.1 and
+#   0.15 that we have not analysed), 0.045–0.048 J from 0.75 to 0.95; only at e = 1 does it
 #   vanish (exactly, as it must). Whenever the piston comes to rest against the wall, the
 #   whole normal kinetic energy it arrived with is gone — in one plastic slap at e = 0,
-#   or over a bounce train at larger e, Σₖ (1 − e²) e²ᵏ = 1. (The step from 0.043 J at
-#   e = 0 to 0.054 J at e = 0.05 is numerical: without projection the sliding piston sinks
-#   up to 27 % of the clearance into the wall at this step size.) The largest single
-#   impulse, in contrast, grows like (1 + e): 0.115 N s at e = 0, 0.173 N s at 0.5,
-#   0.238 N s at 0.9.
+#   or over a bounce train at larger e, Σₖ (1 − e²) e²ᵏ = 1. (A projection of the plastic
+#   rows only, the earlier default, left the sliding piston 27 % of the clearance inside
+#   the wall at e = 0.05 and put a spurious step from 0.043 to 0.054 J between e = 0 and
+#   0.05.) The largest single impulse, in contrast, grows with e, roughly like (1 + e):
+#   0.114 N s at e = 0, 0.162 N s at 0.5, 0.236 N s at 0.9.
 # * **Mean speed of the analyzed cycles.** 2005.79 rpm for every e, to within 0.01 rpm:
 #   the slap energy is a few 10⁻⁴ of the ≈ 123 J of brake work per cycle (9.807 N m × 4π).
 #   Over a few cycles the speed only repeats the start; where the engine settles (about
@@ -147,15 +150,15 @@ plt.show()
 # The six crossings sit at fixed crank angles — 9° (just after firing TDC: the gas force
 # tilts the rod and throws the piston across), 195° (start of the exhaust stroke), 326°
 # and 377° (a quick pair around the exhaust–intake TDC), 428° (intake) and 555° (start of
-# compression) — and move by less than 2° with e up to 0.7 (by up to 10° for the pair
-# around the exhaust–intake TDC at 0.75–0.85): they are where the side force of the rod
+# compression) — and do not move with e up to 0.7 (to the degree; the crossing at 377°
+# moves to 369–376° at 0.75–0.85): they are where the side force of the rod
 # on the pin changes sign, a property of the crank mechanism and the pressure curve, not
 # of the wall. At 0.9–0.95 the extra points are the quick transits, around the
-# exhaust–intake TDC where the side force is weakest (and at 0.95 also after the other
-# crossings); at e = 1 they are anywhere. The lower panel is the crank angle per cycle
-# during which no corner touches the wall: from 92° at e = 0 it grows steadily — a
-# bouncing piston spends its time between impacts — to 340° at 0.9 and almost the whole
-# cycle at e = 1.
+# exhaust–intake TDC where the side force is weakest (at 0.9: 335°, 339° and 363°; at 0.95
+# also after the other crossings); at e = 1 they are anywhere. The lower panel is the crank
+# angle per cycle during which no corner touches the wall: from 92° at e = 0 it grows
+# steadily — a bouncing piston spends its time between impacts — to 330° at 0.9, 510° at
+# 0.95 and 630° at e = 1.
 
 # %% [markdown]
 # ## A bifurcation-like diagram
@@ -182,13 +185,13 @@ plt.show()
 
 # %% [markdown]
 # **What is seen.** At 60° the piston is pinned against the thrust wall by the gas force
-# for every e up to 0.9 (x_O3 = −1, or slightly beyond where the unprojected corners sink
-# into the wall at small e): a single point. At 420° the sample is a single point as well
-# up to e = 0.85 (spread over the cycles below 0.06 half-clearances): the motion is
-# period-1, repeating every engine cycle, and the point moves as the bounce trains
-# lengthen past e = 0.7 and delay the crossing. At e = 0.9 the dots spread over 0.7
-# half-clearances at 420° although every cycle still has 8 side changes; at e = 0.95 the
-# spread reaches the 60° section too, and at e = 1 the dots fill the clearance: the motion
+# for every e up to 0.9 (x_O3 = −1): a single point. At 420° the sample is a single point
+# as well up to e = 0.65 (spread over the cycles below 0.02 half-clearances) and nearly one
+# up to 0.85 (0.04–0.10): the motion is period-1, repeating every engine cycle, and the
+# point moves as the bounce trains lengthen past e = 0.7 and delay the crossing. At e = 0.9
+# the dots spread over 0.43 half-clearances at 420° although every cycle still has 8 side
+# changes; at e = 0.95 the spread reaches the 60° section too (0.24; 0.97 at 420°), and at
+# e = 1 the dots fill the clearance (0.78 and 1.23): the motion
 # no longer repeats. In the language of impact oscillators, growing restitution takes
 # the period-1 "six-stage" motion, between e = 0.85 and 0.9, into non-repeating
 # (chattering, likely chaotic) motion, which becomes irregular rattling at e = 1; the

@@ -285,8 +285,10 @@ def test_sweep_param_given_twice_or_bad_address_is_exit_2(tmp_path, capsys):
 def test_the_piston_study_reports_the_penetration_of_every_step():
     """The sweep summary's ``max_penetration_ratio`` is the largest penetration over every
     step (what ``moreau piston`` reports), not over the recorded states (every 7th step at
-    h = 3e-4), which missed it: 1.5e-5 of the clearance recorded against 8.6e-4 per step
-    (e = 0, drift control, one cycle)."""
+    h = 3e-4), which miss the impact steps: 1.0e-4 of the clearance recorded (a pressed
+    corner, up to the drift control's tolerance of 1e-4) against 8.6e-4 per step (e = 0,
+    the engine's drift control, one cycle; 1.5e-5 recorded with an exact projection). A
+    summary of the recorded states would equal ``recorded``."""
     from moreau.problems.piston.analysis import cycle_figures, max_penetration_ratio
     from moreau.problems.piston.study import _run, piston_point
 
@@ -294,4 +296,4 @@ def test_the_piston_study_reports_the_penetration_of_every_step():
     traj, params = _run(0.0, 80.04, 1, 3e-4, "exact", True)  # the same run
     assert r["max_penetration_ratio"] == max_penetration_ratio(traj, params) > 0
     recorded = max(c.max_penetration for c in cycle_figures(traj, params))
-    assert r["max_penetration_ratio"] > 10 * recorded
+    assert r["max_penetration_ratio"] > 2 * recorded

@@ -203,6 +203,9 @@ def test_ball_command_saves_a_trajectory_carried_by_the_interrupt(tmp_path, monk
 class _InterruptingModel:
     """Stands in for the piston model: its run is interrupted, the partial run attached."""
 
+    def drift_control(self):
+        return None
+
     def simulate(self, *args, **kw):
         exc = KeyboardInterrupt()
         exc.trajectory = _partial_ball()

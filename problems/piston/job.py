@@ -46,8 +46,9 @@ class Case:
         Where the loop runs: ``"auto"``, ``"compiled"`` or ``"python"`` (see
         :func:`moreau.simulate`).
     drift_control : bool
-        Drift control (:class:`moreau.CombinedProjection`): positions projected back
-        onto the cylinder after each step for every e, restitution only at impacts;
+        Drift control (:meth:`~moreau.problems.piston.model.PistonModel.drift_control`, a
+        :class:`moreau.CombinedProjection`): positions projected back onto the cylinder
+        after each step for every e, restitution only at impacts;
         without it the midpoint drift leaves the piston ≈ 10 % of the clearance inside
         the wall at h = 1e-4 (e = 0).
     record_every : int, optional
@@ -100,7 +101,7 @@ def run_case(case: Case, out: str, progress: bool | dict = False) -> dict:
         model = piston_model(params)
         traj = model.simulate(case.transient + case.cycles, case.h, solver=case.solver, backend=case.backend,
                               record_every=record_every, progress=progress, energy=False,
-                              drift_control=mo.CombinedProjection() if case.drift_control else None)
+                              drift_control=model.drift_control() if case.drift_control else None)
     except (mo.SolverError, mo.SimulationError) as exc:
         traj = exc.trajectory
         log.error("case %s failed: %s", case.label, exc)

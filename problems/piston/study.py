@@ -7,11 +7,11 @@ lateral position and the piston tilt sampled once per cycle at fixed crank angle
 Poincaré section φ1 = const mod 720° of the self-excited engine).
 
 Like the main job (:func:`moreau.problems.piston.job.run_case`), the runs use drift control
-(``drift_control=True``: :class:`moreau.CombinedProjection`, which projects every
-corner back onto the cylinder after each step and applies restitution only at
-impacts): without it the midpoint drift of a sliding contact leaves the corners O(h)
-inside the wall (≈ 30 % of the 40 µm clearance at h = 3e-4 for e = 0, 90 % at h = 1e-3
-for e = 0.05).
+(``drift_control=True``: the engine's :class:`moreau.CombinedProjection`, which projects
+every corner back onto the cylinder after each step and applies restitution only at
+impacts, accepting 1e-4 of the clearance, ``PROJECTION_FRACTION``): without it the
+midpoint drift of a sliding contact leaves the corners O(h) inside the wall (≈ 30 % of
+the 40 µm clearance at h = 3e-4 for e = 0, 90 % at h = 1e-3 for e = 0.05).
 
 Units: ``D_mm`` in millimetres, ``h`` in non-dimensional time τ = ω t (one engine cycle
 is 4π), energies in J, impulses in N s, angles of the crank in degrees from firing TDC,
@@ -108,7 +108,7 @@ def _run(e: float, D_mm: float, total_cycles: float, h: float, solver: str,
     model = piston_model(params)
     traj = model.simulate(total_cycles, h, solver=solver, backend=backend, record_every=record_every_for(h),
                           progress=False, energy=False,
-                          drift_control=mo.CombinedProjection() if drift_control else None)
+                          drift_control=model.drift_control() if drift_control else None)
     if traj.status == "interrupted":
         raise KeyboardInterrupt(traj.message)
     return traj, params
@@ -160,8 +160,8 @@ def piston_point(e: float, D_mm: float = 80.04, cycles: int = 5, transient: int 
     solver : str
         Contact solver of :func:`moreau.simulate` (``"exact"`` runs compiled).
     drift_control : bool
-        Use ``moreau.CombinedProjection()`` (every corner projected back onto the
-        cylinder after each step, restitution only at impacts).
+        Use the engine's drift control, :meth:`~moreau.problems.piston.model.PistonModel.drift_control` (every corner
+        projected back onto the cylinder after each step, restitution only at impacts).
     section_deg : float or sequence of float, optional
         Also sample the state once per analyzed cycle at these crank angles (degrees in
         [0, 720)), as :func:`bifurcation_samples` does, from the same run.
