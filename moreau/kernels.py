@@ -252,6 +252,16 @@ def cholesky(M, L, k):
 
 
 @_inline
+def lt_solve(L, out, k):
+    """out[:k] = L⁻ᵀ out[:k] in place, L lower triangular (back substitution)."""
+    for i in range(k - 1, -1, -1):
+        t = out[i]
+        for l in range(i + 1, k):
+            t -= L[l, i] * out[l]
+        out[i] = t / L[i, i]
+
+
+@_inline
 def cho_solve(L, b, out, k):
     """out[:k] = M⁻¹ b[:k] with M = L Lᵀ on the leading k x k block (b, out may alias)."""
     for i in range(k):
@@ -259,11 +269,20 @@ def cho_solve(L, b, out, k):
         for l in range(i):
             t -= L[i, l] * out[l]
         out[i] = t / L[i, i]
-    for i in range(k - 1, -1, -1):
-        t = out[i]
-        for l in range(i + 1, k):
-            t -= L[l, i] * out[l]
-        out[i] = t / L[i, i]
+    lt_solve(L, out, k)
+
+
+@_inline
+def sym_product(A, B, W, k, n):
+    """W[:k, :k] = A[:k, :n] B[:k, :n]ᵀ for a product known to be symmetric: the lower
+    triangle is summed and mirrored, so that W is exactly symmetric."""
+    for i in range(k):
+        for j in range(i + 1):
+            u = 0.0
+            for l in range(n):
+                u += A[i, l] * B[j, l]
+            W[i, j] = u
+            W[j, i] = u
 
 
 @_jit

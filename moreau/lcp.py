@@ -29,7 +29,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .kernels import cho_solve, cholesky
+from .kernels import cho_solve, cholesky, sym_product
 
 __all__ = ["lcp_dual_active_set", "lcp_enumerate", "kkt_residuals_kernel", "solve_one_step", "workspace",
            "OK", "FAILED"]
@@ -355,12 +355,7 @@ def solve_one_step(M, L, b, G, c, P, v, k, method, tol, ws):
             t += G[i, j] * vfree[j]
         w[i] = t
         scale = max(scale, abs(t), abs(c[i]))
-        for j in range(i + 1):
-            u = 0.0
-            for l in range(n):
-                u += G[i, l] * MinvGt[j, l]
-            W[i, j] = u
-            W[j, i] = u  # exactly symmetric
+    sym_product(G, MinvGt, W, k, n)  # W = G M⁻¹ Gᵀ, exactly symmetric
     if method == 0:
         status = lcp_dual_active_set(W, w, P, k, tol * scale, ws[4], ws[5], ws[6], ws[7], ws[8], ws[9], ws[10])
     else:

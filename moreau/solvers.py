@@ -29,6 +29,8 @@ from abc import ABC, abstractmethod
 import numpy as np
 from numba import njit
 
+from .kernels import lt_solve, sym_product
+
 __all__ = [
     "ContactSolver",
     "OSQPSolver",
@@ -278,14 +280,9 @@ def _normalized(L, b, G, A, r, uf):
 
 @_jit
 def _upper_solve(L, x):
-    """L⁻ᵀ x for a lower triangular L."""
-    n = x.shape[0]
-    y = np.empty(n)
-    for i in range(n - 1, -1, -1):
-        t = x[i]
-        for m in range(i + 1, n):
-            t -= L[m, i] * y[m]
-        y[i] = t / L[i, i]
+    """L⁻ᵀ x for a lower triangular L (a new array)."""
+    y = x.copy()
+    lt_solve(L, y, y.shape[0])
     return y
 
 
@@ -387,12 +384,7 @@ def _exact_from_proposed_set(L, GR, cRo, A, uf, c, rR, u, p, v, P, info):
         w[i] = t
         s[i] = t0
         scale = max(scale, abs(t), abs(c[i]))
-        for j in range(i + 1):
-            d = 0.0
-            for m in range(n):
-                d += A[i, m] * A[j, m]
-            W[i, j] = d
-            W[j, i] = d
+    sym_product(A, A, W, k, n)
     tol = 1e-12 * scale
     # the proposed set, in decreasing p − s
     S = np.empty(k, dtype=np.int64)
