@@ -80,17 +80,32 @@ def test_compiled_equals_python_on_the_piston_over_10000_steps(e, drift):
     assert c.stats.projections == p.stats.projections
 
 
+@pytest.mark.parametrize("e", [0.0, 0.9])
+def test_compiled_equals_python_on_the_piston_with_the_engines_drift_control(e):
+    """The main job's drift control (a CombinedProjection accepting 1e-4 of the
+    clearance): the same projections, contact decisions and states on both paths."""
+    model = piston_model(e=e)
+    q0, v0 = model.initial_state()
+    c, p = both(model.scene, q0, v0, 1e-4, 10_000, drift_control=model.drift_control(), record_every=10)
+    assert model.drift_control().tol > 0
+    assert c.stats.contact_steps > 1000 and c.stats.projections > 0
+    assert_same(c, p)
+    assert c.stats.projections == p.stats.projections
+
+
 @pytest.mark.slow  # the Python path: 4 x 50 000 steps, ~1 min
 # without drift control the plastic piston sinks a clearance deep at this h, and both paths say so
 @pytest.mark.filterwarnings("ignore:row 'cylinder:RuntimeWarning")
-@pytest.mark.parametrize("e, drift", [(0.0, True), (0.0, False), (0.9, True), (0.9, False)])
+@pytest.mark.parametrize("e, drift", [(0.0, "exact"), (0.0, "none"), (0.9, "exact"), (0.9, "none"),
+                                      (0.0, "engine"), (0.9, "engine")])
 def test_piston_structural_figures_after_4_cycles_are_identical_on_both_paths(e, drift):
     """Side changes and their angles, impacts per cycle, penetration and speed of every
-    cycle of a 4-cycle run (h = 1e-3, the default CombinedProjection or none)."""
+    cycle of a 4-cycle run (h = 1e-3; an exact CombinedProjection, the main job's drift
+    control, which accepts 1e-4 of the clearance, or none)."""
     from moreau.problems.piston.analysis import cycle_figures
 
     model = piston_model(e=e)
-    dc = mo.CombinedProjection() if drift else None
+    dc = {"exact": mo.CombinedProjection(), "engine": model.drift_control(), "none": None}[drift]
     c, p = (model.simulate(4, 1e-3, backend=b, solver="exact", drift_control=dc, record_every=1)
             for b in ("compiled", "python"))
     assert c.warnings == p.warnings
