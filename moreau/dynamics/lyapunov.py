@@ -34,9 +34,9 @@ exponent: below it both trajectories impact in the same step and the separation 
 the scheme's discrete step map (biased low), above it the separation is not linear. On
 the chaotic triple pendulum, compared interval by interval with the tangent method on the
 same reference trajectory (``benchmarks/lyapunov_window.py``), the window exists at
-T/h = 25 600 (h·|v| = 5.2e-4): d0 = 1e-2 differs from the tangent estimate by
+T/h = 25 600 (``h·|v|`` = 5.2e-4): d0 = 1e-2 differs from the tangent estimate by
 −0.03 ± 0.05 and −0.02 ± 0.07 1/s on two segments (estimates 3.07 and 2.63 1/s), while
-d0 = 1e-4 gives −0.50 ± 0.14. At T/h = 1600 (h·|v| = 7.4e-3) the difference runs from
+d0 = 1e-4 gives −0.50 ± 0.14. At T/h = 1600 (``h·|v|`` = 7.4e-3) the difference runs from
 +0.21 ± 0.09 (d0 = 3e-2) through −0.11 ± 0.21 (3e-3) to −0.46 ± 0.11 1/s (1e-4): there
 the estimate is whatever d0 makes it.
 
