@@ -26,17 +26,8 @@ def compiled_loop_in_cache():
 
 @pytest.fixture(scope="session")
 def chaotic_pendulum():
-    """The triple pendulum with a wall in its chaotic regime (torque 3 sin(6 t) N m,
-    ``notebooks/triple_pendulum.py``), on its attractor after 100 forcing periods of
-    transient at T/h = 400: ``(scene, q0, v0, t0, T)``."""
-    import numpy as np
+    """The triple pendulum with a wall in its chaotic regime on its attractor:
+    :func:`moreau.dynamics.benchmarks.chaotic_pendulum`, ``(scene, q0, v0, t0, T)``."""
+    from moreau.dynamics.benchmarks import chaotic_pendulum
 
-    import moreau as mo
-    from moreau.dynamics.benchmarks import forced_triple_pendulum
-
-    w = 6.0
-    T = 2 * np.pi / w
-    scene = forced_triple_pendulum(w, 3.0)
-    tr = mo.simulate(scene, (0.0, 100 * T), [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], T / 400, solver="enum",
-                     record_every=400, progress=False)
-    return scene, tr.q[-1], tr.v[-1], tr.t[-1], T
+    return chaotic_pendulum()

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import moreau as mo
-from moreau.dynamics import largest_lyapunov, lyapunov_spectrum_tangent
+from moreau.dynamics import largest_lyapunov, lyapunov_spectrum_tangent, paired_difference
 from moreau.dynamics.benchmarks import forced_triple_pendulum, table_period1, vibrating_table
 from moreau.dynamics.tangent import _Flow
 
@@ -209,13 +209,32 @@ def test_tangent_and_two_trajectory_largest_exponents_agree(chaotic_pendulum):
     tan = lyapunov_spectrum_tangent(scene, q0, v0, T / nh, k=1, chunk=nh // k, **kw)
     two = largest_lyapunov(scene, q0, v0, T / nh, d0=1e-2, **kw)
     assert np.array_equal(two.x_final, tan.x_final)  # the same reference trajectory
-    diff = (two.logs[:, 0] - tan.logs[:, 0]) / (T / k)
-    blocks = np.array([b.mean() for b in np.array_split(diff, 10)])
-    se_diff = blocks.std(ddof=1) / np.sqrt(10)
+    d, se_diff = paired_difference(two, tan)
     a, sa, b, sb = two.exponents[0], two.stderr[0], tan.exponents[0], tan.stderr[0]
     print(f"two-trajectory {a:.3f} ± {sa:.3f}, tangent {b:.3f} ± {sb:.3f}, paired difference "
-          f"{diff.mean():+.3f} ± {se_diff:.3f} 1/s, impacts {tan.n_impacts}")
+          f"{d:+.3f} ± {se_diff:.3f} 1/s, impacts {tan.n_impacts}")
     assert a > 3 * sa and b > 3 * sb
-    assert np.isclose(diff.mean(), a - b, rtol=1e-9, atol=1e-12)
+    assert np.isclose(d, a - b, rtol=1e-9, atol=1e-12)
     assert abs(a - b) < 2 * np.hypot(sa, sb)
-    assert abs(diff.mean()) < 2 * se_diff
+    assert abs(d) < 2 * se_diff
+
+
+def test_paired_difference_of_two_methods_on_one_reference_trajectory():
+    """``paired_difference`` of the two-trajectory and the tangent estimate (``chunk`` =
+    one interval: the same reference trajectory) is the difference of the estimates, with
+    a block standard error; runs on different trajectories are refused."""
+    orb = table_period1(E, A)
+    scene, n = vibrating_table(E, A), 500
+    kw = dict(interval=orb.T, n_intervals=20, n_align=2, t0=orb.t_mid)
+    tan = lyapunov_spectrum_tangent(scene, orb.x_mid[:1], orb.x_mid[1:], orb.T / n, k=1, chunk=n, **kw)
+    two = largest_lyapunov(scene, orb.x_mid[:1], orb.x_mid[1:], orb.T / n, d0=1e-6, **kw)
+    d, se = paired_difference(two, tan)
+    assert np.isclose(d, two.exponents[0] - tan.exponents[0], rtol=1e-9, atol=1e-12)
+    assert np.isfinite(se) and se >= 0
+    # a run from another state does not share the reference trajectory
+    other = largest_lyapunov(scene, orb.x_mid[:1] + 1e-3, orb.x_mid[1:], orb.T / n, d0=1e-6, **kw)
+    with pytest.raises(ValueError, match="same reference trajectory"):
+        paired_difference(other, tan)
+    with pytest.raises(ValueError, match="interval"):
+        paired_difference(largest_lyapunov(scene, orb.x_mid[:1], orb.x_mid[1:], orb.T / n, d0=1e-6,
+                                           **{**kw, "n_intervals": 10}), tan)

@@ -19,7 +19,7 @@ speed up with the simulation backend.
 
 from .bifurcation import bifurcation_diagram, bifurcation_point, plot_bifurcation
 from .floquet import FloquetResult, detect_period, find_fixed_point, floquet_multipliers
-from .lyapunov import LyapunovResult, largest_lyapunov, lyapunov_spectrum
+from .lyapunov import LyapunovResult, largest_lyapunov, lyapunov_spectrum, paired_difference
 from .maps import PoincareMap, TimeMap, jacobian_fd, join_state, split_state
 from .sections import Section, poincare, poincare_on_the_fly, stroboscopic
 from .tangent import lyapunov_spectrum_tangent
@@ -28,6 +28,6 @@ __all__ = [
     "Section", "stroboscopic", "poincare", "poincare_on_the_fly",
     "TimeMap", "PoincareMap", "jacobian_fd", "join_state", "split_state",
     "FloquetResult", "detect_period", "find_fixed_point", "floquet_multipliers",
-    "LyapunovResult", "largest_lyapunov", "lyapunov_spectrum", "lyapunov_spectrum_tangent",
+    "LyapunovResult", "largest_lyapunov", "lyapunov_spectrum", "lyapunov_spectrum_tangent", "paired_difference",
     "bifurcation_diagram", "bifurcation_point", "plot_bifurcation",
 ]

@@ -32,7 +32,7 @@ import numpy as np
 
 import moreau as mo
 
-__all__ = ["vibrating_table", "TablePeriod1", "table_period1", "forced_triple_pendulum"]
+__all__ = ["vibrating_table", "TablePeriod1", "table_period1", "forced_triple_pendulum", "chaotic_pendulum"]
 
 
 def vibrating_table(e: float, A: float, omega: float = 1.0, g: float = 1.0, c: float = 0.0) -> mo.Scene:
@@ -137,3 +137,29 @@ def forced_triple_pendulum(omega: float, amplitude: float = 1.5, e: float = 0.8,
                             mo.HarmonicForce([amplitude, 0.0, 0.0], omega, name="drive")],
                     [mo.Contact(walls, mo.NewtonImpact(e), name="wall")],
                     name="forced triple pendulum with a wall")
+
+
+def chaotic_pendulum(omega: float = 6.0, amplitude: float = 3.0, periods: int = 100,
+                     steps_per_period: int = 400) -> tuple[mo.Scene, np.ndarray, np.ndarray, float, float]:
+    """The forced triple pendulum in its chaotic regime, settled on its attractor.
+
+    ``forced_triple_pendulum(omega, amplitude)`` (defaults: torque 3 sin(6 t) N m, the
+    regime of ``notebooks/triple_pendulum.py``) started at rest hanging down and run for
+    ``periods`` forcing periods of transient at ``steps_per_period`` steps per period
+    (exact contact solver).
+
+    Returns
+    -------
+    scene : Scene
+    q0, v0 : ndarray, shape (3,)
+        State at the end of the transient (rad, rad/s).
+    t0 : float
+        Its time (s).
+    T : float
+        The forcing period 2π/omega (s).
+    """
+    T = 2 * np.pi / omega
+    scene = forced_triple_pendulum(omega, amplitude)
+    tr = mo.simulate(scene, (0.0, periods * T), [0.0] * 3, [0.0] * 3, T / steps_per_period, solver="enum",
+                     record_every=steps_per_period, progress=False)
+    return scene, tr.q[-1], tr.v[-1], float(tr.t[-1]), T
