@@ -467,7 +467,12 @@ class MoreauJeanMidpoint(OneStepIntegrator):
                     e = np.where(impact, e, 0.0)
                     self.bounced = np.zeros(scene.nrows, dtype=bool)
                     self.bounced[rows] = e[rows] > 0.0
-                c = -e * U
+                    # Newton's law at the step's midpoint for the rows that bounce (see
+                    # CombinedProjection): U⁺ − U_m ≥ −(1 + e) U_m, U_m = U + h/2 G a
+                    du2 = (0.5 * h) * (G @ a)
+                    c = np.where(self.bounced, np.maximum(-e * (U + du2) + du2, 0.0), 0.0)
+                else:
+                    c = -e * U
                 b = M @ v + h * f
                 v_new, PA = self._solve_contact(M, b, G, c, rows, L=L)
                 P = np.zeros(scene.nrows)

@@ -134,15 +134,17 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
                 GA[j, i] = GA_all[r, i]
                 u += GA_all[r, i] * v[i]
             er = e[r]
+            c = -er * u
             if combined and er != 0.0:
                 du = 0.0
                 for i in range(n):
                     du += GA_all[r, i] * rhs[i]
                 if not (-u > abs(h * du) and k_now - last_imp[r] > memory):
-                    er = 0.0
-                else:
+                    c = 0.0
+                else:  # Newton's law at the step's midpoint (see CombinedProjection)
                     rs[r, R_BOUNCED] = 1.0
-            cA[j] = -er * u
+                    c = max(-er * (u + 0.5 * h * du) + 0.5 * h * du, 0.0)
+            cA[j] = c
             j += 1
     b = lw[3]
     for i in range(n):

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import moreau as mo
-from moreau.problems.bouncing_ball import bouncing_ball
+from moreau.problems.bouncing_ball import BallSolution, bouncing_ball
 
 # the block: half-width A, half-height B (m), mass 1 kg, corners (±A, −B) on the wall y = 0
 A, B, MASS = 0.2, 0.05, 1.0
@@ -110,3 +110,56 @@ def test_combined_projection_validates_memory():
     for bad in (-1, 1.5, True, "2"):
         with pytest.raises(ValueError, match="memory"):
             mo.CombinedProjection(memory=bad)
+
+
+def _ball_runs(e, hs, h0s):
+    g = 9.81
+    for h in hs:
+        for h0 in h0s:
+            sol = BallSolution(h0, e, g)
+            traj = mo.simulate(bouncing_ball(e, g=g), (0.0, 1.2 * sol.zeno_time), [h0], [0.0], h,
+                               drift_control=mo.CombinedProjection(), progress=False)
+            assert traj.completed
+            yield h, sol, traj
+
+
+def test_ball_impact_times_carry_no_bias_from_bounce_to_bounce():
+    """A ball with e = 0.8 under CombinedProjection: the impact times of every bounce the
+    step resolves (impact speed > 10 g h) against the analytic ones.
+
+    A row closes in the step in which it reaches the barrier (impact at s ∈ (0, h] into
+    the step) and Newton's law acts at the step's midpoint; a bounce then shifts the
+    remaining Zeno time by (1 + e)(s − h/2)/e — zero on average, so the impact-time
+    error is a random walk of steps ≤ (1 + e)/(2e)·h, standard deviation (1 + e)/(e√12)·h
+    per bounce. (With Newton's law on the pre-step velocity every bounce put the ball
+    about one step late: the 18th impact 14 steps late at h = 1e-3.) Measured over
+    h = 1e-3, 1e-4 and drop heights 0.8, 1, 1.2 m: mean error −0.49 step over 136
+    impacts, every impact within 0.37 of the three-sigma bound."""
+    e, g = 0.8, 9.81
+    errors = []
+    for h, sol, traj in _ball_runs(e, (1e-3, 1e-4), (0.8, 1.0, 1.2)):
+        ks = [k for k in range(1, len(traj.impacts) + 1) if sol.v1 * e ** (k - 1) > 10 * g * h]
+        assert len(ks) >= 15
+        err = np.array([(traj.impacts.t[k - 1] - sol.impact_time(k)) / h for k in ks])
+        three_sigma = 3 * (1 + e) / (e * np.sqrt(12)) * np.sqrt(np.arange(1, len(ks) + 1)) + 1  # + detection
+        assert np.all(np.abs(err) <= three_sigma), (h, sol.h0, err)
+        errors.extend(err)
+    assert abs(np.mean(errors)) < 1.5, np.mean(errors)
+
+
+@pytest.mark.xfail(strict=True, reason="issue 12 acceptance not met: at rest 6-19 steps before the Zeno time")
+def test_ball_at_rest_within_ten_steps_of_the_zeno_time():
+    """Issue 12's acceptance: a ball with e = 0.8 and drift control on every row at rest
+    within 10 steps of the Zeno time. NOT MET: over h = 3e-3 … 3e-5 and drop heights
+    0.8 … 1.2 m it comes to rest 6 … 19 steps early (mean −12, spread ±3 over 15 drop
+    heights at h = 1e-3 and at 1e-4; independent of h).
+
+    Why: a time-stepping scheme resolves no flight shorter than about a step. The last
+    bounce it resolves leaves at u ≈ g h; the next approach is slower than the smooth
+    forces' change in one step and is taken as a persistent contact (e = 0), so the
+    bounces that remain — 2 e u / (g (1 − e)) ≈ 8 steps at e = 0.8 — are lost. The
+    random walk of the resolved bounces' timing (see the test above) adds ±3 … 4 steps.
+    Reaching 10 steps would need the impact instants inside the step (event location)."""
+    for h, sol, traj in _ball_runs(0.8, (3e-3, 1e-3, 3e-4, 1e-4, 3e-5), (0.8, 1.0, 1.2)):
+        moving = np.flatnonzero(np.abs(traj.v[:, 0]) >= 1e-9)
+        assert abs(traj.t[moving[-1]] - sol.zeno_time) <= 10 * h, (h, sol.h0)
