@@ -105,19 +105,19 @@ for e in E:
 #   changes sides exactly six times in every cycle from 10 µm to 200 µm, with 12 impacts
 #   per cycle throughout (each crossing lands on one corner, then the other). The e = 0.9
 #   piston changes sides eight times per cycle (the six stages plus a quick round trip
-#   around the exhaust–intake TDC) from 15 µm to 140 µm (one cycle of six at 10 µm), with
-#   141–171 impacts per cycle, a little fewer as the gap grows (131 at 200 µm, where most
-#   cycles have six side changes).
+#   around the exhaust–intake TDC) from 15 µm to 100 µm (six in every cycle at 10 µm), with
+#   141–170 impacts per cycle, a little fewer as the gap grows (131 at 140 µm and 130 at
+#   200 µm, where two and four of the five cycles have six side changes).
 # * **Their violence does.** The piston is accelerated across the gap by the side force,
 #   so it arrives faster across a wider gap: from 10 µm to 200 µm the largest impulse of a
 #   cycle grows from 0.045 to 0.33 N s for e = 0 (0.095 to 0.65 N s for e = 0.9), roughly
 #   as (D − d)^0.65, and the energy dissipated at the impacts from 0.0066 to 0.34 J per
-#   cycle (e = 0; 0.0089 to 0.28 J for e = 0.9) — 50× for a 20× wider gap, roughly as
+#   cycle (e = 0; 0.0090 to 0.28 J for e = 0.9) — 50× for a 20× wider gap, roughly as
 #   (D − d)^1.3. At the same gap, e = 0 and e = 0.9 dissipate comparable energies (within
 #   a factor 1.5), as in the restitution study: the piston loses its whole lateral kinetic
 #   energy at each crossing whatever e, as long as it settles on the wall.
 # * **With e = 0.9 the wall stops holding the piston as the gap grows.** The crank angle
-#   spent in flight grows from 232° per cycle at 10 µm to 614° at 200 µm, and the sliding
+#   spent in flight grows from 233° per cycle at 10 µm to 615° at 200 µm, and the sliding
 #   phases (one wall carrying the piston for at least 1°) drop from four per cycle to
 #   two: across a wide gap the bounce train of one crossing has hardly died out when the
 #   next crossing begins. The quick round trips across the gap then become rarer (six side
@@ -148,7 +148,7 @@ first
 # sign, which does not depend on D, but takes longer to cross a wider gap, and a side
 # change is counted where it lands. The crank angle in flight grows accordingly, from 56°
 # to 159° per cycle. For e = 0.9 the same six groups stand, and the quick round trip
-# lands between the pair around the exhaust–intake TDC (320–360°), where the side force
+# lands between the pair around the exhaust–intake TDC (327–362°), where the side force
 # is weakest; it moves later with the gap too.
 
 # %%
@@ -161,14 +161,14 @@ plt.show()
 
 # %% [markdown]
 # In half-clearance units the section is comparable across D. At 60° (gas force on) the
-# e = 0.9 piston lies against the thrust wall (x_O3 = −1) for clearances up to 50 µm;
-# from 70 µm on it is still bouncing there (x_O3 from −0.92 at 70 µm to −0.52…−0.61 at
-# 200 µm): the landing after the firing-TDC crossing takes longer than 60° of crank angle.
-# At 420° (early intake, where the piston crosses) the samples spread over 0.13–0.6
-# half-clearances at most gaps and over 1.07 at 200 µm — the bounce train does not repeat
-# from cycle to cycle — with nearly repeating motion at 70 µm (0.01). (For e = 0 every
-# clearance gives one point per angle to within 0.03 half-clearances: the plastic
-# piston's motion is period-1 throughout.)
+# e = 0.9 piston lies against the thrust wall (x_O3 = −1) for clearances up to 40 µm (to
+# within 0.01 at 50 µm); from 70 µm on it is still bouncing there (x_O3 from −0.92 at
+# 70 µm to −0.51…−0.57 at 200 µm): the landing after the firing-TDC crossing takes longer
+# than 60° of crank angle. At 420° (early intake, where the piston crosses) the samples
+# spread over 0.11–0.67 half-clearances at most gaps and over 1.02 at 200 µm — the bounce
+# train does not repeat from cycle to cycle — with nearly repeating motion at 70 µm
+# (0.02). (For e = 0 every clearance gives one point per angle to within 0.03
+# half-clearances: the plastic piston's motion is period-1 throughout.)
 
 # %% [markdown]
 # ## What it means for an engine designer

@@ -39,9 +39,9 @@
 # The numbers come from `moreau.problems.piston.study.piston_point`, run over the grid by
 # `moreau.sweeps.sweep` on all cores; every finished point is kept in `data/*.parts/`, so
 # re-running this notebook only computes what is missing. As in the main job
-# (`moreau piston`), drift control is on: the positions are projected back onto the
-# cylinder after each step — for the plastic piston (e = 0) only, since projecting a
-# bouncing contact keeps it bouncing at tiny speeds (`moreau.PositionProjection`).
+# (`moreau piston`), drift control is on for every e (`PistonModel.drift_control()`, a
+# `moreau.CombinedProjection`): corners in persistent contact are projected back onto the
+# cylinder with their velocities made consistent, and restitution acts only at impacts.
 # `MOREAU_NOTEBOOK_SCALE=small` runs a reduced version (3 values of e, 2 cycles,
 # h = 1e-3) for the test suite.
 
@@ -117,18 +117,19 @@ plt.show()
 #   exactly six. At e = 0.9 quick transits appear (8 side changes in every cycle): a
 #   bouncing piston leaves the new wall, touches the old one and comes back, the paper's
 #   "before the piston stabilizes its motion at one cylinder side, it rapidly leaves the
-#   contact and transits into the other side". At e = 0.95 there are 14–18, and at e = 1
-#   (no dissipation at the wall) the piston never settles: from 8 to 55 side changes, a
+#   contact and transits into the other side". At e = 0.95 there are 10–12, and at e = 1
+#   (no dissipation at the wall) the piston never settles: from 14 to 62 side changes, a
 #   different number in every cycle.
 # * **Impacts.** The impacts (contact onsets after a flight of 2 % of the clearance) grow
 #   steadily with e, from 12 per cycle for e ≤ 0.15 (each of the six crossings lands on
-#   one corner, then the tilt brings the other one down) to 18 at e = 0.2, 34 at 0.5, 59
-#   at 0.7, 107 at 0.85, 147 at 0.9 and 255 at 0.95: each crossing ends in a longer train
-#   of bounces. Here every one of them is a slap (at least 1 % of the cycle's largest
-#   impulse): the dashed line of all logged impacts lies on the slaps'.
+#   one corner, then the tilt brings the other one down) to 18 at e = 0.2, 33 at 0.5, 64
+#   at 0.7, 109 at 0.85, 152 at 0.9 and 259 at 0.95: each crossing ends in a longer train
+#   of bounces. Here all of them but one (in one cycle at e = 0.95) are slaps (at least
+#   1 % of the cycle's largest impulse): the dashed line of all logged impacts lies on the
+#   slaps'.
 # * **Energy.** The kinetic energy dissipated at the impacts hardly depends on e: 0.042 J
-#   per cycle at e = 0, 0.042–0.043 J up to e = 0.7 (with a dip to 0.038 J at e = 0.1 and
-#   0.15 that we have not analysed), 0.045–0.048 J from 0.75 to 0.95; only at e = 1 does it
+#   per cycle at e = 0, 0.041–0.043 J up to e = 0.7 (with a dip to 0.038 J at e = 0.1 and
+#   0.15 that we have not analysed), 0.044–0.050 J from 0.75 to 0.95; only at e = 1 does it
 #   vanish (exactly, as it must). Whenever the piston comes to rest against the wall, the
 #   whole normal kinetic energy it arrived with is gone — in one plastic slap at e = 0,
 #   or over a bounce train at larger e, Σₖ (1 − e²) e²ᵏ = 1. (A projection of the plastic
@@ -151,14 +152,14 @@ plt.show()
 # tilts the rod and throws the piston across), 195° (start of the exhaust stroke), 326°
 # and 377° (a quick pair around the exhaust–intake TDC), 428° (intake) and 555° (start of
 # compression) — and do not move with e up to 0.7 (to the degree; the crossing at 377°
-# moves to 369–376° at 0.75–0.85): they are where the side force of the rod
-# on the pin changes sign, a property of the crank mechanism and the pressure curve, not
-# of the wall. At 0.9–0.95 the extra points are the quick transits, around the
-# exhaust–intake TDC where the side force is weakest (at 0.9: 335°, 339° and 363°; at 0.95
-# also after the other crossings); at e = 1 they are anywhere. The lower panel is the crank
-# angle per cycle during which no corner touches the wall: from 92° at e = 0 it grows
-# steadily — a bouncing piston spends its time between impacts — to 330° at 0.9, 510° at
-# 0.95 and 630° at e = 1.
+# moves to 369–376° at 0.75–0.85, the one at 428° to 425–427° at 0.8–0.85): they are where
+# the side force of the rod on the pin changes sign, a property of the crank mechanism and
+# the pressure curve, not of the wall. At 0.9–0.95 the extra points are the quick
+# transits: at 0.9 around the exhaust–intake TDC where the side force is weakest (335°,
+# 339° and 362°), at 0.95 after the other crossings instead (14°, 202–204° and 562–564°);
+# at e = 1 they are anywhere. The lower panel is the crank angle per cycle during which
+# no corner touches the wall: from 92° at e = 0 it grows steadily — a bouncing piston
+# spends its time between impacts — to 350° at 0.9, 493° at 0.95 and 626° at e = 1.
 
 # %% [markdown]
 # ## A bifurcation-like diagram
@@ -187,10 +188,10 @@ plt.show()
 # **What is seen.** At 60° the piston is pinned against the thrust wall by the gas force
 # for every e up to 0.9 (x_O3 = −1): a single point. At 420° the sample is a single point
 # as well up to e = 0.65 (spread over the cycles below 0.02 half-clearances) and nearly one
-# up to 0.85 (0.04–0.10): the motion is period-1, repeating every engine cycle, and the
+# up to 0.85 (0.02–0.11): the motion is period-1, repeating every engine cycle, and the
 # point moves as the bounce trains lengthen past e = 0.7 and delay the crossing. At e = 0.9
-# the dots spread over 0.43 half-clearances at 420° although every cycle still has 8 side
-# changes; at e = 0.95 the spread reaches the 60° section too (0.24; 0.97 at 420°), and at
+# the dots spread over 0.33 half-clearances at 420° although every cycle still has 8 side
+# changes; at e = 0.95 the spread reaches the 60° section too (0.24; 0.34 at 420°), and at
 # e = 1 the dots fill the clearance (0.78 and 1.23): the motion
 # no longer repeats. In the language of impact oscillators, growing restitution takes
 # the period-1 "six-stage" motion, between e = 0.85 and 0.9, into non-repeating
