@@ -468,7 +468,8 @@ class MoreauJeanMidpoint(OneStepIntegrator):
                     self.bounced = np.zeros(scene.nrows, dtype=bool)
                     self.bounced[rows] = e[rows] > 0.0
                     # Newton's law at the step's midpoint for the rows that bounce (see
-                    # CombinedProjection): U⁺ − U_m ≥ −(1 + e) U_m, U_m = U + h/2 G a
+                    # CombinedProjection): the impulse changes U by at least −(1 + e) U_m,
+                    # U⁺ ≥ U + h G a − (1 + e) U_m = −e U_m + h/2 G a, U_m = U + h/2 G a
                     du2 = (0.5 * h) * (G @ a)
                     c = np.where(self.bounced, np.maximum(-e * (U + du2) + du2, 0.0), 0.0)
                 else:
