@@ -463,14 +463,15 @@ class MoreauJeanMidpoint(OneStepIntegrator):
                 e = self._e
                 if self._impacts_only:  # restitution at impacts only (CombinedProjection)
                     a = self._Minv @ f if self._Minv is not None else _solve_with(L, f)
-                    impact = (-U > np.abs(h * (G @ a))) & (self.k - self.last_impulse_step > self._memory)
+                    an = G @ a  # the free normal accelerations
+                    impact = (-U > np.abs(h * an)) & (self.k - self.last_impulse_step > self._memory)
                     e = np.where(impact, e, 0.0)
                     self.bounced = np.zeros(scene.nrows, dtype=bool)
                     self.bounced[rows] = e[rows] > 0.0
                     # Newton's law at the step's midpoint for the rows that bounce (see
                     # CombinedProjection): the impulse changes U by at least −(1 + e) U_m,
                     # U⁺ ≥ U + h G a − (1 + e) U_m = −e U_m + h/2 G a, U_m = U + h/2 G a
-                    du2 = (0.5 * h) * (G @ a)
+                    du2 = (0.5 * h) * an
                     c = np.where(self.bounced, np.maximum(-e * (U + du2) + du2, 0.0), 0.0)
                 else:
                     c = -e * U

@@ -144,6 +144,7 @@ def test_ball_impact_times_carry_no_bias_from_bounce_to_bounce():
         three_sigma = 3 * (1 + e) / (e * np.sqrt(12)) * np.sqrt(np.arange(1, len(ks) + 1)) + 1  # + detection
         assert np.all(np.abs(err) <= three_sigma), (h, sol.h0, err)
         errors.extend(err)
+    print(f"mean impact-time error {np.mean(errors):+.2f} steps over {len(errors)} impacts")
     assert abs(np.mean(errors)) < 1.5, np.mean(errors)
 
 
@@ -151,8 +152,8 @@ def test_ball_impact_times_carry_no_bias_from_bounce_to_bounce():
 def test_ball_at_rest_within_ten_steps_of_the_zeno_time():
     """Issue 12's acceptance: a ball with e = 0.8 and drift control on every row at rest
     within 10 steps of the Zeno time. NOT MET: over h = 3e-3 … 3e-5 and drop heights
-    0.8 … 1.2 m it comes to rest 6 … 19 steps early (mean −12, spread ±3 over 15 drop
-    heights at h = 1e-3 and at 1e-4; independent of h).
+    0.8 … 1.2 m it comes to rest 6.1 … 18.8 steps early, without a trend in h (``pytest -s
+    --runxfail`` prints each run).
 
     Why: a time-stepping scheme resolves no flight shorter than about a step. The last
     bounce it resolves leaves at u ≈ g h; the next approach is slower than the smooth
@@ -160,6 +161,9 @@ def test_ball_at_rest_within_ten_steps_of_the_zeno_time():
     bounces that remain — 2 e u / (g (1 − e)) ≈ 8 steps at e = 0.8 — are lost. The
     random walk of the resolved bounces' timing (see the test above) adds ±3 … 4 steps.
     Reaching 10 steps would need the impact instants inside the step (event location)."""
+    steps = []  # rest time − Zeno time, in steps (`pytest -s` prints them)
     for h, sol, traj in _ball_runs(0.8, (3e-3, 1e-3, 3e-4, 1e-4, 3e-5), (0.8, 1.0, 1.2)):
         moving = np.flatnonzero(np.abs(traj.v[:, 0]) >= 1e-9)
-        assert abs(traj.t[moving[-1]] - sol.zeno_time) <= 10 * h, (h, sol.h0)
+        steps.append((traj.t[moving[-1]] - sol.zeno_time) / h)
+        print(f"h = {h:g}, drop height {sol.h0:g} m: at rest {steps[-1]:+.1f} steps from the Zeno time")
+    assert np.all(np.abs(steps) <= 10), steps
