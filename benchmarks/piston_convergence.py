@@ -12,6 +12,7 @@ clearance), the raw count of the velocity test, the kinetic energy lost at the i
     python benchmarks/piston_convergence.py            # ~3 min on one core
     python benchmarks/piston_convergence.py --quick    # h >= 1e-4, ~20 s
     python benchmarks/piston_convergence.py --tol 0 --out /tmp/exact.csv  # an exact projection
+    python benchmarks/piston_convergence.py --locate --out docs/piston_convergence_located.csv
 
 Writes the table to ``docs/piston_convergence.csv`` (``--out`` to change).
 """
@@ -28,6 +29,7 @@ import numpy as np
 
 import moreau as mo
 from moreau.problems.piston import PistonParameters, cycle_figures, piston_model
+from moreau.problems.piston.model import PROJECTION_FRACTION
 
 log = logging.getLogger("piston_convergence")
 
@@ -36,15 +38,16 @@ HS = (1e-3, 3e-4, 1e-4, 3e-5, 1e-5)
 CYCLES = 3  # the first is the transient from the upright start
 
 
-def figures(e: float, h: float, drift: bool, tol: float | None = None) -> dict:
+def figures(e: float, h: float, drift: bool, tol: float | None = None, locate: bool = False) -> dict:
     params = PistonParameters(e=e)
     model = piston_model(params)
     if not drift:
         dc = None
-    elif tol is None:
+    elif tol is None and not locate:
         dc = model.drift_control()
     else:
-        dc = mo.CombinedProjection(tol=tol * params.clearance / params.l1)
+        frac = PROJECTION_FRACTION if tol is None else tol
+        dc = mo.CombinedProjection(tol=frac * params.clearance / params.l1, locate_impacts=locate)
     t0 = time.perf_counter()
     traj = model.simulate(CYCLES, h, drift_control=dc,
                           record_every=max(1, round(1e-3 / h)), energy=False, progress=False)
@@ -53,7 +56,7 @@ def figures(e: float, h: float, drift: bool, tol: float | None = None) -> dict:
     vel_phi = np.interp(traj.velocity_impacts.t, traj.t, traj.q[:, 0])
     n_vel = int(np.sum(vel_phi >= 4 * np.pi)) / len(figs)
     return {
-        "e": e, "h": h, "drift_control": "combined" if drift else "none",
+        "e": e, "h": h, "drift_control": ("located" if locate else "combined") if drift else "none",
         "side_changes": "/".join(str(c.side_changes) for c in figs),
         "angles_deg": " ".join(f"{a:.0f}" for a in figs[-1].change_angles_deg),
         "impacts_per_cycle": float(np.mean([c.impacts for c in figs])),
@@ -70,13 +73,16 @@ def main(argv=None) -> None:
     ap.add_argument("--tol", type=float, default=None,
                     help="CombinedProjection's accepted penetration, as a fraction of the clearance "
                          "(default: the engine's drift control, PROJECTION_FRACTION = 1e-4)")
+    ap.add_argument("--locate", action="store_true",
+                    help="CombinedProjection(locate_impacts=True): Newton's law at the located impact instant")
     ap.add_argument("--out", default=os.path.join(os.path.dirname(__file__), "..", "docs", "piston_convergence.csv"))
     args = ap.parse_args(argv)
     if args.tol is not None and not (np.isfinite(args.tol) and 0.0 <= args.tol < 1.0):
         ap.error(f"--tol must be a fraction of the clearance in [0, 1), got {args.tol}")
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     hs = [h for h in HS if h >= 1e-4] if args.quick else list(HS)
-    rows = [figures(e, h, True, args.tol) for e in ES for h in hs] + [figures(e, hs[-1], False) for e in ES]
+    rows = [figures(e, h, True, args.tol, args.locate) for e in ES for h in hs]
+    rows += [figures(e, hs[-1], False) for e in ES]
     head = ("e", "h", "drift_control", "side_changes", "angles_deg", "impacts_per_cycle",
             "velocity_onsets_per_cycle", "energy_lost_J", "max_penetration_pct", "wall_s")
     widths = (5, 7, 9, 8, 44, 8, 9, 9, 9, 7)

@@ -59,8 +59,9 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     if drift_control is not None and m > 0 and bool(eligible.any()):
         drift_mode = lp.DRIFT_COMBINED if getattr(drift_control, "impacts_only", False) else lp.DRIFT_POSITION
     memory = int(getattr(drift_control, "memory", 0))
+    locate = int(bool(getattr(drift_control, "locate_impacts", False)))
     n_rec = n_steps // stride + 1 + (1 if n_steps % stride else 0)
-    iset = np.array([int(theta), drift_mode, drift_iter, stride, n_steps, method, fb, int(energy), memory],
+    iset = np.array([int(theta), drift_mode, drift_iter, stride, n_steps, method, fb, int(energy), memory, locate],
                     dtype=np.int64)
     fset = np.array([h, t0, tol, drift_tol, 0.0])
     T = np.empty(n_rec)
@@ -80,7 +81,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     last_imp = np.full(m, -(1 << 62), dtype=np.int64)
     gmax = np.full(m, -np.inf)
     fgap = np.ascontiguousarray(flight_gap, dtype=float)
-    rs = np.zeros((m, 4))  # CombinedProjection's per-row state (gap at q_k, flags)
+    rs = np.zeros((m, 6))  # CombinedProjection's per-row state (gap at q_k, flags, end gap)
     pen = np.zeros(m)
     cnt = np.zeros(8, dtype=np.int64)
     cnt[lp.C_REC] = 1

@@ -25,6 +25,7 @@ from ._validation import as_positive, as_vector
 from .errors import SolverError
 from .kernels import cho_solve as _cho_solve
 from .kernels import cholesky as _cholesky
+from .kernels import impact_law as _impact_law
 from .kernels import symmetry_defect as _symmetry_defect
 from .onestep import kkt_residuals
 from .scene import Scene
@@ -163,6 +164,7 @@ class OneStepIntegrator(ABC):
         self._e = scene.restitution
         self._impacts_only = bool(getattr(self.drift_control, "impacts_only", False))
         self._memory = int(getattr(self.drift_control, "memory", 0))
+        self._locate = bool(getattr(self.drift_control, "locate_impacts", False))
         self.solver.setup(n, m, self._M if self._constant_mass else None)
         if self.fallback is not None:
             self.fallback.setup(n, m, self._M if self._constant_mass else None)
@@ -176,6 +178,10 @@ class OneStepIntegrator(ABC):
         self.pinned = np.zeros(m, dtype=bool)
         self.pin_gap = np.zeros(m)
         self.bounced = np.zeros(m, dtype=bool)
+        self.bounce_gap = np.full(m, np.nan)  # per bounced row: its gap at the end of the step
+        # per bounced row: (2 s − h) a_n, what the velocities at its impact instant s add
+        # to U + U⁺ (0 for Newton's law at the midpoint)
+        self.bounce_shift = np.zeros(m)
         self.contact_step = False
         self.n_solves = self.n_fallbacks = self.n_contact_steps = self.n_projections = 0
         self.worst_residual = 0.0
@@ -283,7 +289,8 @@ class OneStepIntegrator(ABC):
     # -- what the last step did at the contacts (computed on request only) --------------
     def last_contact_details(self, rows: np.ndarray) -> ContactDetails:
         """Normal velocities of the last step at the given rows (all must have been
-        active) and the kinetic energy the contact impulses dissipated there.
+        active) and the kinetic energy the contact impulses dissipated there (for a row
+        that bounced at an instant s into the step, with the velocities at s).
 
         Computed on request only (a solve with M), never in the step itself.
         """
@@ -299,7 +306,7 @@ class OneStepIntegrator(ABC):
             U_before=U_before,
             U_after=U_after,
             U_free=Gr @ (v_new - dv),
-            energy_lost=-0.5 * P_all[rows] * (U_after + U_before),
+            energy_lost=-0.5 * P_all[rows] * (U_after + U_before + self.bounce_shift[rows]),
         )
 
 
@@ -452,29 +459,36 @@ class MoreauJeanMidpoint(OneStepIntegrator):
                     f"gaps became non-finite at step {self.k} (t = {self.t:.9g}): g = {g.tolist()}",
                     self.k, self.t)
             active = g <= scene.activation_tol  # g <= 0 up to the gap's own round-off
+            G = an = None
             if self._impacts_only:  # CombinedProjection: a persistent contact stays in the problem,
                 # and a row that reaches the barrier by the end of the step enters it now
                 g_start = self.gaps_at(self.q, v)
-                active = active | self.pinned | (2.0 * g - g_start <= 0.0)
+                reach = 2.0 * g - g_start  # the end-of-step gap, linear in v_k
+                if self._locate:  # ... or the free step's own: + h²/2 G M⁻¹ f
+                    G = self.jacobian_at(qm, v)
+                    an = G @ (self._Minv @ f if self._Minv is not None else _solve_with(L, f))
+                    reach = reach + (0.5 * h * h) * an
+                active = active | self.pinned | (reach <= 0.0)
             if active.any():
                 rows = np.flatnonzero(active)
-                G = self.jacobian_at(qm, v)
+                if G is None:
+                    G = self.jacobian_at(qm, v)
                 U = G @ v
-                e = self._e
                 if self._impacts_only:  # restitution at impacts only (CombinedProjection)
-                    a = self._Minv @ f if self._Minv is not None else _solve_with(L, f)
-                    an = G @ a  # the free normal accelerations
-                    impact = (-U > np.abs(h * an)) & (self.k - self.last_impulse_step > self._memory)
-                    e = np.where(impact, e, 0.0)
+                    if an is None:  # the free normal accelerations
+                        an = G @ (self._Minv @ f if self._Minv is not None else _solve_with(L, f))
                     self.bounced = np.zeros(scene.nrows, dtype=bool)
-                    self.bounced[rows] = e[rows] > 0.0
-                    # Newton's law at the step's midpoint for the rows that bounce (see
-                    # CombinedProjection): the impulse changes U by at least −(1 + e) U_m,
-                    # U⁺ ≥ U + h G a − (1 + e) U_m = −e U_m + h/2 G a, U_m = U + h/2 G a
-                    du2 = (0.5 * h) * an
-                    c = np.where(self.bounced, np.maximum(-e * (U + du2) + du2, 0.0), 0.0)
+                    self.bounce_gap = np.full(scene.nrows, np.nan)
+                    self.bounce_shift = np.zeros(scene.nrows)
+                    c = np.zeros(scene.nrows)
+                    for r in rows:  # Newton's law where an impact happens (kernels.impact_law)
+                        if self._e[r] > 0.0 and self.k - self.last_impulse_step[r] > self._memory:
+                            cr, target, s = _impact_law(self._e[r], U[r], an[r], g_start[r], h, self._locate)
+                            if cr == cr:  # not NaN: an impact
+                                self.bounced[r], c[r], self.bounce_gap[r] = True, cr, target
+                                self.bounce_shift[r] = (2.0 * s - h) * an[r]
                 else:
-                    c = -e * U
+                    c = -self._e * U
                 b = M @ v + h * f
                 v_new, PA = self._solve_contact(M, b, G, c, rows, L=L)
                 P = np.zeros(scene.nrows)

@@ -23,12 +23,14 @@ from .lcp import kkt_residuals_kernel, solve_one_step, workspace
 # status codes
 DONE, IMPACTS_FULL, SOLVER_FAILED, NONFINITE, NOT_SPD, NONFINITE_GAP = 0, 1, 2, 3, 4, 5
 # settings (int array)
-S_THETA, S_DRIFT, S_DRIFT_ITER, S_STRIDE, S_NSTEPS, S_METHOD, S_FALLBACK, S_ENERGY, S_MEMORY = range(9)
+S_THETA, S_DRIFT, S_DRIFT_ITER, S_STRIDE, S_NSTEPS, S_METHOD, S_FALLBACK, S_ENERGY, S_MEMORY, S_LOCATE = range(10)
 # drift control modes (S_DRIFT)
 DRIFT_NONE, DRIFT_POSITION, DRIFT_COMBINED = 0, 1, 2
-# per-row state of CombinedProjection (float array (m, 4)): gap at q_k, the gap where the
-# projection last held the row, held (pinned), restitution applied in this step
-R_GAP, R_PINGAP, R_PINNED, R_BOUNCED = range(4)
+# per-row state of CombinedProjection (float array (m, 6)): gap at q_k, the gap where the
+# projection last held the row, held (pinned), restitution applied in this step, the gap
+# at the end of the step of a row that bounced (kernels.impact_law), and (2 s − h) a_n
+# for a row that bounced at s (what the velocities at s add to U + U⁺)
+R_GAP, R_PINGAP, R_PINNED, R_BOUNCED, R_TARGET, R_SHIFT = range(6)
 # impact-log columns
 I_T, I_STEP, I_ROW, I_UB, I_UA, I_P, I_LOST, I_FLIGHT, I_FAST = range(9)
 # settings (float array)
@@ -96,34 +98,50 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     change its normal velocity in one step, and it carried no impulse in the last
     ``S_MEMORY`` steps; other closed rows take e = 0 (a persistent contact). A row is
     then also closed when the projection holds it, or when it reaches the barrier by the
-    end of the step (2 g(q_m) − g(q_k) <= 0). ``rs`` (m, 4) holds per row the gap at
-    q_k, the gap the projection left it at, and the pinned and bounced flags (columns
-    ``R_GAP`` ... ``R_BOUNCED``)."""
+    end of the step (2 g(q_m) − g(q_k) <= 0; with ``S_LOCATE`` the free step's end gap,
+    2 g(q_m) − g(q_k) + h²/2 G M⁻¹ f <= 0). Newton's law is :func:`moreau.kernels.impact_law`.
+    ``rs`` (m, 6) holds per row the gap at q_k, the gap the projection left it at, the
+    pinned and bounced flags, a bounced row's end-of-step gap and its (2 s − h) a_n
+    (columns ``R_GAP`` ... ``R_SHIFT``)."""
     ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e, atol = model
     n, m = ints[0], ints[1]
     h = fset[F_H]
     combined = iset[S_DRIFT] == DRIFT_COMBINED
+    locate = combined and iset[S_LOCATE] == 1
+    rhs = lw[2]
+    if locate:  # the free step's end gap, + h²/2 G M⁻¹ f, decides which rows close
+        _free_acceleration(n, ints[2] == _k.MASS_CONST, Minv, L, f, rhs)
+        ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, GA_all)
     na = 0
     for r in range(m):
         active[r] = gm[r] <= atol[r]
         if combined:
-            active[r] = active[r] or rs[r, R_PINNED] != 0.0 or 2.0 * gm[r] - rs[r, R_GAP] <= 0.0
+            reach = 2.0 * gm[r] - rs[r, R_GAP]
+            if locate:
+                du = 0.0
+                for i in range(n):
+                    du += GA_all[r, i] * rhs[i]
+                reach += 0.5 * h * h * du
+            active[r] = active[r] or rs[r, R_PINNED] != 0.0 or reach <= 0.0
             rs[r, R_BOUNCED] = 0.0
+            rs[r, R_SHIFT] = 0.0
         P[r] = 0.0
         if active[r]:
             na += 1
-    rhs = lw[2]
     if na == 0:
-        _free_acceleration(n, ints[2] == _k.MASS_CONST, Minv, L, f, rhs)
+        if not locate:
+            _free_acceleration(n, ints[2] == _k.MASS_CONST, Minv, L, f, rhs)
         for i in range(n):
             v_new[i] = v[i] + h * rhs[i]
         return 0
     if combined:
-        _free_acceleration(n, ints[2] == _k.MASS_CONST, Minv, L, f, rhs)
+        if not locate:
+            _free_acceleration(n, ints[2] == _k.MASS_CONST, Minv, L, f, rhs)
         k_now = cnt[C_K]
         memory = iset[S_MEMORY]
     cnt[C_SOLVES] += 1
-    ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, GA_all)
+    if not locate:
+        ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, GA_all)
     GA = lw[0]
     cA = lw[1]
     j = 0
@@ -136,14 +154,17 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
             er = e[r]
             c = -er * u
             if combined and er != 0.0:
-                du = 0.0
-                for i in range(n):
-                    du += GA_all[r, i] * rhs[i]
-                if not (-u > abs(h * du) and k_now - last_imp[r] > memory):
-                    c = 0.0
-                else:  # Newton's law at the step's midpoint (see CombinedProjection)
-                    rs[r, R_BOUNCED] = 1.0
-                    c = max(-er * (u + 0.5 * h * du) + 0.5 * h * du, 0.0)
+                c = 0.0
+                if k_now - last_imp[r] > memory:
+                    du = 0.0
+                    for i in range(n):
+                        du += GA_all[r, i] * rhs[i]
+                    cr, target, s_imp = _k.impact_law(er, u, du, rs[r, R_GAP], h, locate)
+                    if cr == cr:  # an impact: Newton's law where it happens
+                        rs[r, R_BOUNCED] = 1.0
+                        rs[r, R_TARGET] = target
+                        rs[r, R_SHIFT] = (2.0 * s_imp - h) * du
+                        c = cr
             cA[j] = c
             j += 1
     b = lw[3]
@@ -164,6 +185,41 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
 
 
 @_inline
+def _place_bounces(model, user, q, cq, sq, gq, M, L, in_contact, rs, lw):
+    """Move each row that bounced (and left the barrier) along M⁻¹ Gᵀ to its end-of-step
+    gap ``rs[:, R_TARGET]``, row after row with M and G at the unplaced q (see
+    :func:`moreau.drift.place_bounces`, the reference). False when M(q) is not SPD."""
+    ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e, atol = model
+    n, m = ints[0], ints[1]
+    G = lw[5]
+    w = lw[6]
+    col = lw[7]
+    ready = False
+    for r in range(m):
+        if rs[r, R_BOUNCED] != 0.0 and in_contact[r] and rs[r, R_TARGET] > 0.0:
+            if not ready:
+                ev.mass(ints, pool, user, q, cq, sq, M)
+                if _k.cholesky(M, L, n) >= 0:
+                    return False
+                ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, G)
+                ready = True
+            for i in range(n):
+                col[i] = G[r, i]
+            _k.cho_solve(L, col, w, n)
+            gw = 0.0
+            for i in range(n):
+                gw += G[r, i] * w[i]
+            d = (rs[r, R_TARGET] - gq[r]) / gw
+            for i in range(n):
+                q[i] += d * w[i]
+                col[i] = 0.0
+            if ints[8]:
+                _k.trig(q, cq, sq)
+            ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, gq)
+    return True
+
+
+@_inline
 def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw, rs,
              in_contact):
     """Drift control: move q onto g >= 0 (see PositionProjection and CombinedProjection).
@@ -178,6 +234,10 @@ def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fai
     dtol = fset[F_DRIFT_TOL]
     combined = iset[S_DRIFT] == DRIFT_COMBINED
     sel = lw[8]
+    if combined and iset[S_LOCATE] == 1 and not _place_bounces(model, user, q, cq, sq, gq, M, L, in_contact,
+                                                               rs, lw):
+        cnt[C_FAILKIND] = NOT_SPD
+        return False
     need = False
     for r in range(m):
         if combined:
@@ -352,7 +412,7 @@ def _advance(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P
                             IMP[j, I_UB] = ub
                             IMP[j, I_UA] = ua
                             IMP[j, I_P] = P[r]
-                            IMP[j, I_LOST] = -0.5 * P[r] * (ua + ub)
+                            IMP[j, I_LOST] = -0.5 * P[r] * (ua + ub + rs[r, R_SHIFT])  # (see impact_law)
                             IMP[j, I_FLIGHT] = 1.0 if flight else 0.0
                             IMP[j, I_FAST] = 1.0 if fast else 0.0
                             cnt[C_NIMP] = j + 1
