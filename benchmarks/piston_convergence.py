@@ -47,7 +47,8 @@ def figures(e: float, h: float, drift: bool, tol: float | None = None, locate: b
         dc = model.drift_control()
     else:
         frac = PROJECTION_FRACTION if tol is None else tol
-        dc = mo.CombinedProjection(tol=frac * params.clearance / params.l1, locate_impacts=locate)
+        dc = (mo.CombinedProjection(tol=frac * params.clearance / params.l1, locate_impacts=True, memory=0)
+              if locate else mo.CombinedProjection(tol=frac * params.clearance / params.l1))
     t0 = time.perf_counter()
     traj = model.simulate(CYCLES, h, drift_control=dc,
                           record_every=max(1, round(1e-3 / h)), energy=False, progress=False)
@@ -74,7 +75,8 @@ def main(argv=None) -> None:
                     help="CombinedProjection's accepted penetration, as a fraction of the clearance "
                          "(default: the engine's drift control, PROJECTION_FRACTION = 1e-4)")
     ap.add_argument("--locate", action="store_true",
-                    help="CombinedProjection(locate_impacts=True): Newton's law at the located impact instant")
+                    help="CombinedProjection(locate_impacts=True, memory=0): Newton's law at the located "
+                         "impact instant")
     ap.add_argument("--out", default=os.path.join(os.path.dirname(__file__), "..", "docs", "piston_convergence.csv"))
     args = ap.parse_args(argv)
     if args.tol is not None and not (np.isfinite(args.tol) and 0.0 <= args.tol < 1.0):

@@ -178,9 +178,9 @@ class OneStepIntegrator(ABC):
         self.pinned = np.zeros(m, dtype=bool)
         self.pin_gap = np.zeros(m)
         self.bounced = np.zeros(m, dtype=bool)
-        self.bounce_gap = np.full(m, np.nan)  # per bounced row: its gap at the end of the step
-        # per bounced row: (2 s − h) a_n, what the velocities at its impact instant s add
-        # to U + U⁺ (0 for Newton's law at the midpoint)
+        # per row that bounced at s into the step: h/2 − s, and (2 s − h) a_n, what the
+        # velocities at s add to U + U⁺ (both 0 for Newton's law at the midpoint)
+        self.bounce_delay = np.zeros(m)
         self.bounce_shift = np.zeros(m)
         self.contact_step = False
         self.n_solves = self.n_fallbacks = self.n_contact_steps = self.n_projections = 0
@@ -285,6 +285,14 @@ class OneStepIntegrator(ABC):
                 f"q = {q_new.tolist()}, v = {v_new.tolist()}",
                 self.k, self.t,
             )
+
+    def _impulse_timing(self) -> np.ndarray:
+        """Δq of the impulses of the rows that bounced acting at their located instants s
+        instead of at the midpoint: ``M⁻¹ Σ (h/2 − s_r) G_rᵀ P_r`` (M, G at q_m)."""
+        assert self._last is not None  # set by the contact solve of this step
+        M, G, _, _, P = self._last
+        rhs = G.T @ (self.bounce_delay * np.where(self.bounced, P, 0.0))
+        return self._Minv @ rhs if self._Minv is not None else np.linalg.solve(M, rhs)
 
     # -- what the last step did at the contacts (computed on request only) --------------
     def last_contact_details(self, rows: np.ndarray) -> ContactDetails:
@@ -478,14 +486,15 @@ class MoreauJeanMidpoint(OneStepIntegrator):
                     if an is None:  # the free normal accelerations
                         an = G @ (self._Minv @ f if self._Minv is not None else _solve_with(L, f))
                     self.bounced = np.zeros(scene.nrows, dtype=bool)
-                    self.bounce_gap = np.full(scene.nrows, np.nan)
+                    self.bounce_delay = np.zeros(scene.nrows)
                     self.bounce_shift = np.zeros(scene.nrows)
                     c = np.zeros(scene.nrows)
                     for r in rows:  # Newton's law where an impact happens (kernels.impact_law)
                         if self._e[r] > 0.0 and self.k - self.last_impulse_step[r] > self._memory:
-                            cr, target, s = _impact_law(self._e[r], U[r], an[r], g_start[r], h, self._locate)
+                            cr, s = _impact_law(self._e[r], U[r], an[r], g_start[r], h, self._locate)
                             if cr == cr:  # not NaN: an impact
-                                self.bounced[r], c[r], self.bounce_gap[r] = True, cr, target
+                                self.bounced[r], c[r] = True, cr
+                                self.bounce_delay[r] = 0.5 * h - s
                                 self.bounce_shift[r] = (2.0 * s - h) * an[r]
                 else:
                     c = -self._e * U
@@ -504,6 +513,8 @@ class MoreauJeanMidpoint(OneStepIntegrator):
         """Move to q⁺ = q_m + h/2 v⁺ (then drift control), check, advance time; add the
         step's energy-ledger terms (smooth-force and contact work)."""
         q_new = qm + (0.5 * self.h) * v_new
+        if contact and self._locate and self.bounced.any():
+            q_new = q_new + self._impulse_timing()
         self._check_finite(q_new, v_new)
         self.work_forces += 0.5 * self.h * float(f @ (self.v + v_new))
         if contact:

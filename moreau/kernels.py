@@ -330,7 +330,7 @@ def impact_law(e, u, an, g0, h, locate):
     its normal velocity in one step. The impulse turns the normal velocity at the impact
     instant s, ``u_s = u + s an``, into ``−e u_s``, and the smooth forces act for the
     rest of the step: ``U⁺ >= −e u_s + (h − s) an``, at least 0 — except with ``locate``
-    when the row is off the barrier at the end of the step (``target > 0``): it may then
+    when that motion keeps the row off the barrier to the end of the step: it may then
     already fall back towards it, and the bound is the motion's own end velocity.
 
     Parameters
@@ -353,14 +353,13 @@ def impact_law(e, u, an, g0, h, locate):
     Returns
     -------
     c : float
-        The lower bound of U⁺ (negative only with ``locate`` and ``target > 0``); NaN
-        when the approach is not an impact.
-    target : float
-        The gap at the end of the step of the motion after the impact,
-        ``(h − s)(−e u_s) + an (h − s)²/2`` (used with ``locate``).
+        The lower bound of U⁺ (negative only with ``locate``); NaN when the approach is
+        not an impact.
     s : float
-        The impact instant (s into the step). The normal velocities just before and
-        after the impulse sum to ``U + U⁺ + (2 s − h) an``: the impact log's energy.
+        The impact instant (s into the step). The impulse acting at s instead of at the
+        midpoint moves the end-of-step position by ``(h/2 − s) M⁻¹ Gᵀ P``, and the
+        normal velocities just before and after it sum to ``U + U⁺ + (2 s − h) an``
+        (the impact log's energy).
     """
     if locate:
         s = impact_instant(g0, u, an, h)
@@ -371,13 +370,12 @@ def impact_law(e, u, an, g0, h, locate):
         us = u + s * an
         fast = -u > abs(h * an)
     if not fast:
-        return math.nan, math.nan, s
+        return math.nan, s
     w = h - s
     c = -e * us + w * an
-    target = w * (0.5 * w * an - e * us)
-    if not (locate and target > 0.0):
+    if not (locate and w * (0.5 * w * an - e * us) > 0.0):  # (the end-of-step gap of that motion)
         c = max(c, 0.0)
-    return c, target, s
+    return c, s
 
 
 # -- allocating wrappers for the Python path ------------------------------------------------

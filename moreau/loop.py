@@ -27,10 +27,9 @@ S_THETA, S_DRIFT, S_DRIFT_ITER, S_STRIDE, S_NSTEPS, S_METHOD, S_FALLBACK, S_ENER
 # drift control modes (S_DRIFT)
 DRIFT_NONE, DRIFT_POSITION, DRIFT_COMBINED = 0, 1, 2
 # per-row state of CombinedProjection (float array (m, 6)): gap at q_k, the gap where the
-# projection last held the row, held (pinned), restitution applied in this step, the gap
-# at the end of the step of a row that bounced (kernels.impact_law), and (2 s − h) a_n
-# for a row that bounced at s (what the velocities at s add to U + U⁺)
-R_GAP, R_PINGAP, R_PINNED, R_BOUNCED, R_TARGET, R_SHIFT = range(6)
+# projection last held the row, held (pinned), restitution applied in this step, and for
+# a row that bounced at s into the step h/2 − s and (2 s − h) a_n (kernels.impact_law)
+R_GAP, R_PINGAP, R_PINNED, R_BOUNCED, R_DELAY, R_SHIFT = range(6)
 # impact-log columns
 I_T, I_STEP, I_ROW, I_UB, I_UA, I_P, I_LOST, I_FLIGHT, I_FAST = range(9)
 # settings (float array)
@@ -101,8 +100,8 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     end of the step (2 g(q_m) − g(q_k) <= 0; with ``S_LOCATE`` the free step's end gap,
     2 g(q_m) − g(q_k) + h²/2 G M⁻¹ f <= 0). Newton's law is :func:`moreau.kernels.impact_law`.
     ``rs`` (m, 6) holds per row the gap at q_k, the gap the projection left it at, the
-    pinned and bounced flags, a bounced row's end-of-step gap and its (2 s − h) a_n
-    (columns ``R_GAP`` ... ``R_SHIFT``)."""
+    pinned and bounced flags, and a bounced row's h/2 − s and (2 s − h) a_n (columns
+    ``R_GAP`` ... ``R_SHIFT``)."""
     ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e, atol = model
     n, m = ints[0], ints[1]
     h = fset[F_H]
@@ -124,6 +123,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
                 reach += 0.5 * h * h * du
             active[r] = active[r] or rs[r, R_PINNED] != 0.0 or reach <= 0.0
             rs[r, R_BOUNCED] = 0.0
+            rs[r, R_DELAY] = 0.0
             rs[r, R_SHIFT] = 0.0
         P[r] = 0.0
         if active[r]:
@@ -159,10 +159,10 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
                     du = 0.0
                     for i in range(n):
                         du += GA_all[r, i] * rhs[i]
-                    cr, target, s_imp = _k.impact_law(er, u, du, rs[r, R_GAP], h, locate)
+                    cr, s_imp = _k.impact_law(er, u, du, rs[r, R_GAP], h, locate)
                     if cr == cr:  # an impact: Newton's law where it happens
                         rs[r, R_BOUNCED] = 1.0
-                        rs[r, R_TARGET] = target
+                        rs[r, R_DELAY] = 0.5 * h - s_imp
                         rs[r, R_SHIFT] = (2.0 * s_imp - h) * du
                         c = cr
             cA[j] = c
@@ -185,41 +185,6 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
 
 
 @_inline
-def _place_bounces(model, user, q, cq, sq, gq, M, L, in_contact, rs, lw):
-    """Move each row that bounced (and left the barrier) along M⁻¹ Gᵀ to its end-of-step
-    gap ``rs[:, R_TARGET]``, row after row with M and G at the unplaced q (see
-    :func:`moreau.drift.place_bounces`, the reference). False when M(q) is not SPD."""
-    ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e, atol = model
-    n, m = ints[0], ints[1]
-    G = lw[5]
-    w = lw[6]
-    col = lw[7]
-    ready = False
-    for r in range(m):
-        if rs[r, R_BOUNCED] != 0.0 and in_contact[r] and rs[r, R_TARGET] > 0.0:
-            if not ready:
-                ev.mass(ints, pool, user, q, cq, sq, M)
-                if _k.cholesky(M, L, n) >= 0:
-                    return False
-                ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, G)
-                ready = True
-            for i in range(n):
-                col[i] = G[r, i]
-            _k.cho_solve(L, col, w, n)
-            gw = 0.0
-            for i in range(n):
-                gw += G[r, i] * w[i]
-            d = (rs[r, R_TARGET] - gq[r]) / gw
-            for i in range(n):
-                q[i] += d * w[i]
-                col[i] = 0.0
-            if ints[8]:
-                _k.trig(q, cq, sq)
-            ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, gq)
-    return True
-
-
-@_inline
 def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw, rs,
              in_contact):
     """Drift control: move q onto g >= 0 (see PositionProjection and CombinedProjection).
@@ -234,10 +199,6 @@ def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fai
     dtol = fset[F_DRIFT_TOL]
     combined = iset[S_DRIFT] == DRIFT_COMBINED
     sel = lw[8]
-    if combined and iset[S_LOCATE] == 1 and not _place_bounces(model, user, q, cq, sq, gq, M, L, in_contact,
-                                                               rs, lw):
-        cnt[C_FAILKIND] = NOT_SPD
-        return False
     need = False
     for r in range(m):
         if combined:
@@ -427,6 +388,22 @@ def _advance(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P
         s = 0.0
         for i in range(n):
             q_new[i] = qm[i] + 0.5 * h * v_new[i]
+        if code == 1 and iset[S_DRIFT] == DRIFT_COMBINED and iset[S_LOCATE] == 1:
+            # the impulses of the rows that bounced act at their instants s, not at the
+            # midpoint: q⁺ += M⁻¹ Σ (h/2 − s_r) G_rᵀ P_r (see MoreauJeanMidpoint._impulse_timing)
+            shifted = False
+            for i in range(n):
+                vbar[i] = 0.0
+            for r in range(m):
+                if rs[r, R_BOUNCED] != 0.0 and P[r] > 0.0:
+                    shifted = True
+                    for i in range(n):
+                        vbar[i] += rs[r, R_DELAY] * P[r] * G[r, i]
+            if shifted:
+                _k.cho_solve(L, vbar, vfree, n)
+                for i in range(n):
+                    q_new[i] += vfree[i]
+        for i in range(n):
             s += q_new[i] + v_new[i]
         if not math.isfinite(s):
             return NONFINITE

@@ -81,6 +81,16 @@ def test_position_only_projection_of_bouncing_rows_leaves_the_block_spinning():
     assert rate > 1e-4
 
 
+def test_located_impacts_leave_the_block_rocking_at_coarse_h():
+    """A limit of ``locate_impacts`` (documented in CombinedProjection): with e = 0.5 the
+    pressed corners keep bouncing, and the block leaves the pressed phase rocking at
+    coarse h (`pytest -s` prints the rates)."""
+    rates = {h: tilt_rate_after_press(0.5, h, _located())[0] for h in (1e-3, 3e-4, 1e-4)}
+    print("tilt rate after the press, e = 0.5, located impacts:", rates)
+    assert rates[1e-3] > 1e-2 and rates[3e-4] > 1e-3
+    assert rates[1e-4] < 1e-8
+
+
 def test_position_projection_warns_when_it_projects_no_row():
     with pytest.warns(RuntimeWarning, match=r"projects no row .* every row has e > 0"):
         mo.simulate(bouncing_ball(0.5), (0.0, 0.1), [0.1], [0.0], 1e-3, drift_control=mo.PositionProjection(),
