@@ -81,7 +81,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     last_imp = np.full(m, -(1 << 62), dtype=np.int64)
     gmax = np.full(m, -np.inf)
     fgap = np.ascontiguousarray(flight_gap, dtype=float)
-    rs = np.zeros((m, 6))  # CombinedProjection's per-row state (gap at q_k, flags, end gap)
+    rs = np.zeros((m, 6))  # CombinedProjection's per-row state (gap at q_k, flags, impact instants)
     pen = np.zeros(m)
     cnt = np.zeros(8, dtype=np.int64)
     cnt[lp.C_REC] = 1

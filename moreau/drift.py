@@ -208,8 +208,9 @@ class CombinedProjection(PositionProjection):
         (default 2: a contact that opens for a single step and closes again is the same
         contact). 0 applies restitution at every fast approach.
     locate_impacts : bool
-        Newton's law at the impact instant located inside the step, and bounced rows
-        placed where their motion ends the step (point 4; default False).
+        Newton's law at the impact instant located inside the step, whose impulse then
+        moves the end of the step as an impulse at that instant does (point 4; default
+        False). Use with ``memory=0`` for bodies that bounce without persistent contacts.
 
     References
     ----------
@@ -242,4 +243,3 @@ class CombinedProjection(PositionProjection):
     def describe(self) -> dict:
         return {"type": "CombinedProjection", "max_iter": self.max_iter, "tol": self.tol, "memory": self.memory,
                 "locate_impacts": self.locate_impacts}
-
