@@ -188,7 +188,9 @@ class CombinedProjection(PositionProjection):
        ``h |a_n|`` (6 122 … 519 305 velocity-test onsets per cycle, the default 30 … 327),
        with the side changes and flights of the default. A block pressed flat on a wall
        (point 2) leaves its pressed phase rocking at 0.04 rad/s (e = 0.5, h = 1e-3) and
-       0.013 rad/s (h = 3e-4), not at h = 1e-4 or for e = 0.9.
+       0.013 rad/s (h = 3e-4), not at h = 1e-4 or for e = 0.9. The position term is not
+       in the power that :func:`moreau.diagnostics.energy_ledger` integrates, so the
+       ledger of a run with located impacts does not close exactly.
 
     Measured (``benchmarks/piston_convergence.py``, piston at D = 80.04 mm): at h = 1e-3
     the penetration stays below 0.95 % of the clearance for e = 0 … 0.9 (without drift
