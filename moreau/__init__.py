@@ -24,6 +24,7 @@ except PackageNotFoundError:  # running from a source tree that is not installed
 
 from . import diagnostics
 from .barriers import Barrier, FunctionBarrier, LinearBarrier, check_jacobian
+from .compiled import ensure_compiled
 from .drift import CombinedProjection, PositionProjection
 from .errors import SimulationError, SolverError
 from .forces import ConstantForce, Effect, FourierLoad, FunctionForce, HarmonicForce, LinearDamping, LinearSpring
@@ -48,7 +49,7 @@ __all__ = [
     "OneStepProblem", "Residuals",
     "ImpactLog", "SolverStats", "Trajectory", "load",
     "Contact", "Scene",
-    "simulate",
+    "simulate", "ensure_compiled",
     "ContactSolver", "EnumerationSolver", "ExactSolver", "OSQPSolver", "QpsolversSolver", "make_solver",
     "FunctionSystem", "MechanicalSystem",
     "diagnostics",

@@ -14,6 +14,10 @@ Stopping
   finish saving for a grace period, and the worker exits without sending anything (there is
   no one to send it to). An idle worker exits at once.
 * A job is submitted only when a worker is free, so an interrupt leaves nothing queued.
+
+A worker that dies (killed by the out-of-memory killer, a crash in compiled code) fails
+its job with :class:`WorkerDied`, a one-line reason; the pool it broke is replaced and the
+jobs the other workers were running (stopped with it) start again.
 """
 
 from __future__ import annotations
@@ -28,7 +32,7 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
-__all__ = ["Terminated", "sigterm_as_interrupt", "interrupt_exit_code", "was_terminated", "run_jobs"]
+__all__ = ["Terminated", "WorkerDied", "sigterm_as_interrupt", "interrupt_exit_code", "was_terminated", "run_jobs"]
 
 log = logging.getLogger(__name__)
 
@@ -38,6 +42,10 @@ _ORPHAN_GRACE = 30.0  # s an orphaned worker's job gets to save what it computed
 
 class Terminated(KeyboardInterrupt):
     """SIGTERM received: raised like Ctrl-C's ``KeyboardInterrupt`` (a subclass of it)."""
+
+
+class WorkerDied(RuntimeError):
+    """The worker process running a job died before returning it (the message says how)."""
 
 
 _received: dict[str, int | None] = {"signum": None}
@@ -83,10 +91,11 @@ def sigterm_as_interrupt():
 
 
 # -- the worker side ------------------------------------------------------------------------
-_worker = {"running": False, "stopping": False, "parent_gone": False}
+_worker: dict[str, Any] = {"running": False, "stopping": False, "parent_gone": False, "started": None}
 
 
-def _worker_init(parent_pid: int) -> None:
+def _worker_init(parent_pid: int, started=None) -> None:
+    _worker["started"] = started
     signal.signal(signal.SIGINT, _worker_signal)
     signal.signal(signal.SIGTERM, _worker_signal)
     threading.Thread(target=_watch_parent, args=(parent_pid,), daemon=True, name="moreau-parent-watch").start()
@@ -119,7 +128,9 @@ def _watch_parent(parent_pid: int) -> None:
     os._exit(143)
 
 
-def _call_in_worker(fn: Callable, args: tuple) -> Any:
+def _call_in_worker(fn: Callable, args: tuple, index: int = -1) -> Any:
+    if _worker["started"] is not None:  # tell the parent which process runs which job
+        _worker["started"].put((index, os.getpid()))
     _worker["running"], _worker["stopping"] = True, False
     try:
         return fn(*args)
@@ -156,16 +167,32 @@ def run_jobs(fn: Callable, jobs: Sequence[tuple], workers: int,
         Re-raised (a :class:`Terminated` after SIGTERM) once the running jobs returned or
         the grace period ended; the pool's processes are gone by then.
     """
-    pool = cf.ProcessPoolExecutor(max_workers=max(1, int(workers)), initializer=_worker_init,
-                                  initargs=(os.getpid(),))
+    import multiprocessing as mp
+
+    started = mp.get_context().SimpleQueue()  # (job, worker pid) as each job starts
+
+    def new_pool() -> cf.ProcessPoolExecutor:
+        return cf.ProcessPoolExecutor(max_workers=max(1, int(workers)), initializer=_worker_init,
+                                      initargs=(os.getpid(), started))
+
+    pool = new_pool()
     queue = list(enumerate(jobs))
     running: dict[cf.Future, int] = {}
+    procs: dict[int, Any] = {}  # pid -> process, of every worker this call started
     try:
         while queue or running:
             while queue and len(running) < workers:
                 i, job = queue.pop(0)
-                running[pool.submit(_call_in_worker, fn, tuple(job))] = i
+                running[pool.submit(_call_in_worker, fn, tuple(job), i)] = i
+                procs.update({p.pid: p for p in (getattr(pool, "_processes", None) or {}).values()})
             done, _ = cf.wait(running, return_when=cf.FIRST_COMPLETED)
+            if any(not f.cancelled() and isinstance(f.exception(), cf.process.BrokenProcessPool) for f in done):
+                again = _worker_died(running, started, procs, on_done)  # (before _stop kills the others)
+                _stop(pool)
+                queue[:0] = [(i, jobs[i]) for i in again]
+                running.clear()
+                pool = new_pool()
+                continue
             for fut in done:
                 _deliver(fut, running.pop(fut), on_done)
     except KeyboardInterrupt:
@@ -178,6 +205,45 @@ def run_jobs(fn: Callable, jobs: Sequence[tuple], workers: int,
         _stop(pool)
         raise
     pool.shutdown(wait=True)
+
+
+def _worker_died(running: dict, started, procs: dict, on_done) -> list[int]:
+    """A worker died and broke the pool: fail the job(s) whose worker was killed or
+    crashed (on_done with :class:`WorkerDied`), and return the jobs that were stopped
+    with them (to run again). When no death can be told apart, every running job fails."""
+    pids: dict[int, int] = {}
+    while not started.empty():
+        i, pid = started.get()
+        pids[i] = pid
+    died: list[tuple[int, int | None, int | None]] = []
+    again: list[tuple[int, int | None, int | None]] = []
+    for fut, i in running.items():
+        if fut.done() and not isinstance(fut.exception(), cf.process.BrokenProcessPool):
+            _deliver(fut, i, on_done)  # it returned before the pool broke
+            continue
+        proc = procs.get(pids.get(i, -1))
+        if proc is not None:
+            proc.join(timeout=1.0)  # a dead worker's status settles (another thread may reap it)
+        code = None if proc is None else proc.exitcode
+        # killed by a signal other than the SIGTERM with which the broken pool stops the
+        # others (those exit in any way once their job saved what it had)
+        killed = code is not None and code < 0 and code != -signal.SIGTERM
+        (died if killed else again).append((i, code, pids.get(i)))
+    if not died:  # nothing tells which: all fail rather than run again for ever
+        died, again = again, []
+    for i, code, pid in died:
+        on_done(i, None, WorkerDied(f"worker process {pid} died ({_how(code)}) while running job {i}"))
+    return sorted(i for i, _, _ in again)
+
+
+def _how(code: int | None) -> str:
+    if code is None:
+        return "exit status unknown"
+    if code < 0:
+        name = signal.Signals(-code).name if -code in signal.Signals._value2member_map_ else str(-code)
+        why = ": out of memory, or killed by hand" if -code == signal.SIGKILL else ""
+        return f"killed by signal {name}{why}"
+    return f"exit code {code}"
 
 
 def _deliver(fut: cf.Future, i: int, on_done) -> None:

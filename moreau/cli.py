@@ -85,7 +85,7 @@ from ._pool import Terminated, interrupt_exit_code, sigterm_as_interrupt
 __all__ = [
     "ENTRY_POINT_GROUP", "EXIT_OK", "EXIT_FAILED", "EXIT_USAGE", "CLIError", "Stopped",
     "add_backend_option", "build_parser", "command_entry_points", "float_in", "int_at_least",
-    "interrupt_exit_code", "main",
+    "interrupt_exit_code", "main", "register_compile",
     "output_dir", "positive_int", "simulate_and_save", "write_summary",
 ]
 
@@ -163,6 +163,24 @@ def build_parser() -> argparse.ArgumentParser:
     for ep in eps:
         _register(ep, sub)
     return p
+
+
+def register_compile(subparsers: Any) -> None:
+    """``moreau compile``: load the compiled time loop, or compile it into numba's cache."""
+    p = subparsers.add_parser(
+        "compile", help="compile the time loop into numba's cache now (e.g. for a container image or a "
+                        "cluster's shared environment; NUMBA_CACHE_DIR chooses where)")
+    p.set_defaults(func=_run_compile)
+
+
+def _run_compile(args: argparse.Namespace) -> int:
+    from .compiled import ensure_compiled
+    from .jitcache import cache_dir
+
+    seconds = ensure_compiled()
+    print(f"moreau compile: the time loop is in {cache_dir() or 'no cache (not writable)'} "
+          f"({seconds:.1f} s to load or compile)")
+    return EXIT_OK
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -9,7 +9,10 @@ buffer, and to finish. Status codes of the loop become the exceptions of
 
 from __future__ import annotations
 
+import glob
 import logging
+import os
+import threading
 import time
 import warnings
 
@@ -18,15 +21,67 @@ import numpy as np
 from . import loop as lp
 from .errors import SimulationError, SolverError, attach_trajectory
 from .flights import initial_flight
+from .jitcache import cache_dir, compile_lock
 from .lowering import CompiledScene, lower
 from .result import ImpactLog, SolverStats, Trajectory
+from .usercalls import decode
 
-__all__ = ["COMPILED_SOLVERS", "run_compiled"]
+__all__ = ["COMPILED_SOLVERS", "COMPILE_SECONDS", "ensure_compiled", "run_compiled"]
 
 log = logging.getLogger(__name__)
 
 #: contact solvers that run inside the compiled loop, by name → LCP method code
 COMPILED_SOLVERS = {"exact": 0, "enum": 1}
+
+
+#: what the first compile of the loop takes on a 2-core machine (benchmarks/compile_cost.py), s
+COMPILE_SECONDS = 30
+_ready = threading.Event()
+_ready_lock = threading.Lock()
+
+
+def ensure_compiled() -> float:
+    """Load the compiled time loop from numba's cache, or compile it (once per machine
+    and version, saying so in one logged line) when it is not there; returns the seconds
+    it took (0 when this process has it already).
+
+    Processes started together on an empty cache compile once: the first holds a lock
+    in the cache directory (:func:`moreau.jitcache.compile_lock`), the others wait and
+    then load what it saved. Call it before starting worker processes, or to warm a
+    cache (``moreau compile`` does).
+    """
+    if _ready.is_set():
+        return 0.0
+    with _ready_lock:
+        if _ready.is_set():
+            return 0.0
+        t = time.perf_counter()
+        with compile_lock():
+            d = cache_dir()
+            if d is None or not glob.glob(os.path.join(d, "loop.run_chunk-*.nbi")):
+                log.warning("moreau: compiling the time loop once for this machine (about %d s; later runs "
+                            "load it from %s)", COMPILE_SECONDS, d or "nowhere: the cache is not writable")
+            _ready.set()  # the warm-up run below calls ensure_compiled again
+            try:
+                _warm_up()
+            except BaseException:
+                _ready.clear()
+                raise
+        return time.perf_counter() - t
+
+
+def _warm_up() -> None:
+    """Two steps of a one-row scene: loads (or compiles) every compiled function a run calls."""
+    from .barriers import LinearBarrier
+    from .forces import ConstantForce
+    from .scene import Contact, Scene
+    from .system import FunctionSystem
+
+    scene = Scene(FunctionSystem(np.eye(1)), [ConstantForce([-1.0])],
+                  [Contact(LinearBarrier([[1.0]], [0.0]), 0.5)])
+    run_compiled(scene, None, 0.0, np.array([1e-3]), np.array([-1.0]), 1e-3, 2, theta=False, solver="exact",
+                 fallback=None, stride=1, bar=None, energy=True, tol=1e-8, drift_control=None,
+                 flight_gap=np.zeros(1))
 
 
 def _methods(solver, fallback) -> tuple[int, int]:
@@ -83,13 +138,14 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     fgap = np.ascontiguousarray(flight_gap, dtype=float)
     rs = np.zeros((m, 6))  # CombinedProjection's per-row state (gap at q_k, flags, impact instants)
     pen = np.zeros(m)
-    cnt = np.zeros(8, dtype=np.int64)
+    cnt = np.zeros(lp.N_COUNTERS, dtype=np.int64)
     cnt[lp.C_REC] = 1
     acc = np.zeros(3)
     fail = np.zeros((2, 4))
     model = cs.arrays()
-    # a scene of built-in kernels runs in the loop compiled without reference counting
-    run = lp.run_chunk_builtin if cs.builtin else lp.run_chunk
+    user = cs.user.addresses
+    ensure_compiled()  # before the progress bar moves: a first compile says so
+    run = lp.run_chunk
     work = lp.loop_workspace(n, m)
 
     status, message, interrupt = "completed", "", None
@@ -114,7 +170,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
             while cnt[lp.C_K] < n_steps:
                 k_before = int(cnt[lp.C_K])
                 c0 = time.perf_counter()
-                code = run(model, cs.user, iset, fset, Minv, eligible, q, v,
+                code = run(model, user, iset, fset, Minv, eligible, q, v,
                            min(n_steps, k_before + chunk), in_contact, P_acc, act_acc,
                            T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax,
                            fgap, rs, work)
@@ -164,7 +220,7 @@ def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE,
     t_now = t0 + k * h
     if code != lp.DONE and status == "completed":
         status = "failed"
-        error = _error(code, scene, k, t_now, q, v, h, fail)
+        error = _error(code, scene, k, t_now, q, v, h, fail, cs, int(cnt[lp.C_USER]))
         message = str(error)
     rec = int(cnt[lp.C_REC])
     if status != "completed" and T[rec - 1] != t_now and rec < n_rec + 1:
@@ -204,8 +260,10 @@ def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE,
     return traj, error
 
 
-def _error(code, scene, k, t, q, v, h, fail):
+def _error(code, scene, k, t, q, v, h, fail, cs, user_status):
     where = f"at step {k} (t = {t:.9g})"
+    if code == lp.USER_FAILED:
+        return _user_error(scene, cs, user_status, where, k, t, q, v, h)
     if code == lp.SOLVER_FAILED:
         qm = q + 0.5 * h * v
         g = scene.gaps(qm) if scene.nrows else np.zeros(0)
@@ -239,3 +297,31 @@ def _experimental_warning():
     from numba.core.errors import NumbaExperimentalFeatureWarning
 
     return NumbaExperimentalFeatureWarning
+
+
+def _user_error(scene, cs: CompiledScene, status: int, where: str, k: int, t: float, q, v, h) -> SimulationError:
+    """The error of a user callable that failed in the loop: which one, what it did, when.
+    An exception it raised is reproduced at the step's midpoint state and chained."""
+    slot, index, what = decode(status)
+    names = cs.user_names.get(slot, [])
+    name = names[index] if 0 <= index < len(names) else f"#{index}"
+    kind = {"mass": "mass matrix", "bias": "bias", "forces": "force", "gaps": "gap function",
+            "jacobians": "Jacobian"}[slot]
+    error = SimulationError(f"user {kind} {name!r} {what} {where}", None, k)
+    if what.startswith("raised"):
+        qm = q + 0.5 * h * v
+        try:
+            if slot == "forces":
+                fun = [e for e in scene.effects if e.name == name][0].kernel()[1]
+                fun(t + 0.5 * h, qm, v)
+            elif slot in ("gaps", "jacobians"):
+                pair = [c for c in scene.contacts if c.name == name][0].barrier.kernel()[1]
+                pair[0 if slot == "gaps" else 1](qm)
+            else:
+                scene.system.mass_matrix(qm)
+                if scene.system.has_bias:
+                    scene.system.bias_force(qm, v)
+        except Exception as exc:  # noqa: BLE001 - the user's own exception, named in the message
+            error = SimulationError(f"user {kind} {name!r} raised {type(exc).__name__}: {exc} {where}", None, k)
+            error.__cause__ = exc
+    return error

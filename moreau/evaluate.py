@@ -2,111 +2,29 @@
 
 Each function walks the records of a :class:`~moreau.lowering.CompiledScene` and calls
 the kernels of :mod:`moreau.kernels` for exactly the effects and contacts the scene
-holds; numba-compiled user callables are called through small overloads that compile
-to nothing for a built-in scene.
+holds; a scene's ``@numba.njit`` callables are called through their slot addresses
+(:mod:`moreau.usercalls`), so one compiled loop serves every scene. ``mass``, ``force``,
+``gaps`` and ``jacobian`` return 0, or a user callable's status ``code * 8 + slot``
+(the loop stops on it; :func:`moreau.usercalls.decode` reads it).
 """
 
 from __future__ import annotations
 
-from numba import literal_unroll, njit
-from numba.core import types
-from numba.extending import overload
+from numba import njit
 
 from . import kernels as _k
+from .usercalls import U_BIAS, U_FORCES, U_GAPS, U_JACOBIANS, U_MASS, call_user
 
-_jit = njit(cache=True, nogil=True, inline="always")
-
-
-# -- user callables (specialized per tuple type; empty tuples compile to nothing) --------
-def user_mass(fns, q, out):  # pragma: no cover - replaced by the overload
-    raise NotImplementedError
-
-
-def user_bias(fns, q, v, out):  # pragma: no cover
-    raise NotImplementedError
-
-
-def user_forces(fns, t, q, v, out):  # pragma: no cover
-    raise NotImplementedError
-
-
-def user_gaps(fns, rows, q, out):  # pragma: no cover
-    raise NotImplementedError
-
-
-def user_jacobians(fns, rows, q, out):  # pragma: no cover
-    raise NotImplementedError
-
-
-def _slot_is_none(fns, i):
-    return len(fns) <= i or isinstance(fns[i], (types.NoneType, types.Omitted))
-
-
-@overload(user_mass, jit_options={"cache": True})  # type: ignore[typeddict-unknown-key]
-def _ov_mass(fns, q, out):
-    if _slot_is_none(fns, 0):
-        return lambda fns, q, out: None
-
-    def impl(fns, q, out):
-        out[:, :] = fns[0](q)
-    return impl
-
-
-@overload(user_bias, jit_options={"cache": True})  # type: ignore[typeddict-unknown-key]
-def _ov_bias(fns, q, v, out):
-    if _slot_is_none(fns, 1):
-        return lambda fns, q, v, out: None
-
-    def impl(fns, q, v, out):
-        out += fns[1](q, v)
-    return impl
-
-
-@overload(user_forces, jit_options={"cache": True})  # type: ignore[typeddict-unknown-key]
-def _ov_forces(fns, t, q, v, out):
-    if len(fns) == 0:
-        return lambda fns, t, q, v, out: None
-
-    def impl(fns, t, q, v, out):
-        for fun in literal_unroll(fns):
-            out += fun(t, q, v)
-    return impl
-
-
-@overload(user_gaps, jit_options={"cache": True})  # type: ignore[typeddict-unknown-key]
-def _ov_gaps(fns, rows, q, out):
-    if len(fns) == 0:
-        return lambda fns, rows, q, out: None
-
-    def impl(fns, rows, q, out):
-        i = 0
-        for pair in literal_unroll(fns):
-            g = pair[0](q)
-            r0 = rows[i]
-            for j in range(g.shape[0]):
-                out[r0 + j] = g[j]
-            i += 1
-    return impl
-
-
-@overload(user_jacobians, jit_options={"cache": True})  # type: ignore[typeddict-unknown-key]
-def _ov_jac(fns, rows, q, out):
-    if len(fns) == 0:
-        return lambda fns, rows, q, out: None
-
-    def impl(fns, rows, q, out):
-        i = 0
-        for pair in literal_unroll(fns):
-            G = pair[1](q)
-            r0 = rows[i]
-            for j in range(G.shape[0]):
-                out[r0 + j, :] = G[j]
-            i += 1
-    return impl
+# allocation-free, so without reference counting (see kernels._jit)
+_jit = njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]
+# called from the loop only, inlined into it by numba (see moreau.loop): no CPython or C
+# entry points to build
+_internal = njit(cache=True, nogil=True, _nrt=False, inline="always",  # type: ignore[call-overload]
+                 no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
 
 # -- the scene ----------------------------------------------------------------------------
-@_jit
+@_internal
 def mass(ints, pool, user, q, c, s, M):
     """M(q) into ``M`` (n x n); ``c, s`` = cos q, sin q."""
     n, kind, off = ints[0], ints[2], ints[4]
@@ -117,10 +35,12 @@ def mass(ints, pool, user, q, c, s, M):
             for j in range(n):
                 M[i, j] = pool[off + i * n + j]
     else:
-        user_mass(user[0], q, M)
+        st = call_user(user[U_MASS], 0.0, q, q, M, n, ints[1])
+        return 0 if st == 0 else st * 8 + U_MASS
+    return 0
 
 
-@_jit
+@_internal
 def force(ints, ekind, eoff, pool, user, t, q, c, s, v, f):
     """f(t, q, v) into ``f`` (n,): the bias terms and exactly the scene's effects;
     ``c, s`` = cos q, sin q."""
@@ -130,7 +50,9 @@ def force(ints, ekind, eoff, pool, user, t, q, c, s, v, f):
         if ints[2] == _k.MASS_CHAIN:
             _k.add_chain_bias(pool, ints[4], c, s, v, f)
         else:
-            user_bias(user[0], q, v, f)
+            st = call_user(user[U_BIAS], t, q, v, f, ints[0], ints[1])
+            if st != 0:
+                return st * 8 + U_BIAS
     for e in range(ints[5]):
         kind, o = ekind[e], eoff[e]
         if kind == _k.CONST:
@@ -145,10 +67,13 @@ def force(ints, ekind, eoff, pool, user, t, q, c, s, v, f):
             _k.add_harmonic(pool, o, t, f)
         elif kind == _k.FOURIER_PT:
             _k.add_point_fourier(pool, o, q, c, s, f)
-    user_forces(user[1], t, q, v, f)
+    if user[U_FORCES] != 0:
+        st = call_user(user[U_FORCES], t, q, v, f, ints[0], ints[1])
+        return 0 if st == 0 else st * 8 + U_FORCES
+    return 0
 
 
-@_jit
+@_internal
 def gaps(ints, bkind, boff, brow, bnrows, pool, user, q, c, s, g):
     """g(q) into ``g`` (m,); ``c, s`` = cos q, sin q."""
     for ic in range(ints[6]):
@@ -157,10 +82,13 @@ def gaps(ints, bkind, boff, brow, bnrows, pool, user, q, c, s, g):
             _k.gaps_linear(pool, boff[ic], bnrows[ic], q, g, brow[ic])
         elif kind == _k.BAR_TRIG:
             _k.gaps_trig(pool, boff[ic], bnrows[ic], c, s, g, brow[ic])
-    user_gaps(user[2], user[3], q, g)
+    if user[U_GAPS] != 0:
+        st = call_user(user[U_GAPS], 0.0, q, q, g, ints[0], ints[1])
+        return 0 if st == 0 else st * 8 + U_GAPS
+    return 0
 
 
-@_jit
+@_internal
 def jacobian(ints, bkind, boff, brow, bnrows, pool, user, q, c, s, G):
     """G(q) into ``G`` (m, n); ``c, s`` = cos q, sin q."""
     for ic in range(ints[6]):
@@ -169,7 +97,10 @@ def jacobian(ints, bkind, boff, brow, bnrows, pool, user, q, c, s, G):
             _k.jacobian_linear(pool, boff[ic], bnrows[ic], G, brow[ic])
         elif kind == _k.BAR_TRIG:
             _k.jacobian_trig(pool, boff[ic], bnrows[ic], c, s, G, brow[ic])
-    user_jacobians(user[2], user[3], q, G)
+    if user[U_JACOBIANS] != 0:
+        st = call_user(user[U_JACOBIANS], 0.0, q, q, G, ints[0], ints[1])
+        return 0 if st == 0 else st * 8 + U_JACOBIANS
+    return 0
 
 
 @_jit

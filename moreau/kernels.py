@@ -34,7 +34,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ._jitcache import ensure_fresh
+from .jitcache import ensure_fresh
 
 ensure_fresh()  # before any cached machine code of moreau is loaded
 
@@ -50,10 +50,12 @@ BAR_LINEAR, BAR_TRIG, BAR_USER = 0, 1, 99
 # mass kinds
 MASS_CONST, MASS_CHAIN, MASS_USER = 0, 1, 99
 
-_jit = njit(cache=True, nogil=True, inline="always")
-# small helpers called in inner loops: inlined where called (no call boundary, whose
-# reference counting of array arguments would cost more than the arithmetic)
-_inline = njit(cache=True, nogil=True, inline="always")
+# Each kernel is compiled once and inlined where it is called by LLVM (forceinline): as
+# calls, the piston step costs a quarter more; inlined by numba (inline="always") at
+# every level, the loop took minutes and gigabytes to compile (see moreau.loop).
+# _nrt=False (numba's internal flag): kernels allocate nothing, so they need no reference
+# counting, and the Python path and the loop (compiled without it) share one version.
+_jit = njit(cache=True, nogil=True, forceinline=True, _nrt=False)  # type: ignore[call-overload]
 
 
 # -- forces ------------------------------------------------------------------------------
@@ -229,7 +231,7 @@ def add_chain_bias(p, o, c, s, v, out):
 
 
 # -- dense linear algebra for small SPD systems (leading k x k blocks, no views) -----------
-@_inline
+@_jit
 def cholesky(M, L, k):
     """Lower Cholesky factor of the leading k x k block of M into L; returns the index of
     the first non-positive pivot, or −1 when the block is positive definite."""
@@ -251,7 +253,7 @@ def cholesky(M, L, k):
     return -1
 
 
-@_inline
+@_jit
 def lt_solve(L, out, k):
     """out[:k] = L⁻ᵀ out[:k] in place, L lower triangular (back substitution)."""
     for i in range(k - 1, -1, -1):
@@ -261,7 +263,7 @@ def lt_solve(L, out, k):
         out[i] = t / L[i, i]
 
 
-@_inline
+@_jit
 def cho_solve(L, b, out, k):
     """out[:k] = M⁻¹ b[:k] with M = L Lᵀ on the leading k x k block (b, out may alias)."""
     for i in range(k):
@@ -272,7 +274,7 @@ def cho_solve(L, b, out, k):
     lt_solve(L, out, k)
 
 
-@_inline
+@_jit
 def sym_product(A, B, W, k, n):
     """W[:k, :k] = A[:k, :n] B[:k, :n]ᵀ for a product known to be symmetric: the lower
     triangle is summed and mirrored, so that W is exactly symmetric."""

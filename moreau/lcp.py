@@ -35,11 +35,14 @@ __all__ = ["lcp_dual_active_set", "lcp_enumerate", "kkt_residuals_kernel", "solv
            "OK", "FAILED"]
 
 OK, FAILED = 0, 1
-_jit = njit(cache=True, nogil=True)
-_inline = njit(cache=True, nogil=True, inline="always")
+# allocation-free, so without reference counting; inlined by LLVM (see kernels._jit)
+_jit = njit(cache=True, nogil=True, forceinline=True, _nrt=False)  # type: ignore[call-overload]
+# internal helpers: no CPython or C entry points to build
+_inline = njit(cache=True, nogil=True, forceinline=True, _nrt=False,  # type: ignore[call-overload]
+               no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
 
-@_jit
+@njit(cache=True, nogil=True)
 def workspace(n, m):
     """Work arrays for problems of up to m rows on n coordinates (allocated once per run;
     every routine below works on leading blocks of them, creating no array views)."""
@@ -75,7 +78,7 @@ def _slacks(W, w, P, s, k):
     return smin
 
 
-@_inline
+@_jit
 def lcp_dual_active_set(W, w, P, k, tol, s, A, inA, rhs, r, sub, fac):
     """Solve ``0 <= P ⟂ w + W P >= 0`` (W PSD, the leading k x k block) by the
     Goldfarb–Idnani dual method.
@@ -186,7 +189,7 @@ def lcp_dual_active_set(W, w, P, k, tol, s, A, inA, rhs, r, sub, fac):
     return OK
 
 
-@_inline
+@_jit
 def lcp_enumerate(W, w, P, k, tol, s, A, rhs, x, sub, fac):
     """Solve the same LCP by enumerating active sets, smallest first (k <= 12).
 
@@ -228,7 +231,7 @@ def lcp_enumerate(W, w, P, k, tol, s, A, rhs, x, sub, fac):
     return FAILED
 
 
-@_inline
+@_jit
 def kkt_residuals_kernel(M, L, b, G, c, v, P, k, out, Gv, GtP, r, d, x, y):
     """Scaled KKT residuals of ``(v, P)`` for the one-step QP on the first k rows of G,
     written to ``out`` (4,): primal, dual, complementarity, stationarity (dimensionless).
@@ -330,7 +333,7 @@ def kkt_residuals_kernel(M, L, b, G, c, v, P, k, out, Gv, GtP, r, d, x, y):
     out[3] = stat
 
 
-@_inline
+@_jit
 def solve_one_step(M, L, b, G, c, P, v, k, method, tol, ws):
     """v, P of the one-step QP on the first k rows of G with the LCP solver ``method``
     (0: dual active set, 1: enumeration); returns its status. ``L`` = chol(M), ``ws``

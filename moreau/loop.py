@@ -21,7 +21,7 @@ from . import kernels as _k
 from .lcp import kkt_residuals_kernel, solve_one_step, workspace
 
 # status codes
-DONE, IMPACTS_FULL, SOLVER_FAILED, NONFINITE, NOT_SPD, NONFINITE_GAP = 0, 1, 2, 3, 4, 5
+DONE, IMPACTS_FULL, SOLVER_FAILED, NONFINITE, NOT_SPD, NONFINITE_GAP, USER_FAILED = 0, 1, 2, 3, 4, 5, 6
 # settings (int array)
 S_THETA, S_DRIFT, S_DRIFT_ITER, S_STRIDE, S_NSTEPS, S_METHOD, S_FALLBACK, S_ENERGY, S_MEMORY, S_LOCATE = range(10)
 # drift control modes (S_DRIFT)
@@ -35,30 +35,42 @@ I_T, I_STEP, I_ROW, I_UB, I_UA, I_P, I_LOST, I_FLIGHT, I_FAST = range(9)
 # settings (float array)
 F_H, F_T0, F_TOL, F_DRIFT_TOL, F_PE0 = range(5)
 # counters (int array)
-C_REC, C_NIMP, C_SOLVES, C_FALLBACKS, C_CONTACT, C_PROJ, C_K, C_FAILKIND = range(8)
+# (C_USER: the status of a user callable that failed, see moreau.usercalls.decode)
+C_REC, C_NIMP, C_SOLVES, C_FALLBACKS, C_CONTACT, C_PROJ, C_K, C_FAILKIND, C_USER = range(9)
+N_COUNTERS = 9
 # accumulators (float array)
 A_WORST, A_WORK_F, A_WORK_C = range(3)
 
 _jit = njit(cache=True, nogil=True)
-# the step's parts are inlined into the loop: a call boundary would reference-count every
-# array of the tuples passed (workspace, model), which costs more than a small step
-_inline = njit(cache=True, nogil=True, inline="always")
+# The step's parts are inlined into the loop by numba (IR level), as are the evaluation
+# functions (moreau.evaluate); the kernels and LCP routines they call are inlined by LLVM
+# (forceinline) and compiled once each. Measured (benchmarks/compile_cost.py, and the
+# piston at e = 0.9 against the former build, best of 3-4 interleaved runs): numba
+# inlining at every level compiled for 7-10 min in 10.8 GB; LLVM inlining at every level
+# compiles in ~30 s but the step costs 8 % more; the kernels as plain calls 26 % more, and
+# the parts too (their tuples of arrays passed at every call) 38 % more. No CPython or C
+# entry points are built for what only the loop calls.
+_part = njit(cache=True, nogil=True, _nrt=False, inline="always",  # type: ignore[call-overload]
+             no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
 
-@_inline
+@_part
 def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail, ws):
     """Main LCP method, KKT check, fallback; False when both fail (residuals in ``fail``)."""
     res = ws[16]
     tol = fset[F_TOL]
+    # np.int64: numba would type the count as the literal 0 at one of the inlined call
+    # sites and compile the solver and the check a second time
+    k = np.int64(na)
     for attempt in range(2):
         method = iset[S_METHOD] if attempt == 0 else iset[S_FALLBACK]
         if method < 0:
             break
         if attempt == 1:
             cnt[C_FALLBACKS] += 1
-        st = solve_one_step(M, L, b, GA, cA, P_out, v_out, na, method, 1e-12, ws)
+        st = solve_one_step(M, L, b, GA, cA, P_out, v_out, k, method, 1e-12, ws)
         if st == 0:
-            kkt_residuals_kernel(M, L, b, GA, cA, v_out, P_out, na, res, ws[11], ws[12], ws[13], ws[14], ws[15],
+            kkt_residuals_kernel(M, L, b, GA, cA, v_out, P_out, k, res, ws[11], ws[12], ws[13], ws[14], ws[15],
                                  ws[1])
             worst = max(res[0], res[1], res[2], res[3])
             if worst <= tol:
@@ -73,7 +85,7 @@ def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail
     return False
 
 
-@_inline
+@_part
 def _free_acceleration(n, const_mass, Minv, L, f, out):
     """M⁻¹ f into ``out`` (with the inverse of a constant M, as the reference path)."""
     if const_mass:
@@ -86,11 +98,12 @@ def _free_acceleration(n, const_mass, Minv, L, f, out):
         _k.cho_solve(L, f, out, n)
 
 
-@_inline
+@_part
 def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, v_new, P, active,
                      GA_all, cnt, acc, fail, ws, lw, last_imp, rs):
     """v⁺ with the contacts closed at qm (gaps ``gm``); returns 1 (contact), 0 (free) or
-    −1 (solve failed). ``P`` (m,) and ``active`` (m,) are set for the step.
+    −1 (failed: the solve, or a user callable; the status is in ``cnt[C_FAILKIND]``).
+    ``P`` (m,) and ``active`` (m,) are set for the step.
 
     With combined drift control, a row's restitution acts only at an impact (see
     :class:`moreau.drift.CombinedProjection`): it approaches faster than the smooth forces
@@ -110,8 +123,8 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     rhs = lw[2]
     if locate:  # the free step's end gap, + h²/2 G M⁻¹ f, decides which rows close
         _free_acceleration(n, ints[2] == _k.MASS_CONST, Minv, L, f, rhs)
-        ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, GA_all)
-    na = 0
+        if _user_failed(ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, GA_all), cnt):
+            return -1
     for r in range(m):
         active[r] = gm[r] <= atol[r]
         if combined:
@@ -126,8 +139,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
             rs[r, R_DELAY] = 0.0
             rs[r, R_SHIFT] = 0.0
         P[r] = 0.0
-        if active[r]:
-            na += 1
+    na = _count(active, m)
     if na == 0:
         if not locate:
             _free_acceleration(n, ints[2] == _k.MASS_CONST, Minv, L, f, rhs)
@@ -141,7 +153,8 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
         memory = iset[S_MEMORY]
     cnt[C_SOLVES] += 1
     if not locate:
-        ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, GA_all)
+        if _user_failed(ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, GA_all), cnt):
+            return -1
     GA = lw[0]
     cA = lw[1]
     j = 0
@@ -175,6 +188,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
         b[i] = s
     PA = lw[4]
     if not _contact_solve(M, L, b, GA, cA, na, v_new, PA, iset, fset, cnt, acc, fail, ws):
+        cnt[C_FAILKIND] = SOLVER_FAILED
         return -1
     j = 0
     for r in range(m):
@@ -184,7 +198,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     return 1
 
 
-@_inline
+@_part
 def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw, rs,
              in_contact):
     """Drift control: move q onto g >= 0 (see PositionProjection and CombinedProjection).
@@ -215,17 +229,17 @@ def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fai
     dq = lw[6]
     zero = lw[7]
     for _ in range(iset[S_DRIFT_ITER]):
-        na = 0
-        for r in range(m):
-            if not combined:
+        if not combined:
+            for r in range(m):
                 sel[r] = eligible[r] and (gq[r] < 0.0 or active[r])
-            if sel[r]:
-                na += 1
-        ev.mass(ints, pool, user, q, cq, sq, M)
+        na = _count(sel, m)
+        if _user_failed(ev.mass(ints, pool, user, q, cq, sq, M), cnt):
+            return False
         if _k.cholesky(M, L, n) >= 0:
             cnt[C_FAILKIND] = NOT_SPD
             return False
-        ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, G)
+        if _user_failed(ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, G), cnt):
+            return False
         GA = lw[0]
         cA = lw[1]
         j = 0
@@ -243,7 +257,8 @@ def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fai
             q[i] += dq[i]
         if ints[8]:
             _k.trig(q, cq, sq)
-        ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, gq)
+        if _user_failed(ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, gq), cnt):
+            return False
         if combined:
             j = 0
             for r in range(m):
@@ -264,6 +279,26 @@ def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fai
     return True
 
 
+@_part
+def _user_failed(status, cnt):
+    """True (and the status kept in ``cnt``) when a user callable failed."""
+    if status == 0:
+        return False
+    cnt[C_FAILKIND] = USER_FAILED
+    cnt[C_USER] = status
+    return True
+
+
+@_part
+def _count(flags, m):
+    """The number of True entries among the first m of ``flags``."""
+    k = 0
+    for r in range(m):
+        if flags[r]:
+            k += 1
+    return k
+
+
 @_jit
 def loop_workspace(n, m):
     """The work arrays of :func:`run_chunk` for n coordinates and m rows (allocated once
@@ -277,10 +312,24 @@ def loop_workspace(n, m):
     return own, workspace(n, m), lw
 
 
-@_inline
-def _advance(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
-             T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work):
-    """The body of :func:`run_chunk` (inlined into its two entry points)."""
+# Compiled without reference counting (numba's internal ``_nrt`` flag): every array it
+# touches is owned by the caller and nothing is allocated, so the counts (an atomic
+# increment and decrement per array per use, measured at two thirds of a contact step's
+# time) would be pure overhead. User callables run in their own wrappers (usercalls).
+@njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]  # numba's internal flag
+def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
+              T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work):
+    """Advance the run to step ``k_end`` (see the module docstring); returns a status.
+
+    State (q, v, step ``cnt[C_K]``, contact flags, impulse accumulators, per row the
+    step of its last impulse ``last_imp`` and its largest gap since then ``gmax``) is
+    updated in place, so a chunk resumes where the previous one stopped. ``user`` (5,)
+    holds the addresses of the scene's user slots (:mod:`moreau.usercalls`; zeros for a
+    built-in scene). ``fgap`` (m,) is each row's flight gap: a contact onset after the
+    gap exceeded it is an impact. ``rs`` (m, 6) is the per-row state of
+    CombinedProjection (see ``_velocity_update``); ``work`` comes from
+    :func:`loop_workspace`.
+    """
     ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e, atol = model
     n, m = ints[0], ints[1]
     h, t0 = fset[F_H], fset[F_T0]
@@ -290,7 +339,8 @@ def _advance(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P
     own, ws, lw = work
     M, L, cm, sm, cq, sq, qm, f, v_new, vbar, q_new, gm, gq, P, active, G, vfree = own
     if const_mass:
-        ev.mass(ints, pool, user, q, cq, sq, M)
+        if _user_failed(ev.mass(ints, pool, user, q, cq, sq, M), cnt):
+            return USER_FAILED
         if _k.cholesky(M, L, n) >= 0:
             return NOT_SPD
     cap = IMP.shape[0]
@@ -304,14 +354,17 @@ def _advance(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P
         if ints[8]:
             _k.trig(qm, cm, sm)
         if not const_mass:
-            ev.mass(ints, pool, user, qm, cm, sm, M)
+            if _user_failed(ev.mass(ints, pool, user, qm, cm, sm, M), cnt):
+                return USER_FAILED
             if ints[2] != _k.MASS_CHAIN and _k.symmetry_defect(M) > 1e-10:
                 return NOT_SPD
             if _k.cholesky(M, L, n) >= 0:
                 return NOT_SPD
-        ev.force(ints, ekind, eoff, pool, user, t + 0.5 * h, qm, cm, sm, v, f)
+        if _user_failed(ev.force(ints, ekind, eoff, pool, user, t + 0.5 * h, qm, cm, sm, v, f), cnt):
+            return USER_FAILED
         if m > 0:
-            ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, gm)
+            if _user_failed(ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, gm), cnt):
+                return USER_FAILED
             s = 0.0
             for r in range(m):
                 s += gm[r]
@@ -324,11 +377,12 @@ def _advance(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P
             if npass == 1:
                 for i in range(n):
                     vbar[i] = 0.5 * (v[i] + v_new[i])
-                ev.force(ints, ekind, eoff, pool, user, t + 0.5 * h, qm, cm, sm, vbar, f)
+                if _user_failed(ev.force(ints, ekind, eoff, pool, user, t + 0.5 * h, qm, cm, sm, vbar, f), cnt):
+                    return USER_FAILED
             code = _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, v_new, P,
                                     active, G, cnt, acc, fail, ws, lw, last_imp, rs)
             if code < 0:
-                return SOLVER_FAILED
+                return cnt[C_FAILKIND]
         # smooth-force work of the step, h fᵀ (v + v⁺)/2
         wf = 0.0
         for i in range(n):
@@ -410,7 +464,8 @@ def _advance(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P
         if ints[8] and (m > 0 or iset[S_ENERGY] == 1):
             _k.trig(q_new, cq, sq)
         if m > 0:
-            ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, q_new, cq, sq, gq)
+            if _user_failed(ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, q_new, cq, sq, gq), cnt):
+                return USER_FAILED
             if iset[S_DRIFT] != DRIFT_NONE:
                 if not _project(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc,
                                 fail, eligible, ws, lw, rs, in_contact):
@@ -441,7 +496,8 @@ def _advance(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P
                 P_acc[r] = 0.0
                 act_acc[r] = False
             if iset[S_ENERGY] == 1:
-                ev.mass(ints, pool, user, q, cq, sq, M)
+                if _user_failed(ev.mass(ints, pool, user, q, cq, sq, M), cnt):
+                    return USER_FAILED
                 ke = 0.0
                 for i in range(n):
                     for l in range(n):
@@ -450,31 +506,3 @@ def _advance(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P
                 PE[rec] = ev.potential(ints, ekind, eoff, pool, q, cq, sq) + fset[F_PE0]
             cnt[C_REC] = rec + 1
     return DONE
-
-
-@_jit
-def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
-              T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work):
-    """Advance the run to step ``k_end`` (see the module docstring); returns a status.
-
-    State (q, v, step ``cnt[C_K]``, contact flags, impulse accumulators, per row the
-    step of its last impulse ``last_imp`` and its largest gap since then ``gmax``) is
-    updated in place, so a chunk resumes where the previous one stopped. ``fgap`` (m,)
-    is each row's flight gap: a contact onset after the gap exceeded it is an impact.
-    ``rs`` (m, 4) is the per-row state of CombinedProjection (see ``_velocity_update``);
-    ``work`` comes from :func:`loop_workspace`. This entry point keeps numba's reference
-    counting, which user callables returning new arrays need.
-    """
-    return _advance(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
-                    T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work)
-
-
-@njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]  # numba's internal flag
-def run_chunk_builtin(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
-                      T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work):
-    """:func:`run_chunk` for a scene of built-in kernels only, compiled without reference
-    counting: every array it touches is owned by the caller and nothing is allocated, so
-    the counts (an atomic increment and decrement per array per use, measured at two
-    thirds of a contact step's time) are pure overhead."""
-    return _advance(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
-                    T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work)

@@ -5,9 +5,10 @@ per contact of the scene — its kernel code (:mod:`moreau.kernels`) and the off
 parameters in one flat float pool — and nothing else. The compiled loop walks these
 records, so a scene without damping never evaluates damping and a scene without
 barriers never builds a contact problem, in machine code as on the Python path. Every
-built-in scene lowers to arrays only (the loop is compiled once and loaded from numba's
-cache by every later process); numba-compiled user callables (``@numba.njit``) ride
-along in a tuple, for which the loop is specialized (compiled once per process).
+scene lowers to arrays only, so one loop, compiled once per machine and loaded from
+numba's cache by every later process, serves them all; numba-compiled user callables
+(``@numba.njit``) are called through the addresses of small wrappers compiled for the
+scene alone (:mod:`moreau.usercalls`).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import numpy as np
 
 from . import kernels as _k
 from .scene import Scene
+from .usercalls import UserKernels, user_kernels
 
 __all__ = ["CompiledScene", "NotCompilable", "lower"]
 
@@ -47,9 +49,11 @@ class CompiledScene:
     restitution : ndarray, shape (m,)
     activation_tol : ndarray, shape (m,)
         A row is closed when its gap is at most this (see ``Scene.activation_tol``).
-    user : tuple
-        ``(mass_fns, force_fns, barrier_fns, barrier_rows)``: numba-compiled user
-        callables (empty tuples for a built-in scene).
+    user : UserKernels
+        The addresses of the scene's user slots (mass, bias, forces, gaps, Jacobians;
+        0 for an empty slot, all 0 for a built-in scene) and the wrappers behind them.
+    user_names : dict
+        Per slot, the names of its callables in order (for error messages).
     """
 
     ints: np.ndarray
@@ -62,12 +66,13 @@ class CompiledScene:
     pool: np.ndarray
     restitution: np.ndarray
     activation_tol: np.ndarray
-    user: tuple = field(default=((), (), (), np.zeros(0, dtype=np.int64)))
+    user: UserKernels = field(default_factory=lambda: UserKernels(np.zeros(5, dtype=np.int64), (None,) * 5))
+    user_names: dict = field(default_factory=dict)
 
     @property
     def builtin(self) -> bool:
-        """True when no user callable is involved (the loop comes from numba's cache)."""
-        return not (self.user[0] or self.user[1] or self.user[2])
+        """True when no user callable is involved."""
+        return not bool(self.user.addresses.any())
 
     def arrays(self) -> tuple:
         return (self.ints, self.ekind, self.eoff, self.bkind, self.boff, self.brow, self.bnrows,
@@ -111,12 +116,11 @@ def lower(scene: Scene) -> CompiledScene:
         raise NotCompilable(
             f"system {type(sysm).__name__} has no compiled mass matrix (a plain Python callable "
             "for mass or bias: decorate it with @numba.njit to run compiled)")
-    mass_fns: tuple = ()
+    mass_fun = bias_fun = None
     if mk[0] == "user":
         mass_fun, bias_fun = mk[1]
         mass_kind = _k.MASS_USER if mass_fun is not None else _k.MASS_CONST
         mass_off = pool.add(sysm.mass_matrix(np.zeros(n))) if mass_fun is None else 0
-        mass_fns = (mass_fun, bias_fun)
     else:
         mass_kind = mk[0]
         mass_off = pool.add(*mk[1])
@@ -125,6 +129,7 @@ def lower(scene: Scene) -> CompiledScene:
     ekind: list[int] = []
     eoff: list[int] = []
     force_fns: list[Any] = []
+    force_names: list[str] = []
     for e in scene.effects:
         spec = e.kernel()
         if spec is None:
@@ -136,6 +141,7 @@ def lower(scene: Scene) -> CompiledScene:
             ekind.append(_k.USER)
             eoff.append(len(force_fns))
             force_fns.append(params)
+            force_names.append(e.name)
         else:
             ekind.append(kind)
             eoff.append(pool.add(*params))
@@ -146,6 +152,8 @@ def lower(scene: Scene) -> CompiledScene:
     bnrows: list[int] = []
     bar_fns: list[Any] = []
     bar_rows: list[int] = []
+    bar_nrows: list[int] = []
+    bar_names: list[str] = []
     row = 0
     for c in scene.contacts:
         spec = c.barrier.kernel()
@@ -157,8 +165,10 @@ def lower(scene: Scene) -> CompiledScene:
         if kind == "user":
             bkind.append(_k.BAR_USER)
             boff.append(len(bar_fns))
-            bar_fns.append(params)
+            bar_fns.append(tuple(params))
             bar_rows.append(row)
+            bar_nrows.append(c.barrier.nrows)
+            bar_names.append(c.name)
         else:
             bkind.append(kind)
             boff.append(pool.add(*params))
@@ -176,8 +186,27 @@ def lower(scene: Scene) -> CompiledScene:
         brow=i64(brow), bnrows=i64(bnrows), pool=pool.array(),
         restitution=np.ascontiguousarray(scene.restitution, dtype=float),
         activation_tol=np.ascontiguousarray(scene.activation_tol, dtype=float),
-        user=(mass_fns, tuple(force_fns), tuple(bar_fns), i64(bar_rows)),
+        user=_user(scene, mass_fun, bias_fun, force_fns, force_names, bar_fns, bar_rows, bar_nrows, bar_names),
+        user_names={"mass": [type(sysm).__name__ + ".mass"], "bias": [type(sysm).__name__ + ".bias"],
+                    "forces": force_names, "gaps": bar_names, "jacobians": bar_names},
     )
+
+
+def _user(scene, mass_fun, bias_fun, force_fns, force_names, bar_fns, bar_rows, bar_nrows, bar_names) -> UserKernels:
+    """The slot wrappers of the scene's user callables; a callable numba cannot compile
+    (a typing error) is refused by name."""
+    from numba.core.errors import NumbaError
+
+    try:
+        return user_kernels(mass_fun, bias_fun, tuple(force_fns), tuple(bar_fns), tuple(bar_rows),
+                            tuple(bar_nrows))
+    except NumbaError as exc:
+        names = [f"effect {x!r}" for x in force_names] + [f"contact {x!r}" for x in bar_names]
+        if mass_fun is not None or bias_fun is not None:
+            names.insert(0, f"system {type(scene.system).__name__}")
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise NotCompilable(f"the @njit callables of {', '.join(names)} do not compile with the "
+                            f"signatures the compiled loop calls them with ({first})") from exc
 
 
 def compiles(scene: Scene) -> tuple[bool, str]:

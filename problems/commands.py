@@ -189,6 +189,8 @@ def run_piston(args: argparse.Namespace) -> int:
     bad = [r for r in rows if r["status"] != "completed"]
     for r in bad:
         saved = "partial trajectory saved" if r["status"] in ("failed", "interrupted") else "nothing saved"
+        if r["status"] == "failed" and r.get("cycles", 0) == 0 and r.get("warnings"):
+            saved = f"{r['warnings']}; nothing saved"  # no trajectory came back (e.g. its worker died)
         print(f"case e={r['e']}, D={r['D_mm']} mm {r['status']}: {saved}", file=sys.stderr)
     warned = [r for r in rows if r.get("warnings")]
     for r in warned:  # never reported as clean

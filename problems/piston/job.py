@@ -205,6 +205,8 @@ def run_cases(cases: Sequence[Case], out: str, progress: bool = True, workers: i
             status = "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
             log.warning("case %s %s: %s: %s", cases[i].label, status, type(exc).__name__, exc)
             row = summary_row(cases[i], status)
+            if status == "failed":  # the reason, in one line
+                row["warnings"] = f"{type(exc).__name__}: {exc}".replace("\n", " ")
         rows[i] = row
 
     try:
@@ -218,6 +220,8 @@ def run_cases(cases: Sequence[Case], out: str, progress: bool = True, workers: i
                 if rows[i]["status"] == "interrupted":  # the interrupt stopped this run: stop here
                     raise interrupt_for_signal()
         else:
+            if any(c.backend != "python" for c in cases):
+                mo.ensure_compiled()  # once, here: the workers load it (never two compiling)
             run_jobs(run_case, jobs, workers, on_done)
     except KeyboardInterrupt as exc:
         exc.rows = [r if r is not None else summary_row(c, "not started") for r, c in zip(rows, cases)]

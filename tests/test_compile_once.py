@@ -1,0 +1,62 @@
+"""The compiled loop is compiled once per machine and version, and a user's scene
+compiles only its own functions."""
+
+import os
+import subprocess
+import sys
+import textwrap
+
+import numba
+import numpy as np
+
+import moreau as mo
+from moreau import loop
+from moreau.lowering import lower
+
+_PROBE = textwrap.dedent("""
+    import moreau as mo
+    from moreau import loop
+    mo.ensure_compiled()
+    st = loop.run_chunk.stats
+    print(sum(st.cache_misses.values()), sum(st.cache_hits.values()))
+""")
+
+
+def test_two_processes_started_together_on_an_empty_cache_compile_once(tmp_path):
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), PYTHONPATH=os.getcwd())
+    procs = [subprocess.Popen([sys.executable, "-c", _PROBE], env=env, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    outs = [p.communicate(timeout=600) for p in procs]
+    for p, (_, err) in zip(procs, outs):
+        assert p.returncode == 0, err[-2000:]
+    counts = sorted(tuple(int(x) for x in out.split()) for out, _ in outs)
+    assert counts == [(0, 1), (1, 0)]  # one compiled (and said so), the other waited and loaded
+    said = [err for _, err in outs if "compiling the time loop once for this machine" in err]
+    assert len(said) == 1
+
+
+def test_scenes_with_other_user_callables_reuse_the_one_loop():
+    from tests.test_compiled import user_scene
+
+    mo.ensure_compiled()
+    before = len(loop.run_chunk.overloads)
+
+    @numba.njit
+    def force(t, q, v):
+        return np.array([-0.1 * v[0], -9.0])
+
+    @numba.njit
+    def gap(q):
+        return np.array([q[1] - 0.2 * q[0]])
+
+    @numba.njit
+    def jac(q):
+        return np.array([[-0.2, 1.0]])
+
+    other = mo.Scene(mo.FunctionSystem(np.eye(2)), [mo.FunctionForce(force)],
+                     [mo.Contact(mo.FunctionBarrier(gap, jac), 0.5)])
+    for scene in (user_scene(), other):
+        traj = mo.simulate(scene, (0.0, 0.5), [0.0, 1.0], [1.0, 0.0], 1e-3, backend="compiled")
+        assert traj.completed and traj.stats.backend == "compiled"
+    assert len(loop.run_chunk.overloads) == before == 1  # no specialization per scene
+    assert lower(other).user.addresses.tolist()[:2] == [0, 0]  # no user mass, no bias: empty slots
