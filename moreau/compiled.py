@@ -12,6 +12,7 @@ from __future__ import annotations
 import glob
 import logging
 import os
+import pickle
 import threading
 import time
 import warnings
@@ -21,7 +22,7 @@ import numpy as np
 from . import loop as lp
 from .errors import SimulationError, SolverError, attach_trajectory
 from .flights import initial_flight
-from .jitcache import cache_dir, compile_lock
+from .jitcache import cache_dir, clear, compile_lock
 from .lowering import CompiledScene, lower
 from .result import ImpactLog, SolverStats, Trajectory
 from .usercalls import decode
@@ -63,7 +64,15 @@ def ensure_compiled() -> float:
                             "load it from %s)", COMPILE_SECONDS, d or "nowhere: the cache is not writable")
             _ready.set()  # the warm-up run below calls ensure_compiled again
             try:
-                _warm_up()
+                try:
+                    _warm_up()
+                except (pickle.UnpicklingError, EOFError, ValueError, TypeError, AttributeError,
+                        ImportError, OSError) as exc:  # what an unreadable cache file raises
+                    removed = clear(d) if d is not None else 0
+                    log.warning("moreau: numba's cache in %s could not be read (%s: %s); removed %d files of it "
+                                "and compiling the time loop again (about %d s)", d, type(exc).__name__, exc,
+                                removed, COMPILE_SECONDS)
+                    _warm_up()
             except BaseException:
                 _ready.clear()
                 raise

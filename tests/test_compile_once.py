@@ -8,6 +8,7 @@ import textwrap
 
 import numba
 import numpy as np
+import pytest
 
 import moreau as mo
 from moreau import loop
@@ -60,3 +61,18 @@ def test_scenes_with_other_user_callables_reuse_the_one_loop():
         assert traj.completed and traj.stats.backend == "compiled"
     assert len(loop.run_chunk.overloads) == before == 1  # no specialization per scene
     assert lower(other).user.addresses.tolist()[:2] == [0, 0]  # no user mass, no bias: empty slots
+
+
+@pytest.mark.slow  # two compiles into its own cache (~1 min)
+def test_a_corrupt_cache_warns_and_the_run_works(tmp_path):
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), PYTHONPATH=os.getcwd())
+    run = [sys.executable, "-c", _PROBE]
+    assert subprocess.run(run, env=env, capture_output=True, timeout=600).returncode == 0
+    files = list(tmp_path.glob("*/loop.run_chunk-*.nbc"))
+    assert files
+    for f in files:
+        f.write_bytes(b"\x80\x04 not a pickle")
+    out = subprocess.run(run, env=env, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "could not be read" in out.stderr and "compiling the time loop again" in out.stderr
+    assert out.stdout.split() == ["1", "0"]  # compiled afresh
