@@ -101,13 +101,14 @@ def main() -> None:
         cold = probe(cache)
         warm = probe(cache)
     print("\nthe compiled loop before its first step (new processes; cold: empty NUMBA_CACHE_DIR)")
-    print(f"{'':34s} {'cold':>9s} {'warm':>9s}")
+    print(f"{'':44s} {'cold':>9s} {'warm':>9s}")
     rows = [("import moreau (s)", "import"), ("load or compile the loop (s)", "loop"),
             ("process wall time (s)", "wall"), ("process CPU time (s)", "cpu"), ("peak resident memory (MB)", "rss_mb")]
     for label, key in rows:
-        print(f"{label:34s} {cold[key]:9.2f} {warm[key]:9.2f}")
+        print(f"{label:44s} {cold[key]:9.2f} {warm[key]:9.2f}")
     for i in range(2):
-        print(f"{f'user scene {i + 1}: simulate() to its end (s)':34s} {cold['user'][i]:9.2f} {warm['user'][i]:9.2f}")
+        label = f"user scene {i + 1}: simulate() to its end (s)"
+        print(f"{label:44s} {cold['user'][i]:9.2f} {warm['user'][i]:9.2f}")
     print("\ncold compile per kernel family (s, each function's own share, callees excluded)")
     for fam, s in sorted(cold["own"].items(), key=lambda x: -x[1]):
         print(f"  {fam:32s} {s:9.2f}")

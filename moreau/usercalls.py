@@ -5,15 +5,15 @@ loaded from numba's cache by every scene. A scene's own ``@numba.njit`` callable
 mass matrix and bias of a :class:`~moreau.FunctionSystem`, :class:`~moreau.FunctionForce`,
 :class:`~moreau.FunctionBarrier`) do not specialize that loop: each *slot* (mass, bias,
 forces, gaps, Jacobians) becomes one small C function (a numba ``cfunc``) of the
-signature :data:`SIGNATURE`, compiled for the scene alone (well under a second per slot),
-and the loop calls it through its address with :func:`call_user`. An address of 0 means
+signature ``SIGNATURE``, compiled for the scene alone (well under a second per slot),
+and the loop calls it through its address with ``call_user``. An address of 0 means
 the slot is empty (a built-in scene has five zeros).
 
 Each wrapper checks what the user's function returns, every call, as the Python path
 does: the shape (a wrong length is never written past a buffer), finiteness, and an
 exception raised inside the function. It returns 0, or a code that names the callable
 and what went wrong (:func:`decode`); the loop stops the run with that code and the
-driver turns it into a :class:`~moreau.SimulationError`.
+driver turns it into a :class:`~moreau.SimulationError`. In C::
 
     int64 slot(double t, double *q, double *v, double *out, int64 n, int64 m)
 
@@ -211,6 +211,6 @@ def user_kernels(mass: Any, bias: Any, forces: tuple, barriers: tuple, rows: tup
 
 def decode(status: int) -> tuple[str, int, str]:
     """``(slot name, index of the callable in its slot, what went wrong)`` of a loop's
-    user status (``code * 8 + slot``, see :func:`moreau.evaluate.mass`)."""
+    user status (``code * 8 + slot``, see :mod:`moreau.evaluate`)."""
     slot, code = status % 8, status // 8
     return SLOTS[slot], code // 8 - 1, _KINDS.get(code % 8, f"failed (code {code})")
