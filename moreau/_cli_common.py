@@ -109,6 +109,7 @@ def write_summary(rows: list[dict[str, Any]], path: str) -> None:
             w = csv.DictWriter(fh, fieldnames=keys)
             w.writeheader()
             w.writerows(rows)
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes it 0600; the user's default, as every other output
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
@@ -119,6 +120,20 @@ def write_summary(rows: list[dict[str, Any]], path: str) -> None:
     for r in rows:
         print("  ".join(_fmt(r[k]).rjust(widths[k]) for k in keys))
     print(f"summary written to {path}")
+
+
+def _umask() -> int:
+    """The process's file-creation mask (read without changing it where /proc tells it)."""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except OSError:
+        pass
+    mask = os.umask(0o022)  # elsewhere: the classic read-and-restore
+    os.umask(mask)
+    return mask
 
 
 def _fmt(x: object) -> str:

@@ -259,7 +259,10 @@ def kkt_residuals_kernel(M, L, b, G, c, v, P, k, out, Gv, GtP, r, d, x, y):
             t += G[i, j] * v[j]
             GtP[j] += G[i, j] * P[i]
         Gv[i] = t
-    vel = 1e-300
+    # the floor keeps vel² representable: a row whose Jacobian vanishes (a pendulum tip
+    # touching a floor at the bottom of its swing) has every velocity scale 0, and
+    # 1e-300² underflowed to 0 (a ZeroDivisionError in the complementarity residual)
+    vel = 1e-150
     for i in range(k):
         vel = max(vel, abs(c[i]), abs(Gv[i]))
         a = 0.0

@@ -372,20 +372,38 @@ class Trajectory:
         Raises
         ------
         ValueError
-            When the file is missing, unreadable, or not a moreau trajectory.
+            When the file is missing, unreadable, not a moreau trajectory, of a newer file
+            format than this version reads, or incomplete or inconsistent (the message
+            names the field).
+
+        Warns
+        -----
+        UserWarning
+            When the file was written by a newer version of moreau (in the same format):
+            it loads, and the warning names both versions.
         """
         path = os.fspath(path)
         try:
             with np.load(path, allow_pickle=False) as z:
                 data = {k: z[k] for k in z.files}
-            meta = json.loads(str(data.pop("meta")))
         except FileNotFoundError:
             raise ValueError(f"no trajectory file at {path!r}") from None
-        except Exception as exc:  # zipfile, json, numpy format errors
+        except Exception as exc:  # zipfile, numpy format errors
             raise ValueError(f"cannot read trajectory file {path!r}: {exc}") from None
+        if "meta" not in data:
+            raise ValueError(f"{path!r} is not a moreau trajectory: it has no 'meta' field "
+                             f"(fields: {sorted(data)})")
+        try:
+            meta = json.loads(str(data.pop("meta")))
+        except ValueError as exc:
+            raise ValueError(f"trajectory file {path!r}: its 'meta' field is not valid JSON ({exc})") from None
         fmt = meta.get("format") if isinstance(meta, dict) else None
+        if isinstance(fmt, int) and fmt > _FORMAT:
+            raise ValueError(f"{path!r} is a moreau trajectory of file format {fmt}, written by moreau "
+                             f"{meta.get('version', '?')}; this moreau reads format {_FORMAT}: upgrade moreau")
         if fmt != _FORMAT:
             raise ValueError(f"{path!r} is not a moreau trajectory (format {fmt!r})")
+        _warn_if_newer(path, meta.get("version"))
         try:
             n_on = data["impacts_t"].shape[0]
             for flag in ("flight", "fast"):  # files from before the flight test: every entry counts
@@ -407,11 +425,31 @@ class Trajectory:
         except ValueError as exc:  # malformed units
             raise ValueError(f"trajectory file {path!r}: {exc}") from None
         N = traj.t.shape[0]
-        for name in ("q", "v", "gaps", "impulses", "active"):
-            if getattr(traj, name).shape[0] != N:
+        for name in ("q", "v", "gaps", "impulses", "active", "energy", "kinetic_energy", "potential_energy"):
+            a = getattr(traj, name)
+            if a is not None and a.shape[0] != N:
                 raise ValueError(f"trajectory file {path!r} is inconsistent: {name} has "
-                                 f"{getattr(traj, name).shape[0]} records, t has {N}")
+                                 f"{a.shape[0]} records, t has {N}")
+        for name in _impact_arrays():
+            a = getattr(onsets, name)
+            if a.shape[0] != n_on:
+                raise ValueError(f"trajectory file {path!r} is inconsistent: impacts_{name} has "
+                                 f"{a.shape[0]} entries, impacts_t has {n_on}")
         return traj
+
+
+def _version_key(v: str) -> tuple[int, ...]:
+    return tuple(int(x) for x in v.split("+")[0].split(".") if x.isdigit())
+
+
+def _warn_if_newer(path: str, version: object) -> None:
+    import warnings
+
+    from . import __version__
+
+    if isinstance(version, str) and _version_key(version) > _version_key(__version__):
+        warnings.warn(f"{path!r} was written by moreau {version}, newer than this moreau {__version__}: "
+                      "fields it added are ignored", UserWarning, stacklevel=3)
 
 
 def load(path: str | os.PathLike[str]) -> Trajectory:

@@ -17,6 +17,17 @@ def test_ball_command_writes_figure_summary_trajectory(tmp_path, capsys):
     traj = mo.load(out / "ball.npz")
     assert traj.completed and traj.t[-1] == np.float64(0.5)
     assert "summary written" in capsys.readouterr().out
+    # the summary gets the user's default permissions like every other output (not mkstemp's 0600)
+    modes = {p.name: p.stat().st_mode & 0o777 for p in out.iterdir()}
+    assert modes["ball_summary.csv"] == modes["ball.npz"] == 0o666 & ~_umask(), modes
+
+
+def _umask():
+    import os
+
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 def test_bad_option_is_one_line_and_nonzero(tmp_path):

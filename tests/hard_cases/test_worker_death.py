@@ -39,7 +39,8 @@ def _children(pid):
 
 def test_piston_command_with_a_killed_worker_fails_that_case_only(tmp_path):
     env = dict(os.environ, MPLBACKEND="Agg")
-    proc = subprocess.Popen([sys.executable, "-m", "moreau", "piston", "--cycles", "2", "--transient", "1",
+    # cases of 20 cycles (seconds each, on any machine): the victim is busy when it is killed
+    proc = subprocess.Popen([sys.executable, "-m", "moreau", "piston", "--cycles", "20", "--transient", "0",
                              "--workers", "2", "--no-progress", "--out", "out"], cwd=tmp_path, env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
@@ -47,7 +48,7 @@ def test_piston_command_with_a_killed_worker_fails_that_case_only(tmp_path):
         while not _children(proc.pid):  # the pool's workers start with the first cases
             assert proc.poll() is None and time.monotonic() - t0 < 120, "no worker started"
             time.sleep(0.02)
-        time.sleep(0.3)  # importing and stepping its case (each takes seconds)
+        time.sleep(0.3)  # importing or stepping its case
         victim = min(_children(proc.pid))
         os.kill(victim, signal.SIGKILL)
         out, err = proc.communicate(timeout=300)
