@@ -336,9 +336,7 @@ def kkt_residuals_kernel(M, L, b, G, c, v, P, k, out, Gv, GtP, r, d, x, y):
     out[3] = stat
 
 
-# inlined by numba like the loop's parts (its work tuple as arguments: as an LLVM-inlined
-# call, a step with a projection costs ~5 % more; see moreau.loop)
-@njit(cache=True, nogil=True, inline="always", _nrt=False)  # type: ignore[call-overload]
+@_jit
 def solve_one_step(M, L, b, G, c, P, v, k, method, tol, ws):
     """v, P of the one-step QP on the first k rows of G with the LCP solver ``method``
     (0: dual active set, 1: enumeration); returns its status. ``L`` = chol(M), ``ws``
