@@ -49,8 +49,12 @@ def output_dir(path: str, option: str = "--out") -> str:
         os.makedirs(path, exist_ok=True)
     except OSError as exc:
         raise CLIError(f"{option} {path!r}: cannot create the directory ({exc.strerror or exc})", EXIT_USAGE) from None
-    if not os.access(path, os.W_OK):
-        raise CLIError(f"{option} {path!r}: the directory is not writable", EXIT_USAGE)
+    try:  # a file can be made there (os.access misses read-only mounts for root, ACLs)
+        with tempfile.TemporaryFile(dir=path):
+            pass
+    except OSError as exc:
+        raise CLIError(f"{option} {path!r}: the directory is not writable ({exc.strerror or exc})",
+                       EXIT_USAGE) from None
     return path
 
 
@@ -99,26 +103,33 @@ def int_at_least(lo: int) -> Callable[[str], int]:
 
 
 def write_summary(rows: list[dict[str, Any]], path: str) -> None:
-    """Write rows of a summary to CSV and print them as a table."""
+    """Print rows of a summary as a table, then write them to CSV (through a temporary
+    file renamed into place). An ``OSError`` names the file; the table was printed."""
     if not rows:
         return
     keys = list(rows[0])
-    fd, tmp = tempfile.mkstemp(prefix=os.path.basename(path) + ".", suffix=".tmp", dir=os.path.dirname(path) or ".")
+    widths = {k: max(len(k), *(len(_fmt(r[k])) for r in rows)) for k in keys}
+    print("  ".join(k.rjust(widths[k]) for k in keys))
+    for r in rows:
+        print("  ".join(_fmt(r[k]).rjust(widths[k]) for k in keys))
+    tmp = None
     try:
+        fd, tmp = tempfile.mkstemp(prefix=os.path.basename(path) + ".", suffix=".tmp",
+                                   dir=os.path.dirname(path) or ".")
         with os.fdopen(fd, "w", newline="") as fh:
             w = csv.DictWriter(fh, fieldnames=keys)
             w.writeheader()
             w.writerows(rows)
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes it 0600; the user's default, as every other output
         os.replace(tmp, path)
+    except OSError as exc:
+        if tmp is not None and os.path.exists(tmp):
+            os.remove(tmp)
+        raise OSError(exc.errno, f"could not write the summary {path}: {exc.strerror or exc}") from exc
     except BaseException:
-        if os.path.exists(tmp):
+        if tmp is not None and os.path.exists(tmp):
             os.remove(tmp)
         raise
-    widths = {k: max(len(k), *(len(_fmt(r[k])) for r in rows)) for k in keys}
-    print("  ".join(k.rjust(widths[k]) for k in keys))
-    for r in rows:
-        print("  ".join(_fmt(r[k]).rjust(widths[k]) for k in keys))
     print(f"summary written to {path}")
 
 

@@ -163,7 +163,7 @@ def register_piston(subparsers: Any) -> None:
 
 def run_piston(args: argparse.Namespace) -> int:
     """Run the engine cases, write the summary; exit code 1 when a case failed or warned."""
-    from moreau.problems.piston.job import PAPER_CASES, Case, run_cases
+    from moreau.problems.piston.job import PAPER_CASES, Case, case_files, run_cases
 
     if args.e is None and args.D is None:
         pairs = list(PAPER_CASES)
@@ -187,12 +187,15 @@ def run_piston(args: argparse.Namespace) -> int:
         rows, stopped = attached, exc
     write_summary(rows, os.path.join(args.out, "summary.csv"))
     bad = [r for r in rows if r["status"] != "completed"]
-    for r in bad:
-        saved = "partial trajectory saved" if r["status"] in ("failed", "interrupted") else "nothing saved"
-        if r["status"] == "failed" and r.get("cycles", 0) == 0 and r.get("warnings"):
-            saved = f"{r['warnings']}; nothing saved"  # no trajectory came back (e.g. its worker died)
+    for r, case in zip(rows, cases):
+        if r not in bad:
+            continue
+        partial = case_files(case, args.out)[1]
+        saved = f"partial trajectory saved in {partial}" if os.path.exists(partial) else "no trajectory saved"
+        if r.get("warnings"):  # why: a worker that died, a file that could not be written
+            saved = f"{r['warnings']}; {saved}"
         print(f"case e={r['e']}, D={r['D_mm']} mm {r['status']}: {saved}", file=sys.stderr)
-    warned = [r for r in rows if r.get("warnings")]
+    warned = [r for r in rows if r.get("warnings") and r["status"] == "completed"]
     for r in warned:  # never reported as clean
         print(f"case e={r['e']}, D={r['D_mm']} mm completed WITH WARNINGS: {r['warnings']}", file=sys.stderr)
     bad += [r for r in warned if r not in bad]

@@ -7,7 +7,7 @@ import argparse
 import os
 import sys
 
-from moreau.cli import EXIT_FAILED, EXIT_OK, EXIT_USAGE, CLIError, Stopped, interrupt_exit_code
+from moreau.cli import EXIT_FAILED, EXIT_OK, EXIT_USAGE, CLIError, Stopped, interrupt_exit_code, output_dir
 
 __all__ = ["param_spec", "run_sweep"]
 
@@ -62,6 +62,11 @@ def _sweep_out(path: str) -> str:
     parts = path + ".parts"
     if os.path.exists(parts) and not os.path.isdir(parts):
         raise CLIError(f"--out {path!r}: {parts!r} (where finished points are kept) is a file", EXIT_USAGE)
+    try:  # the sweep writes there first: an unusable --out stops it before any point runs
+        os.makedirs(parts, exist_ok=True)
+        output_dir(parts, "--out")
+    except OSError as exc:
+        raise CLIError(f"--out {path!r}: cannot write {parts!r} ({exc.strerror or exc})", EXIT_USAGE) from None
     return path
 
 

@@ -112,8 +112,15 @@ def run_case(case: Case, out: str, progress: bool | dict = False) -> dict:
     if traj is None:
         return summary_row(case, status or "failed", wall=wall)
     traj.extra.update({"case": asdict(case), "params": asdict(params)})
-    traj.save(stem + (".npz" if traj.completed else ".partial.npz"))
+    # the row is computed in memory first: a file that cannot be written (a full disk)
+    # costs that file, never the numbers, and the row names the file and the reason
     row, figs = _figures_row(case, params, traj, status or traj.status, wall)
+    unsaved = []
+    path = stem + (".npz" if traj.completed else ".partial.npz")
+    try:
+        traj.save(path)
+    except OSError as exc:
+        unsaved.append(f"{path} not saved: {exc.strerror or exc}")
     if figs:
         import matplotlib
 
@@ -126,9 +133,27 @@ def run_case(case: Case, out: str, progress: bool | dict = False) -> dict:
         fig = plot_cycle(traj, params, last.cycle,
                          title=f"e = {case.e:g}, D = {1e3 * case.D:.2f} mm: cycle {last.cycle}, "
                                f"{last.side_changes} side changes, {last.impacts} impacts")
-        fig.savefig(stem + ".png", dpi=110)
+        try:
+            _save_figure(fig, stem + ".png")
+        except OSError as exc:
+            unsaved.append(f"{stem}.png not saved: {exc.strerror or exc}")
         plt.close(fig)
+    if unsaved:
+        log.error("case %s: %s", case.label, "; ".join(unsaved))
+        row["warnings"] = "; ".join(filter(None, [row["warnings"], *unsaved]))
     return row
+
+
+def _save_figure(fig, path: str) -> None:
+    """Save a figure under a unique temporary name, then rename it into place."""
+    tmp = f"{path}.{os.getpid()}.tmp.png"
+    try:
+        fig.savefig(tmp, dpi=110)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        raise
 
 
 def summary_row(case: Case, status: str, wall: float = float("nan")) -> dict:
