@@ -319,3 +319,33 @@ def test_user_callables_that_go_wrong_mid_run_stop_it_by_name_on_the_compiled_pa
                         [mo.Contact(mo.FunctionBarrier(_gap_changing, _jac_ball), 0.6, name="floor")])
     with pytest.raises(mo.SimulationError, match="user gap function 'floor' returned an array of the wrong shape"):
         mo.simulate(changing, (0.0, 2.0), [0.0, 1.0], [0.0, 0.0], 1e-3, backend="compiled")
+
+
+@numba.njit
+def _gap_shrinking(q):  # 1 row, then none once the ball is below 0.5 m
+    return np.array([q[1]]) if q[1] > 0.5 else np.zeros(0)
+
+
+@numba.njit
+def _mass_growing(q):  # 2 x 2, then 3 x 3 below 0.5 m
+    return np.eye(2) if q[1] > 0.5 else np.eye(3)
+
+
+@numba.njit
+def _gap_ball(q):
+    return np.array([q[1]])
+
+
+@pytest.mark.parametrize("backend", ["python", "compiled"])
+@pytest.mark.parametrize("case", ["longer gap", "shorter gap", "mass"])
+def test_a_shape_change_mid_run_stops_it_with_the_trajectory_on_both_paths(backend, case):
+    gap = {"longer gap": _gap_changing, "shorter gap": _gap_shrinking, "mass": _gap_ball}[case]
+    system = mo.FunctionSystem(_mass_growing, ndof=2) if case == "mass" else mo.FunctionSystem(np.eye(2))
+    scene = mo.Scene(system, [mo.ConstantForce([0.0, -9.81])],
+                     [mo.Contact(mo.FunctionBarrier(gap, _jac_ball), 0.6, name="floor")])
+    with pytest.raises(mo.SimulationError, match=r"(shape|wrong shape) at step 319 \(t = 0.319\)|"
+                                                 r"at step 319 \(t = 0.319\) has shape") as info:
+        mo.simulate(scene, (0.0, 2.0), [0.0, 1.0], [0.0, 0.0], 1e-3, backend=backend)
+    traj = info.value.trajectory
+    assert traj.status == "failed" and traj.stats.steps == 319
+    assert np.all(traj.q[:, 1] > 0.5)  # every state kept is from before the change
