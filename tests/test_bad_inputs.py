@@ -215,10 +215,11 @@ def test_catalogue(kind, call, exc, match):
 
 
 @pytest.mark.parametrize("mutate, match", [
-    (lambda d: set_meta(d, format=99), r"is not a moreau trajectory \(format 99\)"),
+    (lambda d: set_meta(d, format=99), r"is a moreau trajectory of file format 99, .* this moreau reads format 1"),
+    (lambda d: set_meta(d, format="other"), r"is not a moreau trajectory \(format 'other'\)"),
     (lambda d: d.pop("q"), r"is incomplete: missing 'q'"),
-    (lambda d: d.__setitem__("meta", np.array("{not json")), "cannot read trajectory file .*Expecting property name"),
-], ids=["wrong format", "array missing", "metadata not JSON"])
+    (lambda d: d.__setitem__("meta", np.array("{not json")), "'meta' field is not valid JSON .*Expecting property name"),
+], ids=["newer format", "not a format", "array missing", "metadata not JSON"])
 def test_corrupt_saved_trajectory(tmp_path, mutate, match):
     with pytest.raises(ValueError, match=match):
         mo.load(saved(tmp_path, mutate))
