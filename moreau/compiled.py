@@ -9,13 +9,16 @@ buffer, and to finish. Status codes of the loop become the exceptions of
 
 from __future__ import annotations
 
+import contextlib
 import glob
 import logging
 import os
 import pickle
+import signal
 import threading
 import time
 import warnings
+from collections.abc import Iterator
 
 import numpy as np
 
@@ -59,13 +62,18 @@ def ensure_compiled() -> float:
         t = time.perf_counter()
         with compile_lock():
             d = cache_dir()
-            if d is None or not glob.glob(os.path.join(d, "loop.run_chunk-*.nbi")):
+            cold = d is None or not glob.glob(os.path.join(d, "loop.run_chunk-*.nbi"))
+            if cold:
                 log.warning("moreau: compiling the time loop once for this machine (about %d s; later runs "
                             "load it from %s)", COMPILE_SECONDS, d or "nowhere: the cache is not writable")
             _ready.set()  # the warm-up run below calls ensure_compiled again
             try:
                 try:
-                    _warm_up()
+                    # loading machine code runs through LLVM callbacks: a Ctrl-C or SIGTERM
+                    # raised inside one aborted the process (seen: exit -6), so during a load
+                    # (0.3 s) they wait and are acted on right after it
+                    with (contextlib.nullcontext() if cold else _signals_deferred()):
+                        _warm_up()
                 except (pickle.UnpicklingError, EOFError, ValueError, TypeError, AttributeError,
                         ImportError, OSError) as exc:  # what an unreadable cache file raises
                     removed = clear(d) if d is not None else 0
@@ -77,6 +85,28 @@ def ensure_compiled() -> float:
                 _ready.clear()
                 raise
         return time.perf_counter() - t
+
+
+@contextlib.contextmanager
+def _signals_deferred() -> Iterator[None]:
+    """Within the block, SIGINT and SIGTERM are recorded, and handled as before once it ends
+    (main thread only; elsewhere nothing changes)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    got: list[int] = []
+    sigs = (signal.SIGINT, signal.SIGTERM)
+    old = {s: signal.signal(s, lambda signum, frame: got.append(signum)) for s in sigs}
+    try:
+        yield
+    finally:
+        for s, handler in old.items():
+            signal.signal(s, handler)
+        for s in got:
+            if callable(old[s]):
+                old[s](s, None)
+            elif old[s] == signal.SIG_DFL:
+                os.kill(os.getpid(), s)
 
 
 def _warm_up() -> None:
