@@ -19,6 +19,7 @@ import threading
 import time
 import warnings
 from collections.abc import Iterator
+from typing import Any
 
 import numpy as np
 
@@ -95,18 +96,20 @@ def _signals_deferred() -> Iterator[None]:
         yield
         return
     got: list[int] = []
-    sigs = (signal.SIGINT, signal.SIGTERM)
-    old = {s: signal.signal(s, lambda signum, frame: got.append(signum)) for s in sigs}
+    old: dict[int, Any] = {}
+    for s in (signal.SIGINT, signal.SIGTERM):
+        old[int(s)] = signal.signal(s, lambda signum, frame: got.append(signum))
     try:
         yield
     finally:
-        for s, handler in old.items():
-            signal.signal(s, handler)
-        for s in got:
-            if callable(old[s]):
-                old[s](s, None)
-            elif old[s] == signal.SIG_DFL:
-                os.kill(os.getpid(), s)
+        for num, handler in old.items():
+            signal.signal(num, handler)
+        for num in got:
+            handler = old[int(num)]
+            if callable(handler):
+                handler(num, None)
+            elif handler == signal.SIG_DFL:
+                os.kill(os.getpid(), num)
 
 
 def _warm_up() -> None:
