@@ -123,10 +123,7 @@ def _run_processes(fun, todo, workers: int, on_done) -> None:
                 state["stopping"] = True
                 raise exc
             return
-        if exc is not None:
-            if isinstance(exc, cf.process.BrokenProcessPool):
-                raise RuntimeError(f"a worker process died ({exc}); the finished points are recorded, "
-                                   "run the sweep again to resume") from exc
+        if exc is not None:  # a worker that died is a WorkerDied here: the point's error
             outcome = (None, f"{type(exc).__name__}: {exc}")
         on_done(index[j], *outcome, quiet=state["stopping"])
 

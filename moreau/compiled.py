@@ -345,24 +345,16 @@ def _user_error(scene, cs: CompiledScene, status: int, where: str, k: int, t: fl
     """The error of a user callable that failed in the loop: which one, what it did, when.
     An exception it raised is reproduced at the step's midpoint state and chained."""
     slot, index, what = decode(status)
-    names = cs.user_names.get(slot, [])
-    name = names[index] if 0 <= index < len(names) else f"#{index}"
+    callables = cs.user_callables.get(slot, [])
+    name, fun = callables[index] if 0 <= index < len(callables) else (f"#{index}", None)
     kind = {"mass": "mass matrix", "bias": "bias", "forces": "force", "gaps": "gap function",
             "jacobians": "Jacobian"}[slot]
     error = SimulationError(f"user {kind} {name!r} {what} {where}", None, k)
-    if what.startswith("raised"):
-        qm = q + 0.5 * h * v
+    if what.startswith("raised") and fun is not None:
+        qm = q + 0.5 * h * v  # where the step evaluates it
+        args = {"forces": (t + 0.5 * h, qm, v), "bias": (qm, v)}.get(slot, (qm,))
         try:
-            if slot == "forces":
-                fun = [e for e in scene.effects if e.name == name][0].kernel()[1]
-                fun(t + 0.5 * h, qm, v)
-            elif slot in ("gaps", "jacobians"):
-                pair = [c for c in scene.contacts if c.name == name][0].barrier.kernel()[1]
-                pair[0 if slot == "gaps" else 1](qm)
-            else:
-                scene.system.mass_matrix(qm)
-                if scene.system.has_bias:
-                    scene.system.bias_force(qm, v)
+            fun(*args)
         except Exception as exc:  # noqa: BLE001 - the user's own exception, named in the message
             error = SimulationError(f"user {kind} {name!r} raised {type(exc).__name__}: {exc} {where}", None, k)
             error.__cause__ = exc

@@ -52,8 +52,9 @@ class CompiledScene:
     user : UserKernels
         The addresses of the scene's user slots (mass, bias, forces, gaps, Jacobians;
         0 for an empty slot, all 0 for a built-in scene) and the wrappers behind them.
-    user_names : dict
-        Per slot, the names of its callables in order (for error messages).
+    user_callables : dict
+        Per slot (``usercalls.SLOTS``), ``(name, callable)`` of each of its user
+        callables in order: what an error message names, and reruns to show what it raised.
     """
 
     ints: np.ndarray
@@ -67,12 +68,7 @@ class CompiledScene:
     restitution: np.ndarray
     activation_tol: np.ndarray
     user: UserKernels = field(default_factory=lambda: UserKernels(np.zeros(5, dtype=np.int64), (None,) * 5))
-    user_names: dict = field(default_factory=dict)
-
-    @property
-    def builtin(self) -> bool:
-        """True when no user callable is involved."""
-        return not bool(self.user.addresses.any())
+    user_callables: dict = field(default_factory=dict)
 
     def arrays(self) -> tuple:
         return (self.ints, self.ekind, self.eoff, self.bkind, self.boff, self.brow, self.bnrows,
@@ -187,8 +183,11 @@ def lower(scene: Scene) -> CompiledScene:
         restitution=np.ascontiguousarray(scene.restitution, dtype=float),
         activation_tol=np.ascontiguousarray(scene.activation_tol, dtype=float),
         user=_user(scene, mass_fun, bias_fun, force_fns, force_names, bar_fns, bar_rows, bar_nrows, bar_names),
-        user_names={"mass": [type(sysm).__name__ + ".mass"], "bias": [type(sysm).__name__ + ".bias"],
-                    "forces": force_names, "gaps": bar_names, "jacobians": bar_names},
+        user_callables={"mass": [(type(sysm).__name__ + ".mass", mass_fun)],
+                        "bias": [(type(sysm).__name__ + ".bias", bias_fun)],
+                        "forces": list(zip(force_names, force_fns)),
+                        "gaps": [(name, pair[0]) for name, pair in zip(bar_names, bar_fns)],
+                        "jacobians": [(name, pair[1]) for name, pair in zip(bar_names, bar_fns)]},
     )
 
 
