@@ -31,7 +31,7 @@ import time
 import numpy as np
 
 import moreau as mo
-from moreau.chain import ChainGravity, Link, PendulumChain, PointLineBarrier, PointLineRow
+from moreau.model.chain import ChainGravity, Link, PendulumChain, PointLineBarrier, PointLineRow
 from moreau.problems.piston import PistonParameters, piston_model
 
 H = 1e-4

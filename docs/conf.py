@@ -127,7 +127,7 @@ def _notebook_environment(app) -> None:
 # ---- references to re-exported names -----------------------------------------------
 # Objects are documented where users import them (``moreau.Scene``,
 # ``moreau.dynamics.TimeMap``); docstrings also name them by their defining module
-# (``moreau.scene.Scene``). Such a reference is resolved to the documented name of the
+# (``moreau.model.scene.Scene``). Such a reference is resolved to the documented name of the
 # same object.
 def _documented_alias(app, env, node, contnode):
     if node.get("refdomain") != "py":

@@ -1,42 +1,56 @@
 """moreau: non-smooth multibody mechanics with a Moreau–Jean midpoint time-stepper.
 
-The pieces, in the field's vocabulary:
+The pieces, in the field's vocabulary, and where they live:
 
 * a *system* (:class:`FunctionSystem`, or a subclass of :class:`MechanicalSystem`): q, M(q);
-* *effects* (:mod:`moreau.forces`): smooth forces f(t, q, v);
-* *contacts*: a *barrier* g(q) >= 0 (:mod:`moreau.barriers`) with a Newton impact law;
-* a *scene* (:class:`Scene`): exactly the effects and contacts asked for;
-* an *integrator* (:class:`MoreauJeanMidpoint`) and a contact *solver*
-  (:mod:`moreau.solvers`);
-* the front door :func:`simulate`, which returns a :class:`Trajectory`.
+  *effects*, smooth forces f(t, q, v); *contacts*, a *barrier* g(q) >= 0 with a Newton
+  impact law; a *scene* (:class:`Scene`) of exactly the effects and contacts asked for —
+  :mod:`moreau.model`;
+* the one-step non-smooth problem and its *solvers* — :mod:`moreau.contact`;
+* the one-step *integrators* (:class:`MoreauJeanMidpoint`) and drift control —
+  :mod:`moreau.step`, and their compiled twins in :mod:`moreau.compiled`;
+* the front door :func:`simulate` (:mod:`moreau.run`), which returns a
+  :class:`Trajectory` (:mod:`moreau.results`);
+* physics kernels and errors, the ground floor — :mod:`moreau.core`.
 """
 
-from importlib.metadata import PackageNotFoundError
-from importlib.metadata import version as _version
+from .core.compat import MOVED as _MOVED
+from .core.compat import install as _install_moved
+from .core.compat import moved as _moved
+from .core.version import DISTRIBUTION, __version__  # noqa: F401 - DISTRIBUTION is read by the packaging tests
 
-#: the distribution's name on the package index; the import name is ``moreau``
-DISTRIBUTION = "moreau-jean"
+_install_moved()
 
-try:
-    __version__ = _version(DISTRIBUTION)
-except PackageNotFoundError:  # running from a source tree that is not installed
-    __version__ = "0+unknown"
-
-from . import diagnostics
-from .barriers import Barrier, FunctionBarrier, LinearBarrier, check_jacobian
-from .compiled import ensure_compiled
-from .drift import CombinedProjection, PositionProjection
-from .errors import SimulationError, SolverError
-from .forces import ConstantForce, Effect, FourierLoad, FunctionForce, HarmonicForce, LinearDamping, LinearSpring
-from .integrator import MoreauJeanMidpoint, MoreauJeanPredictorCorrector, OneStepIntegrator
-from .integrator import MoreauJeanTheta as MoreauJeanTheta  # the former name, not in __all__
-from .laws import NewtonImpact
-from .onestep import OneStepProblem, Residuals
-from .result import ImpactLog, SolverStats, Trajectory, load
-from .scene import Contact, Scene
-from .simulate import simulate
-from .solvers import ContactSolver, EnumerationSolver, ExactSolver, OSQPSolver, QpsolversSolver, make_solver
-from .system import FunctionSystem, MechanicalSystem
+from .compiled.runner import ensure_compiled
+from .contact.problem import OneStepProblem, Residuals
+from .contact.solvers import (
+    ContactSolver,
+    EnumerationSolver,
+    ExactSolver,
+    OSQPSolver,
+    QpsolversSolver,
+    make_solver,
+)
+from .core.errors import SimulationError, SolverError
+from .model.barriers import Barrier, FunctionBarrier, LinearBarrier, check_jacobian
+from .model.forces import (
+    ConstantForce,
+    Effect,
+    FourierLoad,
+    FunctionForce,
+    HarmonicForce,
+    LinearDamping,
+    LinearSpring,
+)
+from .model.laws import NewtonImpact
+from .model.scene import Contact, Scene
+from .model.system import FunctionSystem, MechanicalSystem
+from .results import diagnostics
+from .results.trajectory import ImpactLog, SolverStats, Trajectory, load
+from .run.simulation import simulate
+from .step.drift import CombinedProjection, PositionProjection
+from .step.integrator import MoreauJeanMidpoint, MoreauJeanPredictorCorrector, OneStepIntegrator
+from .step.integrator import MoreauJeanTheta as MoreauJeanTheta  # the former name, not in __all__
 
 __all__ = [
     "__version__",
@@ -54,3 +68,10 @@ __all__ = [
     "FunctionSystem", "MechanicalSystem",
     "diagnostics",
 ]
+
+
+def __getattr__(name: str) -> object:
+    """``moreau.<former module>`` (e.g. ``moreau.chain``): the moved module, with a warning."""
+    if f"moreau.{name}" in _MOVED:
+        return _moved(f"moreau.{name}")
+    raise AttributeError(f"module 'moreau' has no attribute {name!r}")

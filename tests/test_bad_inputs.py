@@ -35,8 +35,8 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 import moreau as mo
-from moreau.chain import ChainGravity, JointDamping, Link, PendulumChain, PointForce
 from moreau.cli import main
+from moreau.model.chain import ChainGravity, JointDamping, Link, PendulumChain, PointForce
 from moreau.problems.bouncing_ball import bouncing_ball
 from moreau.problems.piston import PistonParameters, piston_model
 

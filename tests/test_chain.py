@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 import moreau as mo
-from moreau.barriers import check_jacobian, finite_difference_jacobian
-from moreau.chain import (
+from moreau.model.barriers import check_jacobian, finite_difference_jacobian
+from moreau.model.chain import (
     ChainGravity,
     JointDamping,
     JointSprings,
@@ -18,7 +18,7 @@ from moreau.chain import (
     PointLineBarrier,
     PointLineRow,
 )
-from moreau.system import check_spd
+from moreau.model.system import check_spd
 
 # The paper's engine (Awrejcewicz & Kudra, section 3): crank, connecting rod, piston.
 PISTON = dict(
@@ -27,7 +27,7 @@ PISTON = dict(
 
 
 # ----------------------------------------------------------------------------------------
-# helpers: an independent, loop-based model of the chain (no shared code with moreau.chain)
+# helpers: an independent, loop-based model of the chain (no shared code with moreau.model.chain)
 # ----------------------------------------------------------------------------------------
 def random_chain(rng, n, orientation="hanging", lateral=False, pivot=None):
     return PendulumChain.from_arrays(

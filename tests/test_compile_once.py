@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 
 import moreau as mo
-from moreau import loop
-from moreau.lowering import lower
+from moreau.compiled import loop
+from moreau.compiled.lowering import lower
 
 _PROBE = textwrap.dedent("""
     import moreau as mo
-    from moreau import loop
+    from moreau.compiled import loop
     mo.ensure_compiled()
     st = loop.run_chunk.stats
     print(sum(st.cache_misses.values()), sum(st.cache_hits.values()))

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 import moreau as mo
-from moreau import kernels as K
-from moreau.chain import ChainGravity, JointDamping, Link, PendulumChain, PointLineBarrier, PointLineRow
-from moreau.lowering import NotCompilable, lower
+from moreau.core import kernels as K
+from moreau.compiled.lowering import NotCompilable, lower
+from moreau.model.chain import ChainGravity, JointDamping, Link, PendulumChain, PointLineBarrier, PointLineRow
 from moreau.problems.bouncing_ball import bouncing_ball
 from moreau.problems.chain_walls import chain_walls
 from moreau.problems.piston import piston_model
@@ -218,7 +218,7 @@ def test_compiled_failures_keep_the_run_and_name_the_step():
 def test_a_new_process_loads_the_loop_from_the_cache():
     code = textwrap.dedent("""
         import time, moreau as mo
-        from moreau import loop
+        from moreau.compiled import loop
         from moreau.problems.piston import piston_model
         m = piston_model(e=0.9)
         t = time.perf_counter()

@@ -5,8 +5,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import moreau as mo
-from moreau.diagnostics import convergence_order
 from moreau.problems.pendulum_wall import pendulum_rhs, pendulum_wall
+from moreau.results.diagnostics import convergence_order
 
 STEPS = [0.02, 0.01, 0.005, 0.0025, 0.00125]
 

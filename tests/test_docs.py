@@ -9,8 +9,8 @@ import re
 import pytest
 
 API = pathlib.Path(__file__).resolve().parents[1] / "docs" / "api"
-PUBLIC = ["moreau", "moreau.chain", "moreau.dynamics", "moreau.dynamics.benchmarks", "moreau.sweeps",
-          "moreau.diagnostics", "moreau.plotting", "moreau.testing"]
+PUBLIC = ["moreau", "moreau.model.chain", "moreau.dynamics", "moreau.dynamics.benchmarks", "moreau.sweeps",
+          "moreau.results.diagnostics", "moreau.results.plotting", "moreau.contact.testing"]
 NOT_OBJECTS = {"__version__", "diagnostics"}  # a string and a module, not API objects
 
 

@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 
 import moreau as mo
-from moreau.diagnostics import convergence_order
 from moreau.problems.bouncing_ball import BallSolution, bouncing_ball
 from moreau.problems.event_driven import event_driven, moreau_impact_times, pendulum_wall_reference
 from moreau.problems.pendulum_wall import pendulum_wall
+from moreau.results.diagnostics import convergence_order
 
 G = 9.81
 

@@ -1,4 +1,4 @@
-"""The compiled exact contact solver (dual active set, moreau.lcp) against OSQP and
+"""The compiled exact contact solver (dual active set, moreau.contact.lcp) against OSQP and
 enumeration on random one-step problems: redundant rows, ill-scaled mass matrices, up to 30
 active rows. v⁺ is unique (M is SPD) and is what is compared; P is not unique when rows
 are redundant."""
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import moreau as mo
-from moreau.onestep import kkt_residuals
+from moreau.contact.problem import kkt_residuals
 
 
 def random_problem(rng, k_max=30, scaled=True):

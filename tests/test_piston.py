@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from moreau.barriers import finite_difference_jacobian
+from moreau.model.barriers import finite_difference_jacobian
 from moreau.problems.piston import EFFECTS, PistonParameters, closed_form, groups, piston_model
 
 

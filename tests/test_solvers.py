@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 import moreau as mo
-from moreau.onestep import OneStepProblem, kkt_residuals
+from moreau.contact.problem import OneStepProblem, kkt_residuals
+from moreau.contact.solvers import SolveFailed
 from moreau.problems.bouncing_ball import bouncing_ball
-from moreau.solvers import SolveFailed
 
 
 def random_problem(rng):

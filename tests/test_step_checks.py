@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import moreau as mo
-import moreau.integrator
-from moreau.chain import ChainGravity, JointDamping, Link, PendulumChain
+import moreau.step.integrator
+from moreau.model.chain import ChainGravity, JointDamping, Link, PendulumChain
 
 
 def switching(good, bad, after):
@@ -90,7 +90,7 @@ def test_a_configuration_dependent_mass_matrix_is_factorized_once_per_step(monke
     scene = pendulum_chain()
     q0, v0, h, steps = [1.0, -0.5], [0.0, 0.0], 1e-3, 500
     calls = {"cholesky": 0, "solve": 0}
-    real_cholesky, real_solve = moreau.integrator._cholesky, np.linalg.solve
+    real_cholesky, real_solve = moreau.step.integrator._cholesky, np.linalg.solve
 
     def cholesky(*a):
         calls["cholesky"] += 1
@@ -100,7 +100,7 @@ def test_a_configuration_dependent_mass_matrix_is_factorized_once_per_step(monke
         calls["solve"] += 1
         return real_solve(*a)
 
-    monkeypatch.setattr(moreau.integrator, "_cholesky", cholesky, raising=False)
+    monkeypatch.setattr(moreau.step.integrator, "_cholesky", cholesky, raising=False)
     monkeypatch.setattr(np.linalg, "solve", solve)
     py = mo.simulate(scene, (0.0, steps * h), q0, v0, h, backend="python", solver="exact", check_jacobian=False)
     monkeypatch.undo()
@@ -116,7 +116,7 @@ def test_the_jacobian_check_has_no_false_alarm_at_a_large_crank_angle():
     step relative to it (1e-2 rad) is too coarse for the corners' gaps, and the check
     falls back to absolute steps instead of refusing a correct Jacobian."""
     from moreau.problems.piston import piston_model
-    from moreau.trust import check_jacobians
+    from moreau.run.trust import check_jacobians
 
     model = piston_model(e=0.0)
     q0, _ = model.initial_state()

@@ -13,6 +13,7 @@ import textwrap
 import pytest
 
 import moreau
+import moreau.core.version
 from moreau.cli import main
 from moreau.sweeps import SweepLockedError, source_digest, sweep
 
@@ -53,7 +54,7 @@ def test_cache_key_and_version_are_part_of_the_key(tmp_path, monkeypatch):
     assert len(parts(out)) == n  # reused
     run(f, out, cache_key="model v2")
     assert len(parts(out)) == 2 * n  # recomputed
-    monkeypatch.setattr(moreau, "__version__", "0.0.0-other")
+    monkeypatch.setattr(moreau.core.version, "__version__", "0.0.0-other")
     run(f, out, cache_key="model v2")
     assert len(parts(out)) == 3 * n  # another version's records are not reused
 

@@ -11,7 +11,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 import moreau as mo
-import moreau.solvers
+import moreau.contact.solvers
 from moreau.problems.bouncing_ball import bouncing_ball
 from moreau.sweeps import sweep
 
@@ -35,7 +35,7 @@ def _fd1() -> tuple[int, int]:
 
 def test_solver_module_touches_no_process_state():
     """No ctypes (``CDLL(None)`` fails on Windows), no stdout swapping in the solvers."""
-    src = open(moreau.solvers.__file__).read()
+    src = open(moreau.contact.solvers.__file__).read()
     assert "ctypes" not in src
     assert "sys.stdout =" not in src and "dup2" not in src
 

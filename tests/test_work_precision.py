@@ -11,9 +11,9 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import moreau as mo
-from moreau.chain import ChainGravity, Link, PendulumChain
-from moreau.diagnostics import convergence_order
+from moreau.model.chain import ChainGravity, Link, PendulumChain
 from moreau.problems.pendulum_wall import pendulum_rhs, pendulum_wall
+from moreau.results.diagnostics import convergence_order
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCRIPT = os.path.join(ROOT, "benchmarks", "work_precision.py")

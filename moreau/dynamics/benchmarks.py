@@ -112,7 +112,7 @@ def forced_triple_pendulum(omega: float, amplitude: float = 1.5, e: float = 0.8,
     """A triple physical pendulum with a wall, driven by a harmonic torque on link 1.
 
     Three uniform rods hanging from a fixed pivot (absolute angles from the downward
-    vertical, :mod:`moreau.chain`): m = 1.0, 0.8, 0.5 kg, l = 0.5, 0.45, 0.4 m (the
+    vertical, :mod:`moreau.model.chain`): m = 1.0, 0.8, 0.5 kg, l = 0.5, 0.45, 0.4 m (the
     README's chain); viscous joint damping ``damping`` N m s/rad at every joint; gravity
     9.81 m/s²; a torque ``amplitude · sin(omega t)`` N m on link 1 (the paper's external
     moment on the first link, harmonic instead of a brake); a vertical wall at
@@ -126,7 +126,7 @@ def forced_triple_pendulum(omega: float, amplitude: float = 1.5, e: float = 0.8,
     Scene
         q = (φ1, φ2, φ3) rad; at rest hanging straight down, all gaps are ``wall``.
     """
-    from moreau.chain import ChainGravity, JointDamping, Link, PendulumChain, PointLineBarrier, PointLineRow
+    from moreau.model.chain import ChainGravity, JointDamping, Link, PendulumChain, PointLineBarrier, PointLineRow
 
     chain = PendulumChain([Link.rod(m=1.0, l=0.5), Link.rod(m=0.8, l=0.45), Link.rod(m=0.5, l=0.4)])
     walls = PointLineBarrier(chain, [

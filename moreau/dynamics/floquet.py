@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from moreau._validation import as_vector
+from moreau.core.validation import as_vector
 
 from .maps import jacobian_fd
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import moreau as mo
-from moreau._validation import as_positive, as_vector
+from moreau.core.validation import as_positive, as_vector
 
 __all__ = ["Section", "stroboscopic", "poincare", "poincare_on_the_fly"]
 
@@ -141,7 +141,7 @@ def poincare_on_the_fly(scene: mo.Scene, q0, v0, h: float,
 
     Nothing but the crossings is stored, so the run length is bounded by the number of
     points wanted rather than by memory. Uses the Python one-step path (use
-    :func:`poincare` on a :func:`moreau.simulate` run when speed matters).
+    :func:`poincare` on a :func:`moreau.run.simulation` run when speed matters).
 
     Parameters
     ----------

@@ -6,7 +6,7 @@ cycle: 3–6 min depending on the load (measured 181 s, 250 s, 370 s). Every 10t
 recorded (Δτ = 0.01, 0.57° of crank angle: 250 k records, ~30 MB), dense enough for the
 trapezoid of the ledger: on 20 cycles the integrated work changes by at most 1.3 % of
 the residual from record_every = 1 to 20
-(see ``moreau.diagnostics.energy_ledger``).
+(see ``moreau.results.diagnostics.energy_ledger``).
 """
 
 import math
@@ -15,8 +15,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from moreau.diagnostics import energy_ledger
 from moreau.problems.piston import PistonParameters, cycle_figures, piston_model
+from moreau.results.diagnostics import energy_ledger
 
 from .conftest import assert_finite, audit_impacts
 

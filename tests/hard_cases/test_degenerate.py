@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import moreau as mo
-from moreau.chain import PointLineBarrier, PointLineRow
+from moreau.model.chain import PointLineBarrier, PointLineRow
 from moreau.problems.piston import PistonParameters, piston_model
 from moreau.problems.piston.analysis import max_penetration_ratio
 from moreau.problems.piston.model import CORNERS

@@ -3,7 +3,7 @@ chosen steps is caught, the exact fallback takes over and is counted, the run co
 and matches an exact run.
 
 ``tests/test_solvers.py`` covers a wrong answer on the ball and every backend failing;
-here the general :class:`moreau.testing.FaultInjectingSolver` on both failure modes, on
+here the general :class:`moreau.contact.testing.FaultInjectingSolver` on both failure modes, on
 the ball and the piston, with drift control, and with the fallback failing too.
 """
 
@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 import moreau as mo
+from moreau.contact.testing import FaultInjectingSolver
 from moreau.problems.bouncing_ball import bouncing_ball
 from moreau.problems.piston import PistonParameters, piston_model
-from moreau.testing import FaultInjectingSolver
 
 from .conftest import assert_finite, audit_impacts
 

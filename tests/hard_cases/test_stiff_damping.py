@@ -15,7 +15,7 @@ import pytest
 from scipy.linalg import eigh
 
 import moreau as mo
-from moreau.chain import ChainGravity, JointStop, Link, LinkTorque, PendulumChain
+from moreau.model.chain import ChainGravity, JointStop, Link, LinkTorque, PendulumChain
 from moreau.problems.piston import PistonParameters, piston_model
 from moreau.problems.piston.analysis import max_penetration_ratio
 

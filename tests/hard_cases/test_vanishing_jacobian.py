@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import moreau as mo
-from moreau.chain import ChainGravity, Link, PendulumChain, PointLineBarrier, PointLineRow
+from moreau.model.chain import ChainGravity, Link, PendulumChain, PointLineBarrier, PointLineRow
 
 
 def tangent_pendulum():

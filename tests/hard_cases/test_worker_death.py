@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from moreau._pool import WorkerDied, run_jobs
+from moreau.sweeps.pool import WorkerDied, run_jobs
 
 pytestmark = pytest.mark.usefixtures("compiled_loop_in_cache")
 

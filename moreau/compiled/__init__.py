@@ -1,0 +1,13 @@
+"""The compiled path: the scene lowered to arrays (:mod:`~moreau.compiled.lowering`), its
+evaluation (:mod:`~moreau.compiled.evaluate`), user callables behind one C signature
+(:mod:`~moreau.compiled.usercalls`), the time loop (:mod:`~moreau.compiled.loop`, the twin
+of :mod:`moreau.step`), the compile cache (:mod:`~moreau.compiled.cache`) and the driver
+that runs the loop chunk by chunk (:mod:`~moreau.compiled.runner`).
+
+May import: :mod:`moreau.core`, :mod:`moreau.model`, :mod:`moreau.contact`,
+:mod:`moreau.results`.
+"""
+
+from moreau.compiled.runner import COMPILE_SECONDS, COMPILED_SOLVERS, ensure_compiled, run_compiled
+
+__all__ = ["COMPILED_SOLVERS", "COMPILE_SECONDS", "ensure_compiled", "run_compiled"]

@@ -1,0 +1,126 @@
+"""Compiled evaluation of a lowered scene: M(q), f(t, q, v), g(q), G(q), energies.
+
+Each function walks the records of a :class:`~moreau.compiled.lowering.CompiledScene` and calls
+the kernels of :mod:`moreau.core.kernels` for exactly the effects and contacts the scene
+holds; a scene's ``@numba.njit`` callables are called through their slot addresses
+(:mod:`moreau.compiled.usercalls`), so one compiled loop serves every scene. ``mass``, ``force``,
+``gaps`` and ``jacobian`` return 0, or a user callable's status ``code * 8 + slot``
+(the loop stops on it; :func:`moreau.compiled.usercalls.decode` reads it).
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+from moreau.compiled.usercalls import U_BIAS, U_FORCES, U_GAPS, U_JACOBIANS, U_MASS, call_user
+from moreau.core import kernels as _k
+
+# allocation-free, so without reference counting (see kernels._jit)
+_jit = njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]
+# called from the loop only, inlined into it by numba (see moreau.compiled.loop): no CPython or C
+# entry points to build
+_internal = njit(cache=True, nogil=True, _nrt=False, inline="always",  # type: ignore[call-overload]
+                 no_cpython_wrapper=True, no_cfunc_wrapper=True)
+
+
+# -- the scene ----------------------------------------------------------------------------
+@_internal
+def mass(ints, pool, user, q, c, s, M):
+    """M(q) into ``M`` (n x n); ``c, s`` = cos q, sin q."""
+    n, kind, off = ints[0], ints[2], ints[4]
+    if kind == _k.MASS_CHAIN:
+        _k.chain_mass(pool, off, c, s, M)
+    elif kind == _k.MASS_CONST:
+        for i in range(n):
+            for j in range(n):
+                M[i, j] = pool[off + i * n + j]
+    else:
+        st = call_user(user[U_MASS], 0.0, q, q, M, n, ints[1])
+        return 0 if st == 0 else st * 8 + U_MASS
+    return 0
+
+
+@_internal
+def force(ints, ekind, eoff, pool, user, t, q, c, s, v, f):
+    """f(t, q, v) into ``f`` (n,): the bias terms and exactly the scene's effects;
+    ``c, s`` = cos q, sin q."""
+    for i in range(f.shape[0]):
+        f[i] = 0.0
+    if ints[3]:
+        if ints[2] == _k.MASS_CHAIN:
+            _k.add_chain_bias(pool, ints[4], c, s, v, f)
+        else:
+            st = call_user(user[U_BIAS], t, q, v, f, ints[0], ints[1])
+            if st != 0:
+                return st * 8 + U_BIAS
+    for e in range(ints[5]):
+        kind, o = ekind[e], eoff[e]
+        if kind == _k.CONST:
+            _k.add_constant(pool, o, f)
+        elif kind == _k.LINEAR_V:
+            _k.add_linear_v(pool, o, v, f)
+        elif kind == _k.AFFINE_Q:
+            _k.add_affine_q(pool, o, q, f)
+        elif kind == _k.TRIG:
+            _k.add_trig(pool, o, c, s, f)
+        elif kind == _k.HARMONIC:
+            _k.add_harmonic(pool, o, t, f)
+        elif kind == _k.FOURIER_PT:
+            _k.add_point_fourier(pool, o, q, c, s, f)
+    if user[U_FORCES] != 0:
+        st = call_user(user[U_FORCES], t, q, v, f, ints[0], ints[1])
+        return 0 if st == 0 else st * 8 + U_FORCES
+    return 0
+
+
+@_internal
+def gaps(ints, bkind, boff, brow, bnrows, pool, user, q, c, s, g):
+    """g(q) into ``g`` (m,); ``c, s`` = cos q, sin q."""
+    for ic in range(ints[6]):
+        kind = bkind[ic]
+        if kind == _k.BAR_LINEAR:
+            _k.gaps_linear(pool, boff[ic], bnrows[ic], q, g, brow[ic])
+        elif kind == _k.BAR_TRIG:
+            _k.gaps_trig(pool, boff[ic], bnrows[ic], c, s, g, brow[ic])
+    if user[U_GAPS] != 0:
+        st = call_user(user[U_GAPS], 0.0, q, q, g, ints[0], ints[1])
+        return 0 if st == 0 else st * 8 + U_GAPS
+    return 0
+
+
+@_internal
+def jacobian(ints, bkind, boff, brow, bnrows, pool, user, q, c, s, G):
+    """G(q) into ``G`` (m, n); ``c, s`` = cos q, sin q."""
+    for ic in range(ints[6]):
+        kind = bkind[ic]
+        if kind == _k.BAR_LINEAR:
+            _k.jacobian_linear(pool, boff[ic], bnrows[ic], G, brow[ic])
+        elif kind == _k.BAR_TRIG:
+            _k.jacobian_trig(pool, boff[ic], bnrows[ic], c, s, G, brow[ic])
+    if user[U_JACOBIANS] != 0:
+        st = call_user(user[U_JACOBIANS], 0.0, q, q, G, ints[0], ints[1])
+        return 0 if st == 0 else st * 8 + U_JACOBIANS
+    return 0
+
+
+@_jit
+def potential(ints, ekind, eoff, pool, q, c, s):
+    """Potential energy of the built-in conservative effects, up to a constant (J)."""
+    n = ints[0]
+    nn = n * n
+    V = 0.0
+    for e in range(ints[5]):
+        kind, o = ekind[e], eoff[e]
+        if kind == _k.CONST:
+            for i in range(n):
+                V -= pool[o + i] * q[i]
+        elif kind == _k.AFFINE_Q:
+            for i in range(n):
+                Kq = 0.0
+                for j in range(n):
+                    Kq += pool[o + i * n + j] * q[j]
+                V += 0.5 * q[i] * Kq - pool[o + nn + i] * q[i]
+        elif kind == _k.TRIG:
+            for i in range(n):
+                V -= pool[o + i] * c[i] + pool[o + n + i] * s[i]
+    return V

@@ -1,0 +1,149 @@
+"""moreau's compiled code on disk: keyed by all of its source, compiled by one process at a time.
+
+numba keys a cached function by the timestamp of the file that defines it, not by the
+files of the functions it calls: after an edit of a kernel, the cached time loop would
+still run the old kernel. Before any compiled module is used, :func:`ensure_fresh`
+hashes the source of every module that takes part in the compiled loop (and numba's
+version) and, when the digest differs from the one stored in the cache directory,
+deletes moreau's cached machine code there so that it is compiled afresh.
+
+:func:`compile_lock` serializes the compile between processes (an advisory file lock in
+the cache directory): a second process started while the first compiles waits, then
+loads the machine code the first one saved, instead of compiling it again.
+
+The cache lives where numba puts it: ``$NUMBA_CACHE_DIR`` when set, else the package's
+``__pycache__`` when writable, else a folder in the user's cache directory
+(:func:`cache_dir` says which).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import glob
+import hashlib
+import logging
+import os
+from collections.abc import Iterator
+
+log = logging.getLogger(__name__)
+
+#: the folders (relative to the package) whose modules hold compiled code: the physics
+#: kernels, the contact numerics and the compiled loop; an edit anywhere in them clears
+#: the cached machine code
+COMPILED_DIRS = ("core/kernels", "contact", "compiled")
+_STAMP = "moreau-jit.digest"
+_LOCK = "moreau-jit.lock"
+_PACKAGE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+#: the module whose cache directory holds the digest and the lock
+_ANCHOR = os.path.join(_PACKAGE, "compiled", "loop.py")
+
+
+def compiled_sources() -> list[str]:
+    """The source files of every module that may hold compiled code, sorted."""
+    return sorted(p for d in COMPILED_DIRS for p in glob.glob(os.path.join(_PACKAGE, d, "*.py")))
+
+
+def source_digest() -> str:
+    """SHA-256 of the compiled modules' source (with their paths) and numba's version."""
+    import numba
+
+    h = hashlib.sha256(numba.__version__.encode())
+    for path in compiled_sources():
+        h.update(os.path.relpath(path, _PACKAGE).encode())
+        with open(path, "rb") as f:
+            h.update(f.read())
+    return h.hexdigest()
+
+
+def cache_dir(source: str = _ANCHOR) -> str | None:
+    """The directory where numba caches the machine code of the module ``source`` (default:
+    the compiled loop's; found with numba's own rules, first usable wins), or None when none
+    is usable."""
+    try:
+        from numba.core import caching
+
+        impl = getattr(caching, "CacheImpl", None) or caching._CacheImpl  # type: ignore[attr-defined]
+        for cls in impl._locator_classes:
+            loc = cls.from_function(source_digest, source)
+            if loc is not None:
+                return str(loc.get_cache_path())
+    except Exception as exc:  # noqa: BLE001 - an internal API of numba: say so, go on
+        log.warning("moreau: could not locate numba's cache directory (%s); the compiled loop may be "
+                    "compiled in every process", exc)
+    return None
+
+
+def _cached_files() -> list[str]:
+    """moreau's cached machine code: per compiled module, ``<module>.*.nbi|nbc`` in its cache directory."""
+    found = []
+    for src in compiled_sources():
+        d = cache_dir(src)
+        stem = os.path.splitext(os.path.basename(src))[0]
+        if d is not None:
+            found += [p for ext in ("nbi", "nbc") for p in glob.glob(os.path.join(d, f"{stem}.*.{ext}"))]
+    return found
+
+
+def clear() -> int:
+    """Delete moreau's cached machine code; returns the number of files removed."""
+    removed = 0
+    for p in _cached_files():
+        try:
+            os.remove(p)
+            removed += 1
+        except OSError:
+            pass
+    return removed
+
+
+def ensure_fresh() -> None:
+    """Delete moreau's cached machine code when its digest is not the current one."""
+    d = cache_dir()
+    if d is None:
+        return
+    digest = source_digest()
+    stamp = os.path.join(d, _STAMP)
+    try:
+        with open(stamp) as f:
+            if f.read().strip() == digest:
+                return
+    except OSError:
+        pass
+    removed = clear()
+    if removed:
+        log.info("moreau: source changed, removed %d stale numba cache files in %s", removed, d)
+    try:
+        os.makedirs(d, exist_ok=True)
+        tmp = f"{stamp}.{os.getpid()}.tmp"
+        with open(tmp, "w") as f:
+            f.write(digest)
+        os.replace(tmp, stamp)
+    except OSError as exc:
+        log.warning("moreau: numba's cache directory %s is not writable (%s); compiled code is not kept", d, exc)
+
+
+@contextlib.contextmanager
+def compile_lock() -> Iterator[None]:
+    """Hold moreau's compile lock (an exclusive ``flock`` on a file in the cache
+    directory) while the body runs; without a usable directory (or ``fcntl``), no lock."""
+    d = cache_dir()
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX
+        fcntl = None  # type: ignore[assignment]
+    fd = None
+    if d is not None and fcntl is not None:
+        try:
+            fd = os.open(os.path.join(d, _LOCK), os.O_RDWR | os.O_CREAT, 0o666)
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        except OSError as exc:
+            log.warning("moreau: cannot lock %s (%s); compiling without the lock", d, exc)
+            if fd is not None:
+                os.close(fd)
+            fd = None
+    try:
+        yield
+    finally:
+        if fd is not None:
+            fcntl.flock(fd, fcntl.LOCK_UN)
+            os.close(fd)

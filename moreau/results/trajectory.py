@@ -1,0 +1,465 @@
+"""Results: the trajectory of a run, its impact log and solver statistics; save/load.
+
+Every quantity is in the units of the scene (``traj.units``, declared by
+``Scene(units=...)``; see ``moreau.model.units``): times in the scene's time unit,
+impulses in its momentum unit, energies in its energy unit.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import uuid
+from dataclasses import dataclass, field, fields
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from moreau.model.units import complete_units, unit_suffix
+
+if TYPE_CHECKING:
+    import pandas
+    import xarray
+
+__all__ = ["Trajectory", "ImpactLog", "SolverStats", "load"]
+
+#: one onset as the loops log it: (t, step, row, U_before, U_after, impulse, energy_lost, flight, fast)
+ImpactRow = tuple[float, int, int, float, float, float, float, bool, bool]
+
+_FORMAT = 1
+
+
+@dataclass
+class ImpactLog:
+    """Contact onsets: a row whose impulse became positive in a step after a step in
+    which it carried none, logged when it is an impact by either test:
+
+    - ``flight``: since the row last carried an impulse, its gap at the end of some step
+      exceeded the *flight gap* (the ``flight_gap`` argument of :func:`moreau.run.simulation`;
+      for the piston 2 % of the clearance). Bounces that never lift the contact by more
+      than that are the same contact.
+    - ``fast`` (the velocity test): the row approached faster than the smooth forces
+      alone change its normal velocity in one step (``−U_before > h |a_n|``); slower
+      onsets are a sliding contact closing again, or a grazing touch.
+
+    **An impact is an onset that passes both** (``Trajectory.impacts``; the CLI
+    summaries, the notebooks and the README count these): a fast approach after a
+    flight. The count converges as h → 0 even where the scheme resolves more and more of
+    a Zeno cascade (the e = 0.9 piston). ``Trajectory.velocity_impacts`` keeps the raw
+    count of fast onsets, which grows as h → 0 there.
+
+    All arrays have shape (n_onsets,); units are those of the trajectory (``units``).
+
+    Attributes
+    ----------
+    t : ndarray
+        Time at the start of the impact step (time unit ``units["t"]``).
+    step : ndarray of int
+        Index of the step (0 = the step from t0).
+    row : ndarray of int
+        Contact row (see ``Trajectory.row_names``).
+    U_before, U_after : ndarray
+        Normal velocity G v before and after the step (the row's gap unit per time unit).
+    impulse : ndarray
+        Contact impulse P >= 0 of the step (``units["impulses"]`` of the row: N s for a
+        scene in SI).
+    energy_lost : ndarray
+        Kinetic energy dissipated by the contact impulse in the step (``units["energy"]``:
+        J in SI); see :class:`moreau.step.integrator.ContactDetails`.
+    flight, fast : ndarray of bool
+        Which test the onset passed (see above).
+    row_names : list of str
+        Names of the trajectory's contact rows (``row`` indexes them).
+    units : dict
+        The trajectory's units (``moreau.model.units``).
+    """
+
+    t: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    step: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    row: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    U_before: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    U_after: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    impulse: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    energy_lost: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    flight: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    fast: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    row_names: list[str] = field(default_factory=list, repr=False, compare=False, metadata={"array": False})
+    units: dict[str, Any] = field(default_factory=dict, repr=False, compare=False, metadata={"array": False})
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+    def __repr__(self) -> str:
+        if not len(self):
+            return "ImpactLog(0 impacts)"
+        t_unit = unit_suffix(self.units, "t")
+        return (f"ImpactLog({len(self)} impacts, t = {self.t[0]:.6g} to {self.t[-1]:.6g}{t_unit}, "
+                f"largest impulse {self.impulse.max():.4g}{unit_suffix(self.units, 'impulses')})")
+
+    def to_dataframe(self) -> pandas.DataFrame:
+        """The log as a pandas DataFrame, one row per impact, with a ``row_name`` column and
+        each column's unit in ``df.attrs["units"]``; see
+        ``moreau.results.export.impacts_to_dataframe``. ``ImportError`` naming the ``export``
+        extra when pandas is missing."""
+        from moreau.results.export import impacts_to_dataframe
+
+        return impacts_to_dataframe(self)
+
+    @classmethod
+    def from_rows(cls, rows: list[ImpactRow]) -> ImpactLog:
+        """The log of the rows the loops collect (see ``ImpactRow``)."""
+        if not rows:
+            return cls()
+        cols = list(zip(*rows))
+        return cls(
+            t=np.array(cols[0], dtype=float),
+            step=np.array(cols[1], dtype=int),
+            row=np.array(cols[2], dtype=int),
+            U_before=np.array(cols[3], dtype=float),
+            U_after=np.array(cols[4], dtype=float),
+            impulse=np.array(cols[5], dtype=float),
+            energy_lost=np.array(cols[6], dtype=float),
+            flight=np.array(cols[7], dtype=bool),
+            fast=np.array(cols[8], dtype=bool),
+        )
+
+    def select(self, mask: np.ndarray) -> ImpactLog:
+        """The entries where ``mask`` is True."""
+        return ImpactLog(**{name: getattr(self, name)[mask] for name in _impact_arrays()},
+                         row_names=self.row_names, units=self.units)
+
+
+def _impact_arrays() -> tuple[str, ...]:
+    """The names of ImpactLog's array fields (what save/load/select handle)."""
+    return tuple(f.name for f in fields(ImpactLog) if f.metadata.get("array", True))
+
+
+@dataclass
+class SolverStats:
+    """Counters of a run.
+
+    Attributes
+    ----------
+    solver, fallback : str
+        Names of the main and fallback backends.
+    steps : int
+        Steps taken.
+    contact_steps : int
+        Steps with at least one closed row (one contact solve each).
+    solves : int
+        Contact problems solved (= contact_steps).
+    fallbacks : int
+        Solves the main backend failed (wrong answer or error) and the fallback did.
+    projections : int
+        Steps whose end position drift control corrected.
+    worst_residual : float
+        Largest accepted scaled KKT residual.
+    wall_time : float
+        Seconds spent stepping.
+    backend : str
+        ``"compiled"`` (the whole loop in machine code) or ``"python"``.
+    """
+
+    solver: str = ""
+    fallback: str = ""
+    steps: int = 0
+    contact_steps: int = 0
+    solves: int = 0
+    fallbacks: int = 0
+    projections: int = 0
+    worst_residual: float = 0.0
+    wall_time: float = 0.0
+    backend: str = "python"
+
+    @property
+    def us_per_step(self) -> float:
+        """Mean wall time per step (µs)."""
+        return 1e6 * self.wall_time / max(1, self.steps)
+
+
+@dataclass
+class Trajectory:
+    """The recorded result of :func:`moreau.run.simulation`. Arrays are time-major; every quantity
+    is in the scene's units, named in ``units``.
+
+    Attributes
+    ----------
+    t : ndarray, shape (N,)
+        Recorded times (``units["t"]``).
+    q, v : ndarray, shape (N, n)
+        Coordinates and velocities (``units["q"]``, ``units["v"]``: one per coordinate).
+    gaps : ndarray, shape (N, m)
+        Gaps g(q) at the recorded states (``units["gaps"]``, one per row).
+    impulses : ndarray, shape (N, m)
+        Contact impulses summed over the steps since the previous record
+        (``units["impulses"]``, one per row).
+    active : ndarray of bool, shape (N, m)
+        True where the row was closed (at a midpoint) in any step since the previous record.
+    onsets : ImpactLog
+        Every contact onset that is an impact by the flight or the velocity test, logged
+        at the step it happened whatever ``record_every``; ``impacts`` and
+        ``velocity_impacts`` are its two selections.
+    stats : SolverStats
+        Solver counters and timing.
+    energy, kinetic_energy, potential_energy : ndarray, shape (N,) or None
+        Mechanical energy at the records, when computed (``units["energy"]``: J in SI).
+    h : float
+        Step size (``units["t"]``).
+    record_every : int
+        Steps between records.
+    row_names : list of str
+        Names of the m contact rows.
+    scene : dict
+        The scene's parameters (``Scene.describe()``).
+    status : str
+        ``"completed"``, ``"interrupted"`` (KeyboardInterrupt) or ``"failed"``.
+    message : str
+        Why the run stopped early, if it did.
+    version : str
+        moreau version that computed it.
+    max_penetration : ndarray, shape (m,) or None
+        Largest penetration max(0, −g) of each row over *every* step's end position (not
+        only the records), in the gap's unit.
+    work : dict
+        Energy-ledger terms summed over every step: ``"forces"``, the work of the smooth
+        forces h fᵀ(v_k + v⁺)/2, and ``"contacts"``, the work of the contact impulses
+        ½ Pᵀ(U⁻ + U⁺) (≤ 0 for e ≤ 1), in the scene's energy unit. They close the
+        discrete balance ΔT = forces + contacts exactly for a constant mass matrix.
+    warnings : list of str
+        What the run-level checks found (a penetration beyond its limit, see
+        :mod:`moreau.run.trust`); empty for a clean run. Kept by ``save``/``load``.
+    units : dict
+        The units of every field (``moreau.model.units``: ``t``, ``q`` and ``v`` per
+        coordinate, ``gaps`` and ``impulses`` per row, ``energy``, a ``description`` and,
+        for non-dimensional models, the ``scales`` to SI). Taken from the scene
+        (``Scene(units=...)``); ``""`` where it declared none. Kept by ``save``/``load``
+        (files written before units existed load with the undeclared defaults).
+    extra : dict
+        Whatever the caller attaches (JSON-serializable); kept by ``save``/``load``.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    gaps: np.ndarray
+    impulses: np.ndarray
+    active: np.ndarray
+    onsets: ImpactLog
+    stats: SolverStats
+    h: float
+    record_every: int = 1
+    row_names: list[str] = field(default_factory=list)
+    scene: dict[str, Any] = field(default_factory=dict)
+    energy: np.ndarray | None = None
+    kinetic_energy: np.ndarray | None = None
+    potential_energy: np.ndarray | None = None
+    status: str = "completed"
+    message: str = ""
+    version: str = ""
+    extra: dict[str, Any] = field(default_factory=dict)
+    max_penetration: np.ndarray | None = None
+    work: dict[str, float] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+    units: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        ndof = self.q.shape[1] if self.q.ndim == 2 else 0
+        nrows = self.gaps.shape[1] if self.gaps.ndim == 2 else len(self.row_names)
+        self.units = complete_units(self.units or self.scene.get("units"), ndof, nrows)
+        if not self.onsets.row_names:
+            self.onsets.row_names = list(self.row_names)
+        self.onsets.units = self.units
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+    def __repr__(self) -> str:
+        name = self.scene.get("name", "")
+        head = f"Trajectory({name!r}: " if name else "Trajectory("
+        span = f"t = {self.t[0]:.6g} to {self.t[-1]:.6g}{unit_suffix(self.units, 't')}, " if len(self) else ""
+        text = (f"{head}{len(self)} records, {span}{self.q.shape[1] if self.q.ndim == 2 else 0} dof, "
+                f"{len(self.row_names)} row{'' if len(self.row_names) == 1 else 's'}, {self.status}, "
+                f"{len(self.impacts)} impacts)")
+        if self.message:
+            text += f"\n  {self.message}"
+        return text
+
+    def to_xarray(self) -> xarray.Dataset:
+        """The trajectory as an xarray Dataset (dims ``time``, ``dof``, ``row``; a ``units``
+        attribute on each variable; scene, solver, version and units in ``attrs``); see
+        ``moreau.results.export.trajectory_to_xarray``. ``ImportError`` naming the ``export``
+        extra when xarray is missing."""
+        from moreau.results.export import trajectory_to_xarray
+
+        return trajectory_to_xarray(self)
+
+    @property
+    def impacts(self) -> ImpactLog:
+        """The impacts: fast contact onsets after a flight (see :class:`ImpactLog`)."""
+        return self.onsets.select(self.onsets.flight & self.onsets.fast)
+
+    @property
+    def velocity_impacts(self) -> ImpactLog:
+        """The onsets that pass the velocity test (the raw count, see :class:`ImpactLog`)."""
+        return self.onsets.select(self.onsets.fast)
+
+    @property
+    def completed(self) -> bool:
+        return self.status == "completed"
+
+    def row_index(self, name: str) -> int:
+        """Index of a contact row by name (``ValueError`` listing the names otherwise)."""
+        try:
+            return self.row_names.index(name)
+        except ValueError:
+            raise ValueError(f"no contact row {name!r}; rows are {self.row_names}") from None
+
+    # -- persistence ----------------------------------------------------------------------
+    def save(self, path: str | os.PathLike[str]) -> str:
+        """Write the trajectory to a ``.npz`` file (numpy only, no pickle); returns the path.
+
+        The file is written under a temporary name unique to this call, in the same
+        directory, then renamed: concurrent saves of one path do not collide, and a save
+        that fails (disk full, interrupt) removes its temporary file and leaves an
+        existing file at ``path`` untouched.
+        """
+        path = os.fspath(path)
+        if not path.endswith(".npz"):
+            path += ".npz"
+        meta = {
+            "format": _FORMAT,
+            "h": self.h,
+            "record_every": self.record_every,
+            "row_names": self.row_names,
+            "scene": self.scene,
+            "status": self.status,
+            "message": self.message,
+            "version": self.version,
+            "stats": {f.name: getattr(self.stats, f.name) for f in fields(self.stats)},
+            "extra": self.extra,
+            "work": self.work,
+            "warnings": self.warnings,
+            "units": self.units,
+        }
+        arrays: dict[str, Any] = {
+            "t": self.t, "q": self.q, "v": self.v, "gaps": self.gaps,
+            "impulses": self.impulses, "active": self.active,
+        }
+        for name in ("energy", "kinetic_energy", "potential_energy", "max_penetration"):
+            if getattr(self, name) is not None:
+                arrays[name] = getattr(self, name)
+        for name in _impact_arrays():
+            arrays["impacts_" + name] = getattr(self.onsets, name)
+        # a temporary file of this call only, in the target directory, renamed over the
+        # target: two processes saving one path never collide, a reader never sees half a
+        # file, and a failed save leaves nothing behind
+        tmp = f"{path}.{os.getpid()}-{uuid.uuid4().hex[:12]}.tmp"
+        try:
+            with open(tmp, "xb") as fh:
+                np.savez_compressed(fh, meta=np.array(json.dumps(meta, default=_json_default)), **arrays)
+            os.replace(tmp, path)
+        except BaseException:
+            with contextlib.suppress(OSError):
+                os.remove(tmp)
+            raise
+        return path
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> Trajectory:
+        """Read a trajectory written by :meth:`save`.
+
+        Raises
+        ------
+        ValueError
+            When the file is missing, unreadable, not a moreau trajectory, of a newer file
+            format than this version reads, or incomplete or inconsistent (the message
+            names the field).
+
+        Warns
+        -----
+        UserWarning
+            When the file was written by a newer version of moreau (in the same format):
+            it loads, and the warning names both versions.
+        """
+        path = os.fspath(path)
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                data = {k: z[k] for k in z.files}
+        except FileNotFoundError:
+            raise ValueError(f"no trajectory file at {path!r}") from None
+        except Exception as exc:  # zipfile, numpy format errors
+            raise ValueError(f"cannot read trajectory file {path!r}: {exc}") from None
+        if "meta" not in data:
+            raise ValueError(f"{path!r} is not a moreau trajectory: it has no 'meta' field "
+                             f"(fields: {sorted(data)})")
+        try:
+            meta = json.loads(str(data.pop("meta")))
+        except ValueError as exc:
+            raise ValueError(f"trajectory file {path!r}: its 'meta' field is not valid JSON ({exc})") from None
+        fmt = meta.get("format") if isinstance(meta, dict) else None
+        if isinstance(fmt, int) and fmt > _FORMAT:
+            raise ValueError(f"{path!r} is a moreau trajectory of file format {fmt}, written by moreau "
+                             f"{meta.get('version', '?')}; this moreau reads format {_FORMAT}: upgrade moreau")
+        if fmt != _FORMAT:
+            raise ValueError(f"{path!r} is not a moreau trajectory (format {fmt!r})")
+        _warn_if_newer(path, meta.get("version"))
+        try:
+            n_on = data["impacts_t"].shape[0]
+            for flag in ("flight", "fast"):  # files from before the flight test: every entry counts
+                data.setdefault("impacts_" + flag, np.ones(n_on, dtype=bool))
+            onsets = ImpactLog(**{name: data.pop("impacts_" + name) for name in _impact_arrays()})
+            traj = cls(
+                t=data["t"], q=data["q"], v=data["v"], gaps=data["gaps"],
+                impulses=data["impulses"], active=data["active"], onsets=onsets,
+                stats=SolverStats(**meta["stats"]), h=meta["h"], record_every=meta["record_every"],
+                row_names=meta["row_names"], scene=meta["scene"],
+                energy=data.get("energy"), kinetic_energy=data.get("kinetic_energy"),
+                potential_energy=data.get("potential_energy"), status=meta["status"],
+                message=meta["message"], version=meta["version"], extra=meta.get("extra", {}),
+                max_penetration=data.get("max_penetration"), work=meta.get("work", {}),
+                warnings=list(meta.get("warnings", [])), units=meta.get("units", {}),
+            )
+        except (KeyError, TypeError) as exc:
+            raise ValueError(f"trajectory file {path!r} is incomplete: missing {exc}") from None
+        except ValueError as exc:  # malformed units
+            raise ValueError(f"trajectory file {path!r}: {exc}") from None
+        N = traj.t.shape[0]
+        for name in ("q", "v", "gaps", "impulses", "active", "energy", "kinetic_energy", "potential_energy"):
+            a = getattr(traj, name)
+            if a is not None and a.shape[0] != N:
+                raise ValueError(f"trajectory file {path!r} is inconsistent: {name} has "
+                                 f"{a.shape[0]} records, t has {N}")
+        for name in _impact_arrays():
+            a = getattr(onsets, name)
+            if a.shape[0] != n_on:
+                raise ValueError(f"trajectory file {path!r} is inconsistent: impacts_{name} has "
+                                 f"{a.shape[0]} entries, impacts_t has {n_on}")
+        return traj
+
+
+def _version_key(v: str) -> tuple[int, ...]:
+    return tuple(int(x) for x in v.split("+")[0].split(".") if x.isdigit())
+
+
+def _warn_if_newer(path: str, version: object) -> None:
+    import warnings
+
+    from moreau.core.version import __version__
+
+    if isinstance(version, str) and _version_key(version) > _version_key(__version__):
+        warnings.warn(f"{path!r} was written by moreau {version}, newer than this moreau {__version__}: "
+                      "fields it added are ignored", UserWarning, stacklevel=3)
+
+
+def load(path: str | os.PathLike[str]) -> Trajectory:
+    """Read a trajectory saved with :meth:`Trajectory.save`."""
+    return Trajectory.load(path)
+
+
+def _json_default(x: object) -> Any:
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, np.generic):
+        return x.item()
+    raise TypeError(f"not JSON serializable: {type(x).__name__}")

@@ -1,0 +1,71 @@
+"""Run-level checks of :func:`moreau.run.simulation`: what a step's own checks cannot see.
+
+* Before the run, every barrier's analytic Jacobian is compared with central finite
+  differences of its gap at the initial state: a Jacobian of the wrong sign or scale
+  would otherwise let the contact drift through the barrier and the run "complete".
+* After the run, the largest penetration of every row over every step is compared with a
+  limit: the scheme's own scale ``h·|U⁻|`` (the distance a contact approaching at the normal
+  speed U⁻ of its impacts travels in one step) unless the caller gives one (the piston
+  passes its clearance). A run beyond it warns once and records the warning in
+  ``traj.warnings``, which ``save``/``load`` keep.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from moreau.model.barriers import finite_difference_jacobian
+
+__all__ = ["check_jacobians", "penetration_warnings"]
+
+
+def check_jacobians(scene, q0: np.ndarray, rtol: float = 1e-5) -> None:
+    """Raise ``ValueError`` naming the contact row whose analytic Jacobian differs from
+    central finite differences of its gap at ``q0`` by more than ``rtol`` (relative to
+    the row's largest entry; an absolute floor of 1e-8 for rows that vanish there).
+
+    The differences are taken with steps relative to ``|q0|`` and, where that fails, with
+    absolute steps of 1e-6: a crank angle of thousands of radians makes the relative step
+    too coarse for a gap that varies on the scale of one radian (a false alarm)."""
+    row = 0
+    for c in scene.contacts:
+        b = c.barrier
+        G = np.atleast_2d(np.asarray(b.jacobian(q0), dtype=float))
+        fds = (finite_difference_jacobian(b.gap, q0), finite_difference_jacobian(b.gap, q0, relative=False))
+        names = b.row_names(c.name)
+        for r in range(b.nrows):
+            errs = [(float(np.abs(G[r] - F[r]).max()),
+                     max(float(np.abs(G[r]).max()), float(np.abs(F[r]).max()), 1e-300), F) for F in fds]
+            err, scale, Gfd = min(errs, key=lambda x: x[0] / x[1])
+            if err > rtol * scale and err > 1e-8:
+                raise ValueError(
+                    f"the Jacobian of contact row {names[r]!r} (row {row + r}) does not match its gap at "
+                    f"the initial state: analytic {G[r].tolist()}, finite differences {Gfd[r].tolist()} "
+                    f"(relative error {err / scale:.3g}); fix the Jacobian, or pass check_jacobian=False "
+                    "for a gap that is not differentiable there")
+        row += b.nrows
+
+
+def penetration_warnings(scene, traj, h: float, limit: float | None) -> list[str]:
+    """Rows whose largest penetration over every step exceeds its limit (see the module
+    docstring), as messages; also issued once as a ``RuntimeWarning``."""
+    pen = traj.max_penetration
+    if pen is None or not np.size(pen):
+        return []
+    out = []
+    for r in np.flatnonzero(pen > 0.0):
+        if limit is not None:
+            lim, why = float(limit), "the given limit"
+        else:
+            U = np.abs(traj.impacts.U_before[traj.impacts.row == r])
+            if U.size == 0:
+                continue  # no impact: the drift of a sliding contact, left to drift control
+            lim, why = h * float(U.max()), f"h·|U⁻| = {h:g} × {float(U.max()):.3g}, the step's own scale"
+        if pen[r] > lim:
+            out.append(f"row {traj.row_names[r]!r} penetrated {pen[r]:.3g} (gap units), beyond {why} "
+                       f"({lim:.3g}): the contact is not resolved at this step size")
+    if out:
+        warnings.warn("; ".join(out), RuntimeWarning, stacklevel=3)
+    return out
