@@ -42,8 +42,8 @@ RPM = 2000.0  # non-dimensional speed 1
 def _run(model, t0, q0, v0, h, t1, record_every, energy=False, progress=False) -> mo.Trajectory:
     p = model.params
     lim = p.clearance / p.l1  # as the piston job; a continued run may start that deep
-    # an exact projection (tol = 0; the main job accepts 1e-4 of the clearance): the README's
-    # steady speeds were measured with it
+    # an exact projection (tol = 0; the main job accepts 1e-4 of the clearance): the
+    # steady speeds in docs/piston_accuracy.md were measured with it
     traj = mo.simulate(model.scene, (t0, t1), q0, v0, h, drift_control=mo.CombinedProjection(),
                        record_every=record_every, energy=energy, progress=progress,
                        penetration_limit=lim, initial_penetration=lim)

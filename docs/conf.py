@@ -92,7 +92,7 @@ html_theme_options = {
     "secondary_sidebar_items": ["page-toc"],
 }
 html_show_sourcelink = False
-html_sidebars = {"index": [], "theory": []}  # pages without sub-pages
+html_sidebars = {"index": [], "theory": [], "piston_accuracy": [], "performance": []}  # pages without sub-pages
 
 
 # ---- the notebooks: copied from notebooks/, executed at reduced size -------------------

@@ -112,7 +112,7 @@ per_fig
 #   small tilt (a fraction of a milliradian) — the paper's observation, against Sygniewicz
 #   (1999), that the piston loses contact while crossing. The mean speed over the cycles is
 #   2005.8 rpm: the runs start at the paper's 2000 rpm, and the engine's own speed relaxes
-#   over thousands of cycles (README, "The piston engine").
+#   over thousands of cycles (docs/piston_accuracy.md).
 # * **Fig. 3 (e = 0.9, D = 80.04 mm).** Every sliding phase is preceded by a train of
 #   impacts on the same wall (about 80 in the last cycle), and there are ten side
 #   changes per cycle instead of six: the six stages plus two quick round trips across

@@ -31,7 +31,7 @@
 # count per cycle the **side changes**, the **impacts** (all four piston corners), the
 # **kinetic energy dissipated at the impacts** and the **mean crank speed** of the
 # analyzed cycles (not the engine's own steady speed, which takes thousands of cycles to
-# reach: see `benchmarks/steady_speed.py` and the README). The same
+# reach: see `benchmarks/steady_speed.py` and docs/piston_accuracy.md). The same
 # runs also sample the pin's lateral position x_O3 and the piston tilt φ3 once per cycle
 # at fixed crank angles: a Poincaré section of the self-excited engine, drawn against e
 # like a bifurcation diagram.
@@ -140,7 +140,7 @@ plt.show()
 # * **Mean speed of the analyzed cycles.** 2005.79 rpm for every e, to within 0.01 rpm:
 #   the slap energy is a few 10⁻⁴ of the ≈ 123 J of brake work per cycle (9.807 N m × 4π).
 #   Over a few cycles the speed only repeats the start; where the engine settles (about
-#   1997 rpm for e = 0 as h → 0) takes thousands of cycles (README).
+#   1997 rpm for e = 0 as h → 0) takes thousands of cycles (docs/piston_accuracy.md).
 
 # %%
 fig = plot_side_change_angles(runs, "e", "restitution e", title="Where the piston changes sides")

@@ -23,7 +23,7 @@
 #
 # **Parameters** (`moreau.dynamics.benchmarks.forced_triple_pendulum`; the paper gives
 # none for the pendulum itself, so they are our choice, stated here): three uniform rods,
-# m = 1.0, 0.8, 0.5 kg and l = 0.5, 0.45, 0.4 m (the chain of the README), hanging from a
+# m = 1.0, 0.8, 0.5 kg and l = 0.5, 0.45, 0.4 m (the chain of docs/guide/chains.md), hanging from a
 # fixed pivot, angles absolute from the downward vertical; viscous damping 0.02 N m s/rad
 # at each joint; g = 9.81 m/s²; a torque A sin(ω t) on link 1 with ω = 6 rad/s (between
 # the chain's first two natural frequencies, where the wall is reached at moderate A); a
@@ -333,7 +333,7 @@ fig.savefig(os.path.join(FIG_DIR, "triple_pendulum_piston_lyapunov.png"), dpi=11
 # from the end of that run). At firing TDC the piston lies on one wall (pin at +1.006
 # half-clearances, tilt below 2e-7 rad) and the section state repeats from cycle to cycle
 # to 2e-6. The multipliers of the 720° map are 0.9997 — the crank speed, which only the
-# tiny joint damping regulates (the README: a speed error takes thousands of cycles to
+# tiny joint damping regulates (docs/piston_accuracy.md: a speed error takes thousands of cycles to
 # settle) — and below 0.002 for the other four: the sliding phases pin the piston's
 # lateral state, so a perturbation of the slap motion is forgotten within one cycle
 # (same result, 0.9997 and 0.0011–0.0017, with perturbations ten times larger; at
@@ -349,7 +349,7 @@ fig.savefig(os.path.join(FIG_DIR, "triple_pendulum_piston_lyapunov.png"), dpi=11
 # multipliers. What does
 # vary from cycle to cycle is the micro-impact train of the chattering phases (460–506
 # impacts per cycle over 8 cycles, ±5 % in the energy lost at impacts) — at a scale that
-# the README shows is set by the numerics (impact counts do not converge in h).
+# docs/theory.md shows is set by the numerics (impact counts do not converge in h).
 #
 # **For slap noise**: since the cycle is periodic and forgets perturbations within a
 # cycle, one simulated cycle after the transient predicts the robust features — when

@@ -1,0 +1,121 @@
+"""Work–precision study, part 1: the configurations and how a run is timed.
+
+A configuration is an integrator, a contact solver (:data:`SOLVERS`) and a drift control
+(:class:`Config`); :class:`Run` holds one run's cost and errors. Used by
+``benchmarks/work_precision.py``, which documents the study.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import moreau as mo
+
+
+@dataclass(frozen=True)
+class SolverSpec:
+    """A contact solver as the study runs it.
+
+    ``checked``: moreau's default acceptance test (scaled KKT residual <= 1e-6) with the
+    exact ``enum`` fallback; unchecked runs take the backend's answer as it is.
+    """
+
+    label: str
+    make: Callable[[], mo.ContactSolver | str]
+    checked: bool = True
+
+    def simulate_kwargs(self) -> dict:
+        if self.checked:
+            return {"solver": self.make(), "fallback": "auto"}  # enum, or exact when the main is enum
+        return {"solver": self.make(), "fallback": None, "tol": 1e30}
+
+
+SOLVERS: dict[str, SolverSpec] = {
+    "osqp": SolverSpec("osqp", lambda: mo.OSQPSolver()),  # eps 1e-9, polish: the default
+    "osqp1e-5": SolverSpec("osqp1e-5", lambda: mo.OSQPSolver(eps=1e-5, polish=False), checked=False),
+    "osqp1e-3": SolverSpec("osqp1e-3", lambda: mo.OSQPSolver(eps=1e-3, polish=False), checked=False),
+    "enum": SolverSpec("enum", lambda: "enum"),
+    "exact": SolverSpec("exact", lambda: "exact"),  # the compiled default: runs the compiled loop
+    "daqp": SolverSpec("daqp", lambda: "daqp"),
+    # checked variants of the loose tolerances (rejected answers fall back to enum)
+    "osqp1e-5+check": SolverSpec("osqp1e-5+check", lambda: mo.OSQPSolver(eps=1e-5, polish=False)),
+    "osqp1e-3+check": SolverSpec("osqp1e-3+check", lambda: mo.OSQPSolver(eps=1e-3, polish=False)),
+}
+
+_INTEGRATORS = {"mid": mo.MoreauJeanMidpoint, "theta": mo.MoreauJeanPredictorCorrector}
+#: drift control variants: none, PositionProjection (plastic rows), CombinedProjection (every e)
+_DRIFTS = {"none": None, "proj": mo.PositionProjection, "comb": mo.CombinedProjection}
+
+
+@dataclass(frozen=True)
+class Config:
+    """One configuration: integrator (``"mid"`` or ``"theta"``), solver, drift control
+    (``"none"``, ``"proj"``: :class:`~moreau.PositionProjection`, ``"comb"``:
+    :class:`~moreau.CombinedProjection`; ``False``/``True`` mean none/proj)."""
+
+    integrator: str
+    solver: str
+    drift: str = "none"
+
+    def __post_init__(self) -> None:
+        d = {False: "none", True: "proj"}[self.drift] if isinstance(self.drift, bool) else self.drift
+        if d not in _DRIFTS:
+            raise ValueError(f"drift must be one of {sorted(_DRIFTS)} (or a bool), got {self.drift!r}")
+        object.__setattr__(self, "drift", d)
+
+    @property
+    def label(self) -> str:
+        return f"{self.integrator}/{self.solver}/{self.drift}"
+
+    def simulate_kwargs(self) -> dict:
+        kw = SOLVERS[self.solver].simulate_kwargs()
+        kw["integrator"] = _INTEGRATORS[self.integrator]
+        make = _DRIFTS[self.drift]
+        kw["drift_control"] = make() if make is not None else None
+        return kw
+
+
+def configs(integrators=("mid", "theta"), solvers=("osqp", "osqp1e-5", "osqp1e-3", "enum", "daqp"),
+            drifts=(False, True)) -> list[Config]:
+    """The cross product of the given choices."""
+    return [Config(i, s, d) for i in integrators for s in solvers for d in drifts]
+
+
+@dataclass
+class Run:
+    """One run: its configuration, h, cost and errors.
+
+    ``metrics`` holds the problem's errors (and a few raw figures) by name; ``error`` is
+    the primary one (NaN when the run failed).
+    """
+
+    problem: str
+    config: Config
+    h: float
+    wall: float
+    steps: int
+    fallbacks: int
+    status: str
+    error: float
+    metrics: dict = field(default_factory=dict)
+
+
+def _timed(fn, repeat_below: float = 0.0, repeats: int = 3):
+    """(trajectory, wall time, status) of ``fn()``. A run faster than ``repeat_below``
+    seconds is repeated (up to ``repeats`` runs in all) and the shortest time kept: the
+    runs are deterministic, and on a shared machine the minimum is the cost."""
+    best, traj, status = float("inf"), None, "completed"
+    for _ in range(max(1, repeats)):
+        t0 = time.perf_counter()
+        status = "completed"
+        try:
+            traj = fn()
+        except (mo.SolverError, mo.SimulationError) as exc:
+            traj, status = exc.trajectory, "failed"
+        wall = time.perf_counter() - t0
+        best = min(best, wall)
+        if wall >= repeat_below:
+            break
+    return traj, best, status
