@@ -94,7 +94,8 @@ def _log_counts(ax) -> None:
 def plot_sweep(df, x: str = "e", xlabel: str = "restitution e", title: str | None = None, log_x: bool = False):
     """Four panels of a :func:`piston_point` sweep against one parameter: side changes,
     impacts and energy dissipated at the impacts per cycle (every cycle a dot, the mean
-    a line), and the mean speed over the analyzed cycles with the largest penetration / clearance.
+    a line), and the crank speed (mean over the analyzed cycles, and the energy-balance estimate of
+    the settled speed when the table has it) with the largest penetration / clearance.
 
     Returns the matplotlib Figure (never shown).
     """
@@ -114,8 +115,11 @@ def plot_sweep(df, x: str = "e", xlabel: str = "restitution e", title: str | Non
     if counts and max(counts) > 10 * min(counts):  # counts spanning decades
         _log_counts(axes[1])
     _per_cycle(axes[2], ok, x, "energy_lost_J", "energy lost at\nimpacts / cycle (J)", "C3")
-    axes[3].plot(ok[x], ok["rpm"], "o-", ms=3, color="C2")
-    axes[3].set_ylabel("mean speed over\nthe cycles (rpm)", color="C2")
+    axes[3].plot(ok[x], ok["mean_speed_rpm"], "o-", ms=3, color="C2", label="mean over the cycles")
+    if "settled_speed_rpm" in ok:  # tables recorded before the estimate existed lack it
+        axes[3].plot(ok[x], ok["settled_speed_rpm"], "^--", ms=3, color="C2", label="settled (energy balance)")
+        axes[3].legend(fontsize="small", loc="lower left")
+    axes[3].set_ylabel("crank speed (rpm)", color="C2")
     axes[3].ticklabel_format(axis="y", useOffset=False, style="plain")
     axes[3].grid(alpha=0.3)
     tw = axes[3].twinx()

@@ -38,8 +38,9 @@ from .analysis import (
     cycle_index,
     lateral_position,
     max_penetration_ratio,
+    mean_speed_rpm,
+    settled_speed_rpm,
     sliding_phases,
-    steady_speed_rpm,
     tilt,
 )
 from .figures import plot_section, plot_side_change_angles, plot_sweep
@@ -181,7 +182,10 @@ def piston_point(e: float, D_mm: float = 80.04, cycles: int = 5, transient: int 
         ``flight_deg`` (crank angle with no corner
         in contact, degrees), ``sliding_phases`` (one wall alone carrying the piston for
         at least 1° of crank angle); ``side_change_angles_deg`` (last cycle),
-        ``rpm`` (mean crank speed over the analyzed cycles, rev/min),
+        ``mean_speed_rpm`` (mean crank speed over the analyzed cycles, rev/min; the run
+        starts at 2000 rpm), ``settled_speed_rpm`` (energy-balance estimate of the speed
+        the engine settles at, from the same cycles, rev/min; see
+        :func:`~moreau.problems.piston.analysis.settled_speed_rpm`),
         ``max_penetration_ratio`` (largest penetration over every step of the run, the
         transient included, / (D − d): the figure ``moreau piston`` reports, not the
         recorded states'),
@@ -234,7 +238,8 @@ def piston_point(e: float, D_mm: float = 80.04, cycles: int = 5, transient: int 
         "energy_lost_J_mean": mean([c.energy_lost for c in figs]),
         "flight_deg_mean": mean(flight),
         "sliding_phases_mean": mean(n_phases),
-        "rpm": steady_speed_rpm(traj, params, skip_cycles=transient),
+        "mean_speed_rpm": mean_speed_rpm(traj, params, skip_cycles=transient),
+        "settled_speed_rpm": settled_speed_rpm(traj, params, transient),  # the scene _run built
         "max_penetration_ratio": max_penetration_ratio(traj, params),  # every step, not the records
         "max_impulse_Ns": max(c.max_impulse for c in figs),
         "side_changes": [c.side_changes for c in figs],
