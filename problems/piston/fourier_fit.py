@@ -16,6 +16,7 @@ import functools
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.optimize import brentq
 
 from .geometry import FOUR_PI
@@ -91,7 +92,7 @@ class FourierPressure:
             s = s * z + ck
         return (s * z).real
 
-    def __call__(self, phi1):
+    def __call__(self, phi1: ArrayLike) -> np.ndarray | float:
         """Gauge pressure p(phi1) [Pa].
 
         Parameters
@@ -112,7 +113,7 @@ class FourierPressure:
         t = np.multiply.outer(x, self._hk)
         return self.a0 + np.cos(t) @ self.a + np.sin(t) @ self.b
 
-    def derivative(self, phi1):
+    def derivative(self, phi1: ArrayLike) -> np.ndarray | float:
         """dp/dphi1 [Pa/rad]; same calling conventions as :meth:`__call__`."""
         if isinstance(phi1, (float, int)):
             return self._horner(self._dc, phi1)
@@ -122,7 +123,7 @@ class FourierPressure:
         t = np.multiply.outer(x, self._hk)
         return np.cos(t) @ (self._hk * self.b) - np.sin(t) @ (self._hk * self.a)
 
-    def maximum(self, n_grid: int = 7200):
+    def maximum(self, n_grid: int = 7200) -> tuple[float, float]:
         """Maximum of the series and its location.
 
         Parameters
@@ -173,7 +174,7 @@ def _uniform_matrices(n: int, phi0: float, K: int):
     return d, m
 
 
-def fit_fourier(phi, p, K: int = K_HARMONICS) -> FourierPressure:
+def fit_fourier(phi: ArrayLike, p: ArrayLike, K: int = K_HARMONICS) -> FourierPressure:
     """Fit the K-harmonic Fourier series in phi1/2 to samples.
 
     Least squares.  On a uniform grid covering exactly one period 4 pi
@@ -218,7 +219,8 @@ def fit_fourier(phi, p, K: int = K_HARMONICS) -> FourierPressure:
     )
 
 
-def fourier_fit_error(pressure: FourierPressure, phi, p, reference: float | None = None) -> dict:
+def fourier_fit_error(pressure: FourierPressure, phi: ArrayLike, p: ArrayLike,
+                      reference: float | None = None) -> dict:
     """Deviation of a Fourier series from sampled pressures.
 
     Parameters

@@ -14,6 +14,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 __all__ = ["TWO_PI", "FOUR_PI", "EngineGeometry", "DEFAULT_GEOMETRY"]
 
@@ -59,7 +60,7 @@ class EngineGeometry:
         """Crank-to-rod ratio lambda = l1 / l2 [-]."""
         return self.crank_radius / self.rod_length
 
-    def pin_height(self, phi1):
+    def pin_height(self, phi1: ArrayLike) -> np.ndarray | float:
         """Piston-pin height above the crank axis y(phi1) [m].
 
         Parameters
@@ -71,24 +72,24 @@ class EngineGeometry:
         s = np.sin(phi1)
         return l1 * np.cos(phi1) + np.sqrt(l2 * l2 - (l1 * s) ** 2)
 
-    def pin_height_derivative(self, phi1):
+    def pin_height_derivative(self, phi1: ArrayLike) -> np.ndarray | float:
         """dy/dphi1 [m/rad] of :meth:`pin_height`."""
         l1, l2 = self.crank_radius, self.rod_length
         s = np.sin(phi1)
         c = np.cos(phi1)
         return -l1 * s - l1 * l1 * s * c / np.sqrt(l2 * l2 - (l1 * s) ** 2)
 
-    def rod_angle(self, phi1):
+    def rod_angle(self, phi1: ArrayLike) -> np.ndarray | float:
         """Absolute rod angle phi2 = -arcsin(lambda sin phi1) [rad]."""
         return -np.arcsin(self.lam * np.sin(phi1))
 
-    def rod_angle_derivative(self, phi1):
+    def rod_angle_derivative(self, phi1: ArrayLike) -> np.ndarray | float:
         """dphi2/dphi1 = -lambda cos phi1 / sqrt(1 - lambda^2 sin^2 phi1) [-]."""
         lam = self.lam
         s = np.sin(phi1)
         return -lam * np.cos(phi1) / np.sqrt(1.0 - (lam * s) ** 2)
 
-    def volume(self, phi1, compression_ratio: float = 10.0):
+    def volume(self, phi1: ArrayLike, compression_ratio: float = 10.0) -> np.ndarray | float:
         """Cylinder volume V = Vc + A (y_TDC - y) [m^3].
 
         Parameters

@@ -74,7 +74,7 @@ def synthetic_pressure_curve(
     geometry: EngineGeometry = DEFAULT_GEOMETRY,
     n_points: int = N_POINTS_DEFAULT,
     full_output: bool = False,
-):
+) -> tuple[np.ndarray, np.ndarray] | tuple[np.ndarray, np.ndarray, dict]:
     """Synthetic four-stroke spark-ignition gauge-pressure curve p(phi1).
 
     See :mod:`moreau.problems.piston.pressure` for the model.  All angles are
