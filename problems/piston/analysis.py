@@ -232,7 +232,9 @@ def settled_speed_rpm(traj: mo.Trajectory, params: PistonParameters, skip_cycles
     A first-order extrapolation: measured at h = 1e-3 (e = 0, D = 80.04 mm), a run
     whose mean speed is 2005.79 rpm gives 1988.37 rpm, while runs of 13 000–18 000
     cycles settle at 1988.57–1988.64 rpm (fitted, README); a run restarted at 1988.46
-    rpm gives 1988.65 rpm. It is the settled speed of the discretised engine at the
+    rpm gives 1988.65 rpm. With slaps the error grows with the correction: e = 0.9 gives
+    1988.71 against 1989.05–1989.13 rpm at D = 80.04 mm, and 1956.03 against
+    1957.39–1957.58 rpm at D = 80.2 mm (a 50 rpm correction). It is the settled speed of the discretised engine at the
     run's step h (O(h): 1988.6 rpm at h = 1e-3, 1996.0 at 1e-4).
 
     Parameters
