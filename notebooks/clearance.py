@@ -87,7 +87,8 @@ runs = sweep(piston_point, grid, out=os.path.join(DATA_DIR, f"clearance_{tag}.pa
 print(f"sweep: {time.perf_counter() - t0:.1f} s wall, {runs['wall_time_s'].sum():.0f} s of simulation")
 assert runs["error"].isna().all(), runs.loc[runs["error"].notna(), ["e", "D_mm", "error"]]
 runs[["e", "D_mm", "clearance_um", "h", "side_changes", "slaps_mean", "impacts_mean", "energy_lost_J_mean",
-      "max_impulse_Ns", "flight_deg_mean", "rpm", "max_penetration_ratio"]]
+      "max_impulse_Ns", "flight_deg_mean", "mean_speed_rpm",
+      "settled_speed_rpm", "max_penetration_ratio"]]
 
 # %%
 for e in E:

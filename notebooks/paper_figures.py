@@ -54,7 +54,8 @@ H, TRANSIENT, CYCLES = (1e-3, 1, 1) if SMALL else (1e-4, 1, 3)
 cases = [Case(e=e, D=D, h=H, cycles=CYCLES, transient=TRANSIENT) for e, D in PAPER_CASES]
 rows = run_cases(cases, OUT, progress=False)
 summary = pd.DataFrame(rows)
-summary[["e", "D_mm", "h", "cycles", "rpm", "side_changes_per_cycle", "side_change_angles_deg", "impacts_per_cycle",
+summary[["e", "D_mm", "h", "cycles", "mean_speed_rpm", "settled_speed_rpm", "side_changes_per_cycle",
+         "side_change_angles_deg", "impacts_per_cycle",
          "energy_lost_per_cycle_J", "max_penetration_over_clearance", "wall_time_s"]]
 
 # %%

@@ -100,8 +100,8 @@ runs = sweep(piston_point, grid, out=os.path.join(DATA_DIR, f"restitution_{tag}.
              cache_key=piston_cache_key())  # recomputed when the model or the engine changes
 print(f"sweep: {time.perf_counter() - t0:.1f} s wall, {runs['wall_time_s'].sum():.0f} s of simulation")
 assert runs["error"].isna().all(), runs.loc[runs["error"].notna(), ["e", "error"]]
-runs[["e", "side_changes", "slaps_mean", "impacts_mean", "energy_lost_J_mean", "flight_deg_mean", "rpm",
-      "max_penetration_ratio", "wall_time_s"]]
+runs[["e", "side_changes", "slaps_mean", "impacts_mean", "energy_lost_J_mean", "flight_deg_mean", "mean_speed_rpm",
+      "settled_speed_rpm", "max_penetration_ratio", "wall_time_s"]]
 
 # %%
 fig = plot_sweep(runs, "e", "restitution e", title=f"D = {D_MM} mm (clearance 40 µm), h = {RUN['h']:g}")

@@ -140,8 +140,10 @@ def register_piston(subparsers: Any) -> None:
                                description="Simulate the piston - connecting rod - crankshaft engine (the paper's "
                                            "three cases, or the one given by --e/--D), discard the transient, and "
                                            "write figures, summary.csv and the trajectories into --out.",
-                               epilog="summary.csv: e, D_mm (mm), h (τ), rpm (rev/min, mean over the analyzed "
-                                      "cycles), side_change_angles_deg (crank angle, °), energy_lost_per_cycle_J "
+                               epilog="summary.csv: e, D_mm (mm), h (τ), mean_speed_rpm (rev/min, mean over the "
+                                      "analyzed cycles), settled_speed_rpm (rev/min, energy-balance "
+                                      "estimate of the speed the engine settles at), side_change_angles_deg "
+                                      "(crank angle, °), energy_lost_per_cycle_J "
                                       "(J), max_slap_impulse_Ns (N s), max_penetration_over_clearance "
                                       "(dimensionless), wall_time_s (s), us_per_step (µs). The trajectories "
                                       "(.npz) are in the model's non-dimensional units; traj.units names them and "
@@ -215,7 +217,8 @@ def register_sweep(subparsers: Any) -> None:
                                            "diameters D (cartesian product) on a local process pool or a Dask "
                                            "cluster; one row per point in --out. An interrupted sweep resumes: "
                                            "run the same command again.",
-                               epilog="table columns: e, D_mm (mm), clearance_um (µm), rpm (rev/min), "
+                               epilog="table columns: e, D_mm (mm), clearance_um (µm), mean_speed_rpm and "
+                                      "settled_speed_rpm (rev/min), "
                                       "energy_lost_J_mean (J per cycle), max_impulse_Ns (N s), wall_time_s (s); "
                                       "counts per cycle (side_changes_mean, slaps_mean, impacts_mean); h is in τ "
                                       "(see --h). See moreau.problems.piston.study.piston_point.")

@@ -172,7 +172,6 @@ def event_driven(
     if y.ndim != 1 or y.size % 2:
         raise ValueError(f"y0 must be a vector (q0, v0) of even length, got shape {y.shape}")
     n = y.size // 2
-    M_of = _as_mass(mass)
 
     def gaps(q):
         return np.atleast_1d(np.asarray(gap(q), dtype=float))
@@ -183,16 +182,31 @@ def event_driven(
     g0 = gaps(y[:n])
     if np.any(g0 < -1e-12):
         raise ValueError(f"initial state penetrates a barrier: g(q0) = {g0.tolist()}")
-    m = g0.size
+    events = [_gap_event(gaps, n, r) for r in range(g0.size)]
+    return _integrate(rhs, events, jac, _as_mass(mass), e, t0, t1, y, dict(rtol=rtol, atol=atol, max_step=max_step),
+                      min_rebound=min_rebound, max_impacts=max_impacts)
 
-    def make_event(r):
-        def ev(t, yy):
-            return gaps(yy[:n])[r]
-        ev.terminal = True
-        ev.direction = -1.0
-        return ev
 
-    events = [make_event(r) for r in range(m)]
+def _gap_event(gaps: Callable, n: int, r: int) -> Callable:
+    """Terminal event of ``solve_ivp`` on gap row ``r`` closing (decreasing through 0)."""
+    def ev(t, yy):
+        return gaps(yy[:n])[r]
+    ev.terminal = True
+    ev.direction = -1.0
+    return ev
+
+
+def _newton_reset(M: np.ndarray, G: np.ndarray, v: np.ndarray, U: float, e: float) -> np.ndarray:
+    """Post-impact velocity of one row: v⁺ = v⁻ − (1 + e) M⁻¹Gᵀ (G v⁻) / (G M⁻¹ Gᵀ)."""
+    MinvGt = np.linalg.solve(M, G)
+    return v - (1.0 + e) * MinvGt * (U / float(G @ MinvGt))
+
+
+def _integrate(rhs: Callable, events: list, jac: Callable, M_of: Callable, e: float, t0: float, t1: float,
+               y: np.ndarray, ivp: dict, *, min_rebound: float, max_impacts: int) -> EventDrivenSolution:
+    """The event loop of :func:`event_driven` from the checked start ``(t0, y)``: DOP853
+    (``ivp``: its rtol, atol, max_step) up to the next impact, Newton's reset, repeat."""
+    n = y.size // 2
     T, Y = [np.array([t0])], [y[None, :]]
     segments: list = []
     imp_t, imp_r, imp_u = [], [], []
@@ -200,19 +214,14 @@ def event_driven(
     t = t0
     u_max = 0.0
     while t < t1:
-        sol = solve_ivp(rhs, (t, t1), y, method="DOP853", rtol=rtol, atol=atol, events=events,
-                        dense_output=True, max_step=max_step)
-        if sol.status == -1:
-            status, message = "failed", f"solve_ivp failed at t = {sol.t[-1]:.12g}: {sol.message}"
-            T.append(sol.t[1:])
-            Y.append(sol.y[:, 1:].T)
-            segments.append((t, float(sol.t[-1]), sol.sol))
-            t = float(sol.t[-1])
-            break
+        sol = solve_ivp(rhs, (t, t1), y, method="DOP853", events=events, dense_output=True, **ivp)
         segments.append((t, float(sol.t[-1]), sol.sol))
         T.append(sol.t[1:])
         Y.append(sol.y[:, 1:].T)
         t = float(sol.t[-1])
+        if sol.status == -1:
+            status, message = "failed", f"solve_ivp failed at t = {sol.t[-1]:.12g}: {sol.message}"
+            break
         if sol.status == 0:
             break
         # impact: the row whose event fired (the first one if several did)
@@ -224,8 +233,7 @@ def event_driven(
         if U >= 0.0:  # grazing: nothing to reset
             y = y_minus
             continue
-        MinvGt = np.linalg.solve(M_of(q), G)
-        v_plus = v - (1.0 + e) * MinvGt * (U / float(G @ MinvGt))
+        v_plus = _newton_reset(M_of(q), G, v, U, e)
         y = np.concatenate([q, v_plus])
         T.append(np.array([t]))
         Y.append(y[None, :])
@@ -243,10 +251,10 @@ def event_driven(
             segments.append((t, t, None))
             status, message = "max_impacts", f"stopped after max_impacts = {max_impacts} impacts at t = {t:.12g}"
             break
-    T = np.concatenate(T)
-    Y = np.concatenate(Y, axis=0)
+    Ta = np.concatenate(T)
+    Ya = np.concatenate(Y, axis=0)
     return EventDrivenSolution(
-        t=T, q=Y[:, :n], v=Y[:, n:],
+        t=Ta, q=Ya[:, :n], v=Ya[:, n:],
         impact_times=np.array(imp_t), impact_rows=np.array(imp_r, dtype=int),
         impact_velocities=np.array(imp_u).reshape(-1, 2),
         status=status, t_end=t, message=message, _segments=segments,

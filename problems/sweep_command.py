@@ -111,8 +111,8 @@ def run_sweep(args: argparse.Namespace) -> int:
         raise Stopped(f"the finished points are kept in {args.out}.parts/ and the table {args.out} lists every "
                       "point (error 'not computed' for the others); run the same command to resume",
                       interrupt_exit_code(exc)) from None
-    cols = ["e", "D_mm", "side_changes_mean", "slaps_mean", "impacts_mean", "energy_lost_J_mean", "rpm",
-            "max_penetration_ratio", "error"]
+    cols = ["e", "D_mm", "side_changes_mean", "slaps_mean", "impacts_mean", "energy_lost_J_mean", "mean_speed_rpm",
+            "settled_speed_rpm", "max_penetration_ratio", "error"]
     with pd.option_context("display.width", 200, "display.max_rows", 500):
         print(df[[c for c in cols if c in df.columns]].to_string(index=False, float_format=lambda x: f"{x:.6g}"))
     print(f"table written to {args.out}")

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from moreau.problems.piston import PistonParameters, cycle_figures, piston_model, steady_speed_rpm
+from moreau.problems.piston import PistonParameters, cycle_figures, mean_speed_rpm, piston_model
 from moreau.problems.piston.analysis import sliding_phases
 
 pytestmark = pytest.mark.slow
@@ -34,9 +34,9 @@ def test_six_side_changes_per_cycle_for_e0(h, plastic_fine):
     assert np.ptp(angles, axis=0).max() < 2.0
 
 
-def test_steady_speed_2000_rpm_for_e0(plastic_fine):
+def test_mean_speed_2000_rpm_for_e0(plastic_fine):
     model, traj, figs = plastic_fine
-    rpm = steady_speed_rpm(traj, model.params, skip_cycles=TRANSIENT)
+    rpm = mean_speed_rpm(traj, model.params, skip_cycles=TRANSIENT)
     assert rpm == pytest.approx(2000.0, rel=0.02)
     # and it stays there: cycle means agree to 0.1 %
     means = [c.mean_rpm for c in figs]

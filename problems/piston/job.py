@@ -1,5 +1,11 @@
 """The main job: simulate the paper's piston cases, discard the transient, write figures,
 a summary table and the trajectories. Used by ``moreau piston``.
+
+Speeds in the summary (rev/min): ``mean_speed_rpm`` is the mean crank speed over the
+analysed cycles (:func:`~moreau.problems.piston.analysis.mean_speed_rpm`; the runs start
+at 2000 rpm and keep about that speed for thousands of cycles), ``settled_speed_rpm`` the
+energy-balance estimate of the speed the engine settles at, from the same cycles
+(:func:`~moreau.problems.piston.analysis.settled_speed_rpm`).
 """
 
 from __future__ import annotations
@@ -15,8 +21,8 @@ import numpy as np
 import moreau as mo
 from moreau._pool import interrupt_for_signal, run_jobs
 
-from .analysis import cycle_figures, max_penetration_ratio, steady_speed_rpm
-from .model import piston_model
+from .analysis import cycle_figures, max_penetration_ratio, mean_speed_rpm, settled_speed_rpm
+from .model import PistonModel, piston_model
 from .params import PistonParameters
 
 __all__ = ["PAPER_CASES", "STATUSES", "Case", "run_case", "run_cases", "summary_row", "case_files"]
@@ -96,7 +102,7 @@ def run_case(case: Case, out: str, progress: bool | dict = False) -> dict:
     stem = os.path.join(out, f"piston_{case.label}")
     record_every = case.record_every or max(1, int(round(2e-3 / case.h)))  # ~0.1° of crank angle per record
     wall0 = time.perf_counter()
-    traj, status = None, None
+    traj, status, model = None, None, None
     try:
         model = piston_model(params)
         traj = model.simulate(case.transient + case.cycles, case.h, solver=case.solver, backend=case.backend,
@@ -114,7 +120,7 @@ def run_case(case: Case, out: str, progress: bool | dict = False) -> dict:
     traj.extra.update({"case": asdict(case), "params": asdict(params)})
     # the row is computed in memory first: a file that cannot be written (a full disk)
     # costs that file, never the numbers, and the row names the file and the reason
-    row, figs = _figures_row(case, params, traj, status or traj.status, wall)
+    row, figs = _figures_row(case, params, traj, status or traj.status, wall, model)
     unsaved = []
     path = stem + (".npz" if traj.completed else ".partial.npz")
     try:
@@ -162,22 +168,28 @@ def summary_row(case: Case, status: str, wall: float = float("nan")) -> dict:
     nan = float("nan")
     return {
         "e": case.e, "D_mm": round(1e3 * case.D, 4), "h": case.h, "status": status, "cycles": 0,
-        "rpm": nan, "side_changes_per_cycle": "", "side_change_angles_deg": "", "impacts_per_cycle": nan,
+        "mean_speed_rpm": nan, "settled_speed_rpm": nan,
+        "side_changes_per_cycle": "", "side_change_angles_deg": "", "impacts_per_cycle": nan,
         "max_penetration_over_clearance": nan, "energy_lost_per_cycle_J": nan, "max_slap_impulse_Ns": nan,
         "drift_control": case.drift_control, "fallbacks": 0, "wall_time_s": round(wall, 2), "us_per_step": nan,
         "warnings": "",
     }
 
 
-def _figures_row(case: Case, params: PistonParameters, traj: mo.Trajectory, status: str, wall: float):
+def _figures_row(case: Case, params: PistonParameters, traj: mo.Trajectory, status: str, wall: float,
+                 model: PistonModel | None = None):
     figs = [c for c in cycle_figures(traj, params) if c.cycle >= case.transient]
+    nan = float("nan")
     row = {
         "e": case.e,
         "D_mm": round(1e3 * case.D, 4),
         "h": case.h,
         "status": status,
         "cycles": len(figs),
-        "rpm": steady_speed_rpm(traj, params, skip_cycles=case.transient) if figs else float("nan"),
+        # the speed the run had over the analysed cycles (it starts at params.rpm), and the
+        # energy-balance estimate of the speed the engine settles at (analysis.settled_speed_rpm)
+        "mean_speed_rpm": mean_speed_rpm(traj, params, skip_cycles=case.transient) if figs else nan,
+        "settled_speed_rpm": settled_speed_rpm(traj, params, case.transient, model) if figs else nan,
         "side_changes_per_cycle": " ".join(str(c.side_changes) for c in figs),
         "side_change_angles_deg": " ".join(f"{a:.0f}" for a in figs[-1].change_angles_deg) if figs else "",
         "impacts_per_cycle": float(np.mean([c.impacts for c in figs])) if figs else float("nan"),

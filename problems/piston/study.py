@@ -4,7 +4,9 @@ Module-level, picklable, pure functions of their arguments (same arguments, same
 numbers, except the measured ``wall_time_s``): :func:`piston_point` (per-cycle figures
 of one engine, for ``moreau.sweeps.sweep``) and :func:`bifurcation_samples` (the pin's
 lateral position and the piston tilt sampled once per cycle at fixed crank angles — a
-Poincaré section φ1 = const mod 720° of the self-excited engine).
+Poincaré section φ1 = const mod 720° of the self-excited engine). The figures of such
+sweeps (:func:`plot_sweep`, :func:`plot_section`, :func:`plot_side_change_angles`) live in
+:mod:`moreau.problems.piston.figures` and are importable from here too.
 
 Like the main job (:func:`moreau.problems.piston.job.run_case`), the runs use drift control
 (``drift_control=True``: the engine's :class:`moreau.CombinedProjection`, which projects
@@ -36,10 +38,12 @@ from .analysis import (
     cycle_index,
     lateral_position,
     max_penetration_ratio,
+    mean_speed_rpm,
+    settled_speed_rpm,
     sliding_phases,
-    steady_speed_rpm,
     tilt,
 )
+from .figures import plot_section, plot_side_change_angles, plot_sweep
 from .model import piston_model
 from .params import PistonParameters
 
@@ -178,7 +182,10 @@ def piston_point(e: float, D_mm: float = 80.04, cycles: int = 5, transient: int 
         ``flight_deg`` (crank angle with no corner
         in contact, degrees), ``sliding_phases`` (one wall alone carrying the piston for
         at least 1° of crank angle); ``side_change_angles_deg`` (last cycle),
-        ``rpm`` (mean crank speed over the analyzed cycles, rev/min),
+        ``mean_speed_rpm`` (mean crank speed over the analyzed cycles, rev/min; the run
+        starts at 2000 rpm), ``settled_speed_rpm`` (energy-balance estimate of the speed
+        the engine settles at, from the same cycles, rev/min; see
+        :func:`~moreau.problems.piston.analysis.settled_speed_rpm`),
         ``max_penetration_ratio`` (largest penetration over every step of the run, the
         transient included, / (D − d): the figure ``moreau piston`` reports, not the
         recorded states'),
@@ -231,7 +238,8 @@ def piston_point(e: float, D_mm: float = 80.04, cycles: int = 5, transient: int 
         "energy_lost_J_mean": mean([c.energy_lost for c in figs]),
         "flight_deg_mean": mean(flight),
         "sliding_phases_mean": mean(n_phases),
-        "rpm": steady_speed_rpm(traj, params, skip_cycles=transient),
+        "mean_speed_rpm": mean_speed_rpm(traj, params, skip_cycles=transient),
+        "settled_speed_rpm": settled_speed_rpm(traj, params, transient),  # the scene _run built
         "max_penetration_ratio": max_penetration_ratio(traj, params),  # every step, not the records
         "max_impulse_Ns": max(c.max_impulse for c in figs),
         "side_changes": [c.side_changes for c in figs],
@@ -286,7 +294,7 @@ def bifurcation_samples(e: float, D_mm: float = 80.04, cycles: int = 30, h: floa
     }
 
 
-# -- tables and figures of sweeps ----------------------------------------------------------
+# -- tables of sweeps (their figures, plot_sweep etc., are in .figures) --------------------
 def section_long(df, by: str | Sequence[str] = "e"):
     """Explode a table of :func:`bifurcation_samples` rows into one row per sample.
 
@@ -314,124 +322,3 @@ def section_long(df, by: str | Sequence[str] = "e"):
         frames.append(f)
     cols = by + ["cycle", "angle_deg", "x_O3", "phi3_mrad"]
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=cols)
-
-
-def _per_cycle(ax, df, x: str, col: str, label: str, color: str) -> None:
-    """Each analyzed cycle as a dot, the mean as a line, against parameter ``x``."""
-    xs = np.concatenate([[r[x]] * len(r[col]) for _, r in df.iterrows()]) if len(df) else []
-    ys = np.concatenate([list(r[col]) for _, r in df.iterrows()]) if len(df) else []
-    ax.plot(xs, ys, "o", ms=3, alpha=0.35, color=color, label="one cycle")
-    ax.plot(df[x], [np.mean(v) for v in df[col]], "-", color=color, lw=1.4, label="mean")
-    ax.set_ylabel(label)
-    ax.grid(alpha=0.3)
-
-
-def _log_counts(ax) -> None:
-    """A log y axis labelled 1, 2, 5, 10, 20, ... in plain numbers."""
-    from matplotlib.ticker import LogLocator, NullFormatter, ScalarFormatter
-
-    ax.set_yscale("log")
-    ax.yaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
-    ax.yaxis.set_major_formatter(ScalarFormatter())
-    ax.yaxis.set_minor_formatter(NullFormatter())
-
-
-def plot_sweep(df, x: str = "e", xlabel: str = "restitution e", title: str | None = None, log_x: bool = False):
-    """Four panels of a :func:`piston_point` sweep against one parameter: side changes,
-    impacts and energy dissipated at the impacts per cycle (every cycle a dot, the mean
-    a line), and the mean speed over the analyzed cycles with the largest penetration / clearance.
-
-    Returns the matplotlib Figure (never shown).
-    """
-    import matplotlib.pyplot as plt
-
-    ok = df[df["error"].isna()].sort_values(x)
-    fig, axes = plt.subplots(4, 1, figsize=(7.5, 9.5), sharex=True)
-    _per_cycle(axes[0], ok, x, "side_changes", "side changes / cycle", "C0")
-    axes[0].axhline(6, color="k", lw=0.6, ls="--", label="the paper's six")
-    axes[0].legend(fontsize="small", loc="upper left")
-    if len(ok) and max(max(v) for v in ok["side_changes"]) > 20:  # a rattling piston: hundreds
-        _log_counts(axes[0])
-    _per_cycle(axes[1], ok, x, "slaps", "slaps / cycle\n(impulse ≥ 1 % of max)", "C1")
-    axes[1].plot(ok[x], ok["impacts_mean"], "--", color="0.5", lw=1, label="all logged impacts (mean)")
-    axes[1].legend(fontsize="small", loc="upper left")
-    counts = [x for v in ok["impacts"] for x in v if x > 0] if len(ok) else []
-    if counts and max(counts) > 10 * min(counts):  # counts spanning decades
-        _log_counts(axes[1])
-    _per_cycle(axes[2], ok, x, "energy_lost_J", "energy lost at\nimpacts / cycle (J)", "C3")
-    axes[3].plot(ok[x], ok["rpm"], "o-", ms=3, color="C2")
-    axes[3].set_ylabel("mean speed over\nthe cycles (rpm)", color="C2")
-    axes[3].ticklabel_format(axis="y", useOffset=False, style="plain")
-    axes[3].grid(alpha=0.3)
-    tw = axes[3].twinx()
-    tw.plot(ok[x], ok["max_penetration_ratio"], "s:", ms=3, color="C7")
-    tw.set_ylabel("max penetration\n/ clearance", color="C7")
-    tw.set_ylim(bottom=0)
-    axes[3].set_xlabel(xlabel)
-    if log_x:
-        axes[3].set_xscale("log")
-    if title:
-        axes[0].set_title(title)
-    fig.align_ylabels(axes)
-    fig.tight_layout()
-    return fig
-
-
-def plot_section(long, x: str = "e", xlabel: str = "restitution e", title: str | None = None,
-                 log_x: bool = False):
-    """Bifurcation-like diagram: x_O3 and φ3 sampled once per cycle (rows of
-    :func:`section_long`) against a parameter, one colour per crank angle.
-
-    Returns the matplotlib Figure (never shown).
-    """
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(2, 1, figsize=(7.5, 6.5), sharex=True)
-    for j, (angle, g) in enumerate(long.groupby("angle_deg", sort=True)):
-        kw = {"s": 5, "alpha": 0.6, "color": f"C{j}", "lw": 0, "label": f"φ1 = {angle:g}° (mod 720°)"}
-        axes[0].scatter(g[x], g["x_O3"], **kw)
-        axes[1].scatter(g[x], g["phi3_mrad"], **kw)
-    for v in (-1.0, 1.0):
-        axes[0].axhline(v, color="k", lw=0.5, ls="--")
-    axes[0].set_ylabel("x_O3 / ((D−d)/2)")
-    axes[1].set_ylabel("tilt φ3 (mrad)")
-    axes[1].set_xlabel(xlabel)
-    axes[0].legend(fontsize="small", markerscale=2)
-    for ax in axes:
-        ax.grid(alpha=0.3)
-    if log_x:
-        axes[1].set_xscale("log")
-    if title:
-        axes[0].set_title(title)
-    fig.tight_layout()
-    return fig
-
-
-def plot_side_change_angles(df, x: str = "e", xlabel: str = "restitution e", title: str | None = None,
-                            log_x: bool = False):
-    """Crank angles (0–720°) of the side changes of the last analyzed cycle against a
-    parameter, over the strokes; with the crank angle spent in flight per cycle.
-
-    Returns the matplotlib Figure (never shown).
-    """
-    import matplotlib.pyplot as plt
-
-    ok = df[df["error"].isna()].sort_values(x)
-    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(7.5, 7), sharex=True, gridspec_kw={"height_ratios": [3, 1.3]})
-    for _, r in ok.iterrows():
-        ax.plot([r[x]] * len(r["side_change_angles_deg"]), r["side_change_angles_deg"], "o", ms=3.5, color="C0")
-    for a, name in ((0, "expansion"), (180, "exhaust"), (360, "intake"), (540, "compression")):
-        ax.axhspan(a, a + 180, color="0.5", alpha=0.08 if a % 360 == 0 else 0.0)
-        ax.text(1.01, (a + 90) / 720, name, transform=ax.transAxes, rotation=90, va="center", fontsize="small")
-    ax.set_ylim(0, 720)
-    ax.set_yticks(np.arange(0, 721, 90))
-    ax.set_ylabel("crank angle of a side change\n(deg from firing TDC)")
-    ax.grid(alpha=0.3)
-    _per_cycle(ax2, ok, x, "flight_deg", "in flight\n(deg / cycle)", "C4")
-    ax2.set_xlabel(xlabel)
-    if log_x:
-        ax2.set_xscale("log")
-    if title:
-        ax.set_title(title)
-    fig.tight_layout()
-    return fig

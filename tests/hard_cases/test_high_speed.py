@@ -11,7 +11,7 @@ pressure curve: 4π M0' + W_damp(10 000 rpm) = 4π M0 + W_damp(2000 rpm), M0' = 
 import numpy as np
 import pytest
 
-from moreau.problems.piston import PistonParameters, cycle_figures, piston_model, steady_speed_rpm
+from moreau.problems.piston import PistonParameters, cycle_figures, mean_speed_rpm, piston_model
 from moreau.problems.piston.analysis import max_penetration_ratio
 from moreau.problems.piston.pressure import FOUR_PI, calibrate, damping_work
 
@@ -48,7 +48,7 @@ def test_engine_at_10000_rpm(e):
     audit_impacts(traj)
     # speed: the work balance holds at 10 000 rpm, so the engine stays there — within
     # 0.5 % (the 2000 rpm model settles 0.3 % above its reference; measured −0.03 % here)
-    rpm = steady_speed_rpm(traj, model.params, skip_cycles=1)
+    rpm = mean_speed_rpm(traj, model.params, skip_cycles=1)
     assert rpm == pytest.approx(RPM, rel=0.005)
     # with the flywheel the speed varies little within a cycle (measured 0.9992–1.0002)
     assert np.abs(traj.v[:, 0] - 1).max() < 0.01
