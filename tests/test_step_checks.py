@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import moreau as mo
-import moreau.step.integrator
+import moreau.step.base
 from moreau.model.chain import ChainGravity, JointDamping, Link, PendulumChain
 
 
@@ -90,7 +90,7 @@ def test_a_configuration_dependent_mass_matrix_is_factorized_once_per_step(monke
     scene = pendulum_chain()
     q0, v0, h, steps = [1.0, -0.5], [0.0, 0.0], 1e-3, 500
     calls = {"cholesky": 0, "solve": 0}
-    real_cholesky, real_solve = moreau.step.integrator._cholesky, np.linalg.solve
+    real_cholesky, real_solve = moreau.step.base._cholesky, np.linalg.solve
 
     def cholesky(*a):
         calls["cholesky"] += 1
@@ -100,7 +100,7 @@ def test_a_configuration_dependent_mass_matrix_is_factorized_once_per_step(monke
         calls["solve"] += 1
         return real_solve(*a)
 
-    monkeypatch.setattr(moreau.step.integrator, "_cholesky", cholesky, raising=False)
+    monkeypatch.setattr(moreau.step.base, "_cholesky", cholesky, raising=False)
     monkeypatch.setattr(np.linalg, "solve", solve)
     py = mo.simulate(scene, (0.0, steps * h), q0, v0, h, backend="python", solver="exact", check_jacobian=False)
     monkeypatch.undo()

@@ -15,7 +15,7 @@ from numba import njit
 from moreau.compiled.usercalls import U_BIAS, U_FORCES, U_GAPS, U_JACOBIANS, U_MASS, call_user
 from moreau.core import kernels as _k
 
-# allocation-free, so without reference counting (see kernels._jit)
+# allocation-free, so without reference counting (see moreau.core.kernels.jit)
 _jit = njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]
 # called from the loop only, inlined into it by numba (see moreau.compiled.loop): no CPython or C
 # entry points to build

@@ -35,7 +35,7 @@ __all__ = ["lcp_dual_active_set", "lcp_enumerate", "kkt_residuals_kernel", "solv
            "OK", "FAILED"]
 
 OK, FAILED = 0, 1
-# allocation-free, so without reference counting; inlined by LLVM (see kernels._jit)
+# allocation-free, so without reference counting; inlined by LLVM (see moreau.core.kernels.jit)
 _jit = njit(cache=True, nogil=True, forceinline=True, _nrt=False)  # type: ignore[call-overload]
 # internal helpers: no CPython or C entry points to build
 _inline = njit(cache=True, nogil=True, forceinline=True, _nrt=False,  # type: ignore[call-overload]

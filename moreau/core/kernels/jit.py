@@ -1,0 +1,20 @@
+"""The one set of numba options every physics kernel is compiled with.
+
+Importing this module first checks the compile cache (:func:`moreau.core.jitcache.ensure_fresh`),
+so no stale machine code of moreau is loaded.
+"""
+
+from numba import njit
+
+from moreau.core.jitcache import ensure_fresh
+
+__all__ = ["jit"]
+
+ensure_fresh()  # before any cached machine code of moreau is loaded
+
+# Each kernel is compiled once and inlined where it is called by LLVM (forceinline): as
+# calls, the piston step costs a quarter more; inlined by numba (inline="always") at
+# every level, the loop took minutes and gigabytes to compile (see moreau.compiled.loop).
+# _nrt=False (numba's internal flag): kernels allocate nothing, so they need no reference
+# counting, and the Python path and the loop (compiled without it) share one version.
+jit = njit(cache=True, nogil=True, forceinline=True, _nrt=False)  # type: ignore[call-overload]

@@ -1,0 +1,85 @@
+"""Dense linear algebra for small SPD systems (leading k x k blocks, no views)."""
+
+from __future__ import annotations
+
+import math
+
+from moreau.core.kernels.jit import jit as _jit
+
+__all__ = ["cholesky", "lt_solve", "cho_solve", "sym_product", "symmetry_defect"]
+
+
+# -- dense linear algebra for small SPD systems (leading k x k blocks, no views) -----------
+@_jit
+def cholesky(M, L, k):
+    """Lower Cholesky factor of the leading k x k block of M into L; returns the index of
+    the first non-positive pivot, or −1 when the block is positive definite."""
+    for j in range(k):
+        t = M[j, j]
+        for i in range(j):
+            t -= L[j, i] * L[j, i]
+        if not t > 0.0:  # also NaN
+            return j
+        d = math.sqrt(t)
+        L[j, j] = d
+        for i in range(j + 1, k):
+            u = M[i, j]
+            for l in range(j):
+                u -= L[i, l] * L[j, l]
+            L[i, j] = u / d
+        for i in range(j):
+            L[i, j] = 0.0
+    return -1
+
+
+@_jit
+def lt_solve(L, out, k):
+    """out[:k] = L⁻ᵀ out[:k] in place, L lower triangular (back substitution)."""
+    for i in range(k - 1, -1, -1):
+        t = out[i]
+        for l in range(i + 1, k):
+            t -= L[l, i] * out[l]
+        out[i] = t / L[i, i]
+
+
+@_jit
+def cho_solve(L, b, out, k):
+    """out[:k] = M⁻¹ b[:k] with M = L Lᵀ on the leading k x k block (b, out may alias)."""
+    for i in range(k):
+        t = b[i]
+        for l in range(i):
+            t -= L[i, l] * out[l]
+        out[i] = t / L[i, i]
+    lt_solve(L, out, k)
+
+
+@_jit
+def sym_product(A, B, W, k, n):
+    """W[:k, :k] = A[:k, :n] B[:k, :n]ᵀ for a product known to be symmetric: the lower
+    triangle is summed and mirrored, so that W is exactly symmetric."""
+    for i in range(k):
+        for j in range(i + 1):
+            u = 0.0
+            for l in range(n):
+                u += A[i, l] * B[j, l]
+            W[i, j] = u
+            W[j, i] = u
+
+
+@_jit
+def symmetry_defect(M):
+    """max |M − Mᵀ| relative to max |M| (0 for a symmetric matrix)."""
+    n = M.shape[0]
+    big = 0.0
+    asym = 0.0
+    for i in range(n):
+        for j in range(n):
+            a = abs(M[i, j])
+            if a > big:
+                big = a
+            d = abs(M[i, j] - M[j, i])
+            if d > asym:
+                asym = d
+    if big == 0.0:
+        return 0.0
+    return asym / big
