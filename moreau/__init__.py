@@ -21,7 +21,7 @@ from .core.version import DISTRIBUTION, __version__  # noqa: F401 - DISTRIBUTION
 
 _install_moved()
 
-from .compiled.runner import ensure_compiled
+from .compiled.cache import ensure_compiled
 from .contact.problem import OneStepProblem, Residuals
 from .contact.solvers import (
     ContactSolver,

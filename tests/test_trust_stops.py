@@ -214,7 +214,7 @@ class _InterruptingModel:
 
 def test_piston_job_saves_a_trajectory_carried_by_the_interrupt_and_starts_nothing_more(tmp_path, monkeypatch):
     monkeypatch.setattr(job, "piston_model", lambda params: _InterruptingModel())
-    monkeypatch.setattr(job, "_figures_row", lambda case, params, traj, status, wall: (
+    monkeypatch.setattr(job, "_figures_row", lambda case, params, traj, status, wall, model=None: (
         {**job.summary_row(case, status, wall), "cycles": 0}, []))
     cases = [job.Case(e=0.0, D=0.08004, h=1e-3, cycles=1, transient=0), job.Case(e=0.9, D=0.08004, h=1e-3, cycles=1)]
     with pytest.raises(KeyboardInterrupt) as info:

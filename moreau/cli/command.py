@@ -174,7 +174,7 @@ def register_compile(subparsers: Any) -> None:
 
 
 def _run_compile(args: argparse.Namespace) -> int:
-    from moreau.compiled.runner import ensure_compiled
+    from moreau.compiled.cache import ensure_compiled
     from moreau.core.jitcache import cache_dir
 
     seconds = ensure_compiled()

@@ -8,6 +8,7 @@ May import: :mod:`moreau.core`, :mod:`moreau.model`, :mod:`moreau.contact`,
 :mod:`moreau.results`.
 """
 
-from moreau.compiled.runner import COMPILE_SECONDS, COMPILED_SOLVERS, ensure_compiled, run_compiled
+from moreau.compiled.cache import COMPILE_SECONDS, ensure_compiled
+from moreau.compiled.runner import COMPILED_SOLVERS, run_compiled
 
 __all__ = ["COMPILED_SOLVERS", "COMPILE_SECONDS", "ensure_compiled", "run_compiled"]

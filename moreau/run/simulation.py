@@ -4,25 +4,27 @@ from __future__ import annotations
 
 import logging
 import math
-import sys
-import time
-from typing import Any, Protocol, cast
+from dataclasses import dataclass
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from moreau.compiled.cache import ensure_compiled
+from moreau.compiled.runner import run_compiled
 from moreau.contact.solvers import ContactSolver
-from moreau.core.errors import SimulationError, SolverError, attach_trajectory
+from moreau.core.errors import attach_trajectory
 from moreau.core.validation import as_positive, as_record_every, as_time_span, checked_start
 from moreau.model.scene import Scene
-from moreau.results.trajectory import ImpactLog, ImpactRow, SolverStats, Trajectory
+from moreau.results.trajectory import Trajectory
+from moreau.run.backend import DriftControl, choose_backend, initial_state_only
 from moreau.run.flights import flight_gaps, initial_flight
+from moreau.run.progress import progress_bar
+from moreau.run.python_loop import run_python
 from moreau.run.trust import check_jacobians, penetration_warnings
 from moreau.step.integrator import (
-    BadModelOutput,
     MoreauJeanMidpoint,
     MoreauJeanPredictorCorrector,
-    NonFiniteState,
     OneStepIntegrator,
     check_initial_state,
 )
@@ -31,18 +33,9 @@ __all__ = ["simulate"]
 
 log = logging.getLogger(__name__)
 
-_PROGRESS_MIN_STEPS = 20_000
 _MAX_STEPS = 1e11  # a guard against a mistyped h, far beyond any run that finishes
 _MAX_RECORD_BYTES = 8 * 2**30
 
-
-
-class DriftControl(Protocol):
-    """What ``simulate(..., drift_control=...)`` accepts (:class:`moreau.PositionProjection`)."""
-
-    def project(self, integ: Any, q: np.ndarray) -> np.ndarray:
-        """The corrected end position q⁺ of the integrator's last step."""
-        ...
 
 
 def simulate(
@@ -158,289 +151,113 @@ def simulate(
         (``status == "interrupted"``): nothing computed is lost, and a script that
         loops over runs stops.
     """
+    plan = _plan(scene, t_span, h, tol, record_every, integrator, backend, solver, fallback, drift_control,
+                 check_jacobian, penetration_limit, flight_gap, initial_penetration)
+    run = _compiled_path if plan.path == "compiled" else _python_path
+    traj = run(scene, plan, q0, v0, integrator, drift_control, check_jacobian, progress, energy)
+    traj.warnings = penetration_warnings(scene, traj, plan.h, plan.penetration_limit)
+    return traj
+
+
+@dataclass
+class _Plan:
+    """A run's checked arguments and the path it takes."""
+
+    t0: float
+    h: float
+    tol: float
+    n_steps: int
+    stride: int
+    n_rec: int
+    path: str
+    cs: Any
+    solver: str | ContactSolver
+    fallback: str | ContactSolver | None
+    flight_gap: np.ndarray
+    penetration_limit: float | None
+    initial_penetration: float
+
+
+def _plan(scene: Scene, t_span: tuple[float, float], h: float, tol: float, record_every: int,
+          integrator: type[OneStepIntegrator], backend: str, solver: str | ContactSolver | None,
+          fallback: str | ContactSolver | None, drift_control: DriftControl | None, check_jacobian: bool,
+          penetration_limit: float | None, flight_gap: ArrayLike, initial_penetration: float) -> _Plan:
+    """Validate every argument once (``ValueError`` naming the bad one) and choose the path."""
     if not isinstance(scene, Scene):
         raise ValueError(f"scene must be a Scene, got {scene!r}")
-    t0, t1 = as_time_span(t_span)
-    h = as_positive(h, "step size h")
-    tol = as_positive(tol, "tol")
-    record_every = as_record_every(record_every)
+    t0, n_steps, stride, n_rec = _steps_and_records(scene, t_span, h, record_every)
+    h, tol = as_positive(h, "step size h"), as_positive(tol, "tol")
     if not (isinstance(integrator, type) and issubclass(integrator, OneStepIntegrator)):
         raise ValueError(f"integrator must be a OneStepIntegrator subclass, got {integrator!r}")
+    if penetration_limit is not None:
+        penetration_limit = as_positive(penetration_limit, "penetration_limit")
+    if not isinstance(check_jacobian, bool):
+        raise ValueError(f"check_jacobian must be True or False, got {check_jacobian!r}")
+    fg = flight_gaps(flight_gap, scene.nrows)
+    initial_penetration = as_positive(initial_penetration, "initial_penetration", allow_zero=True)
+    path, cs, solver, fallback = choose_backend(backend, scene, integrator, solver, fallback, drift_control)
+    return _Plan(t0, h, tol, n_steps, stride, n_rec, path, cs, solver, fallback, fg, penetration_limit,
+                 initial_penetration)
 
+
+def _compiled_path(scene: Scene, plan: _Plan, q0: ArrayLike, v0: ArrayLike, integrator: type[OneStepIntegrator],
+                   drift_control: DriftControl | None, check_jacobian: bool,
+                   progress: bool | dict[str, Any] | None, energy: bool) -> Trajectory:
+    """The run on the compiled loop, from a checked initial state."""
+    t0, q, v = checked_start(lambda: check_initial_state(scene, plan.t0, q0, v0, plan.initial_penetration),
+                             scene, plan.t0, q0, v0)
+    if check_jacobian and scene.nrows:
+        check_jacobians(scene, q)
+    bar = None
+    try:
+        ensure_compiled()  # before the progress bar moves: a first compile says so
+        bar = progress_bar(progress, plan.n_steps, scene.name)
+        return run_compiled(scene, plan.cs, t0, q, v, plan.h, plan.n_steps,
+                            theta=integrator is MoreauJeanPredictorCorrector, solver=cast(str, plan.solver),
+                            fallback=plan.fallback, stride=plan.stride, bar=bar, energy=energy, tol=plan.tol,
+                            drift_control=drift_control, flight_gap=plan.flight_gap,
+                            gmax0=initial_flight(scene, q, v))
+    except KeyboardInterrupt as exc:  # before the loop took over: the initial state is the run
+        if getattr(exc, "trajectory", None) is None:
+            attach_trajectory(exc, initial_state_only(scene, t0, q, v, plan.h, plan.stride, plan.solver,
+                                                      plan.fallback))
+        raise
+    finally:
+        if bar is not None:
+            bar.close()
+
+
+def _python_path(scene: Scene, plan: _Plan, q0: ArrayLike, v0: ArrayLike, integrator: type[OneStepIntegrator],
+                 drift_control: DriftControl | None, check_jacobian: bool,
+                 progress: bool | dict[str, Any] | None, energy: bool) -> Trajectory:
+    """The run on the Python reference loop."""
+    # penetration_tol only when set: an integrator subclass of the user's may not take it
+    tol_kw = {} if plan.initial_penetration == 1e-12 else {"penetration_tol": plan.initial_penetration}
+    integ = integrator(scene, plan.h, solver=plan.solver, fallback=plan.fallback, tol=plan.tol,
+                       drift_control=drift_control, **tol_kw)
+    checked_start(lambda: integ.init(plan.t0, q0, v0), scene, plan.t0, q0, v0)
+    if check_jacobian and scene.nrows:
+        check_jacobians(scene, integ.q)
+    return run_python(scene, integ, plan.h, plan.n_steps, plan.stride, plan.n_rec, progress, energy,
+                      plan.flight_gap, initial_flight(scene, integ.q, integ.v))
+
+
+def _steps_and_records(scene: Scene, t_span: tuple[float, float], h: float,
+                       record_every: int) -> tuple[float, int, int, int]:
+    """``(t0, steps, record stride, records)`` of a run, refusing a step count or a record
+    size beyond the guards."""
+    t0, t1 = as_time_span(t_span)
+    h = as_positive(h, "step size h")
+    stride = int(as_record_every(record_every))
     ratio = (t1 - t0) / h
     if not ratio < _MAX_STEPS:
         raise ValueError(f"step size h = {h!r} gives {ratio:.3g} steps over t_span = ({t0!r}, {t1!r}); "
                          f"at most {_MAX_STEPS:.0e} steps are allowed")
     n_steps = max(1, math.ceil(ratio - 1e-9))
     n, m = scene.ndof, scene.nrows
-    stride = int(record_every)
     n_rec = n_steps // stride + 1 + (1 if n_steps % stride else 0)
     record_bytes = n_rec * (8 * (2 + 2 * n + 2 * m) + m)
     if record_bytes > _MAX_RECORD_BYTES:
         raise ValueError(f"recording {n_rec} states (h = {h!r}, record_every = {stride}) needs "
                          f"{record_bytes / 2**30:.1f} GiB; raise record_every")
-    if penetration_limit is not None:
-        penetration_limit = as_positive(penetration_limit, "penetration_limit")
-    if not isinstance(check_jacobian, bool):
-        raise ValueError(f"check_jacobian must be True or False, got {check_jacobian!r}")
-    flight_gap = flight_gaps(flight_gap, m)
-    initial_penetration = as_positive(initial_penetration, "initial_penetration", allow_zero=True)
-    path, cs, solver, fallback = _choose_backend(backend, scene, integrator, solver, fallback, drift_control)
-    if path == "compiled":
-        from moreau.compiled.runner import run_compiled
-
-        t0, q0, v0 = checked_start(lambda: check_initial_state(scene, t0, q0, v0, initial_penetration),
-                                   scene, t0, q0, v0)
-        if check_jacobian and m:
-            check_jacobians(scene, q0)
-        bar = None
-        try:
-            bar = _progress_bar(progress, n_steps, scene.name)
-            traj = run_compiled(scene, cs, t0, q0, v0, h, n_steps, theta=integrator is MoreauJeanPredictorCorrector,
-                                solver=cast(str, solver), fallback=fallback, stride=stride, bar=bar, energy=energy,
-                                tol=tol, drift_control=drift_control, flight_gap=flight_gap)
-        except KeyboardInterrupt as exc:  # before the loop took over: the initial state is the run
-            if getattr(exc, "trajectory", None) is None:
-                attach_trajectory(exc, _initial_state_only(scene, t0, q0, v0, h, stride, solver, fallback))
-            raise
-        finally:
-            if bar is not None:
-                bar.close()
-    else:
-        # penetration_tol only when set: an integrator subclass of the user's may not take it
-        tol_kw = {} if initial_penetration == 1e-12 else {"penetration_tol": initial_penetration}
-        integ = integrator(scene, h, solver=solver, fallback=fallback, tol=tol, drift_control=drift_control, **tol_kw)
-        checked_start(lambda: integ.init(t0, q0, v0), scene, t0, q0, v0)
-        if check_jacobian and m:
-            check_jacobians(scene, integ.q)
-        traj = _run_python(scene, integ, h, n_steps, stride, n_rec, progress, energy, flight_gap)
-    traj.warnings = penetration_warnings(scene, traj, h, penetration_limit)
-    return traj
-
-
-def _initial_state_only(scene: Scene, t0: float, q0: np.ndarray, v0: np.ndarray, h: float, stride: int,
-                        solver: str | ContactSolver | None, fallback: str | ContactSolver | None) -> Trajectory:
-    """The trajectory of a run interrupted before its first step: the initial state."""
-    from moreau.core.version import __version__
-
-    m = scene.nrows
-    return Trajectory(
-        t=np.array([t0]), q=q0[None, :].copy(), v=v0[None, :].copy(),
-        gaps=np.full((1, m), np.nan), impulses=np.zeros((1, m)), active=np.zeros((1, m), dtype=bool),
-        onsets=ImpactLog(), stats=SolverStats(solver=str(solver), fallback=str(fallback or ""), backend="compiled"),
-        h=h, record_every=stride, row_names=list(scene.row_names), scene=scene.describe(),
-        status="interrupted", message=f"interrupted by the user at step 0 (t = {t0:.9g})", version=__version__,
-        max_penetration=np.zeros(m),
-    )
-
-
-def _choose_backend(backend: str, scene: Scene, integrator: type[OneStepIntegrator],
-                    solver: str | ContactSolver | None, fallback: str | ContactSolver | None,
-                    drift_control: DriftControl | None,
-                    ) -> tuple[str, Any, str | ContactSolver, str | ContactSolver | None]:
-    """``(path, compiled scene or None, solver, fallback)`` for :func:`simulate`."""
-    from moreau.compiled.lowering import NotCompilable, lower
-    from moreau.compiled.runner import COMPILED_SOLVERS
-    from moreau.contact.solvers import ContactSolver
-    from moreau.step.drift import CombinedProjection, PositionProjection
-
-    if backend not in ("auto", "compiled", "python"):
-        raise ValueError(f"backend must be 'auto', 'compiled' or 'python', got {backend!r}")
-    for what, x in (("solver", solver), ("fallback", fallback)):
-        if x is not None and not isinstance(x, (str, ContactSolver)):
-            raise ValueError(f"{what} must be a name or a ContactSolver, got {x!r}")
-    reason = ""
-    if backend != "python":
-        if integrator not in (MoreauJeanMidpoint, MoreauJeanPredictorCorrector):
-            reason = f"integrator {integrator.__name__} has no compiled form"
-        elif drift_control is not None and type(drift_control) not in (PositionProjection, CombinedProjection):
-            reason = f"drift control {type(drift_control).__name__} has no compiled form"
-        elif solver is not None and solver not in COMPILED_SOLVERS:
-            reason = f"solver {solver!r} does not run in compiled code (compiled: {sorted(COMPILED_SOLVERS)})"
-        elif fallback not in ("auto", None) and fallback not in COMPILED_SOLVERS:
-            reason = f"fallback {fallback!r} does not run in compiled code (compiled: {sorted(COMPILED_SOLVERS)})"
-        else:
-            try:
-                cs = lower(scene)
-            except NotCompilable as exc:
-                reason = str(exc)
-    if backend == "compiled" and reason:
-        raise ValueError(f"backend='compiled': {reason}")
-    path = "python" if (backend == "python" or reason) else "compiled"
-    if backend == "auto" and reason:
-        log.info("running %r on the Python path: %s", scene.name, reason)
-    if solver is None:
-        solver = "exact" if path == "compiled" else "osqp"
-    if fallback == "auto":
-        fallback = "exact" if solver == "enum" else "enum"
-    if isinstance(solver, str) and solver == fallback:
-        raise ValueError(f"fallback must differ from the main solver, got {solver!r} twice")
-    return path, (cs if path == "compiled" else None), solver, fallback
-
-
-def _progress_bar(progress: bool | dict[str, Any] | None, n_steps: int, desc: str) -> Any:
-    show = bool(progress) if progress is not None else (n_steps >= _PROGRESS_MIN_STEPS and sys.stderr.isatty())
-    if not show:
-        return None
-    from tqdm.auto import tqdm
-
-    bar_kw: dict[str, Any] = {"unit": "step", "desc": desc, "mininterval": 0.5, "leave": False}
-    if isinstance(progress, dict):
-        bar_kw.update(progress)
-    return tqdm(total=n_steps, **bar_kw)
-
-
-def _run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, stride: int, n_rec: int,
-                progress: bool | dict[str, Any] | None, energy: bool, flight_gap: np.ndarray) -> Trajectory:
-    """The reference loop: one :meth:`OneStepIntegrator.step` call per step."""
-    n, m = scene.ndof, scene.nrows
-    t0 = integ.t
-    T = np.empty(n_rec)
-    Q = np.empty((n_rec, n))
-    V = np.empty((n_rec, n))
-    PS = np.zeros((n_rec, m))
-    ACT = np.zeros((n_rec, m), dtype=bool)
-    T[0], Q[0], V[0] = t0, integ.q, integ.v
-    rec = 1
-    impacts: list[ImpactRow] = []
-    P_acc = np.zeros(m)
-    act_acc = np.zeros(m, dtype=bool)
-    in_contact = np.zeros(m, dtype=bool)
-    has_contacts = m > 0
-    gmax = initial_flight(scene, integ.q, integ.v)
-
-    bar = _progress_bar(progress, n_steps, scene.name)
-    pen = np.zeros(m)
-    chunk = max(1, min(10_000, n_steps // 200))
-
-    status, message = "completed", ""
-    error: BaseException | None = None
-    wall0 = time.perf_counter()
-    k = 0
-    try:
-        step, gaps_at = integ.step, integ.gaps_at
-        for k in range(1, n_steps + 1):
-            contact = step()
-            if has_contacts:
-                if contact:
-                    P = integ.P
-                    P_acc += P
-                    act_acc |= integ.active
-                    now = P > 0.0
-                    new = now & ~in_contact
-                    if new.any():
-                        _log_impacts(integ, np.flatnonzero(new), gmax > flight_gap, impacts)
-                    in_contact = now
-                elif in_contact.any():
-                    in_contact = np.zeros(m, dtype=bool)
-                g_end = gaps_at(integ.q, integ.v)
-                np.maximum(pen, -g_end, out=pen)
-                gmax = np.where(in_contact, -np.inf, np.maximum(gmax, g_end))
-            if k % stride == 0 or k == n_steps:
-                T[rec], Q[rec], V[rec] = integ.t, integ.q, integ.v
-                if has_contacts:
-                    PS[rec] = P_acc
-                    ACT[rec] = act_acc
-                    P_acc[:] = 0.0
-                    act_acc[:] = False
-                rec += 1
-            if bar is not None and k % chunk == 0:
-                bar.update(chunk)
-    except KeyboardInterrupt as exc:
-        status, message = "interrupted", f"interrupted by the user at step {k} (t = {integ.t:.9g})"
-        log.warning("%s; %d records computed so far are attached to the KeyboardInterrupt", message, rec)
-        error = exc
-    except SolverError as exc:
-        status, message, error = "failed", str(exc), exc
-    except (NonFiniteState, BadModelOutput) as exc:
-        status, message = "failed", str(exc)
-        error = SimulationError(message, None, exc.step)
-        error.__cause__ = exc
-    except Exception as exc:  # a user callable raised inside the step
-        status = "failed"
-        message = f"step {k - 1} (t = {integ.t:.9g}) raised {type(exc).__name__}: {exc}"
-        error = SimulationError(message, None, k - 1)
-        error.__cause__ = exc
-    finally:
-        if bar is not None:
-            bar.close()
-    wall = time.perf_counter() - wall0
-    if status != "completed" and T[rec - 1] != integ.t:
-        # keep the last good state even when it falls between two records
-        T[rec], Q[rec], V[rec] = integ.t, integ.q, integ.v
-        if has_contacts:
-            PS[rec], ACT[rec] = P_acc, act_acc
-        rec += 1
-
-    traj = _assemble(scene, integ, h, stride, T[:rec], Q[:rec], V[:rec], PS[:rec], ACT[:rec],
-                     impacts, wall, status, message, energy)
-    traj.max_penetration = pen
-    if error is not None:
-        attach_trajectory(error, traj)
-        raise error
-    return traj
-
-
-def _log_impacts(integ: OneStepIntegrator, rows: np.ndarray, after_flight: np.ndarray,
-                 out: list[ImpactRow]) -> None:
-    """Log the contact onsets of the last step (``rows``) that are impacts by the flight
-    test (``after_flight``, shape (m,)) or the velocity test (see :class:`ImpactLog`).
-
-    Velocity test: ``−U_before > h |a_n|`` with ``h a_n = U_free − U_before``; slower
-    onsets are a sliding contact closing again after the midpoint drift opened it for a
-    step (on a curved barrier the scheme does that).
-    """
-    d = integ.last_contact_details(rows)
-    t_start = integ.t - integ.h
-    for j, r in enumerate(rows):
-        fast = bool(-d.U_before[j] > abs(d.U_free[j] - d.U_before[j]))
-        flight = bool(after_flight[r])
-        if fast or flight:
-            out.append((t_start, integ.k - 1, int(r), float(d.U_before[j]), float(d.U_after[j]),
-                        float(integ.P[r]), float(d.energy_lost[j]), flight, fast))
-
-
-def _assemble(scene: Scene, integ: OneStepIntegrator, h: float, stride: int, T: np.ndarray, Q: np.ndarray,
-              V: np.ndarray, PS: np.ndarray, ACT: np.ndarray, impacts: list[ImpactRow], wall: float, status: str,
-              message: str, energy: bool) -> Trajectory:
-    from moreau.core.version import __version__
-
-    m = scene.nrows
-    N = T.shape[0]
-    gaps = np.full((N, m), np.nan)
-    KE = PE = E = None
-    # post-processing of what was computed: a user callable failing here must not lose
-    # the trajectory (it may be why the run stopped), so failures leave NaN and a warning
-    try:
-        gaps_of = scene.gaps if scene.gaps is not None else _no_gaps
-        for i in range(N if m else 0):
-            gaps[i] = gaps_of(Q[i])
-        if energy and N:
-            KE = np.array([scene.kinetic_energy(Q[i], V[i]) for i in range(N)])
-            PE = np.array([scene.potential_energy(Q[i]) for i in range(N)])
-            E = KE + PE
-    except Exception as exc:  # noqa: BLE001 - reported, and the data kept
-        log.warning("could not evaluate gaps/energy on the recorded states: %s", exc)
-    stats = SolverStats(
-        solver=integ.solver.name,
-        fallback=integ.fallback.name if integ.fallback is not None else "",
-        steps=integ.k,
-        contact_steps=integ.n_contact_steps,
-        solves=integ.n_solves,
-        fallbacks=integ.n_fallbacks,
-        projections=integ.n_projections,
-        worst_residual=integ.worst_residual,
-        wall_time=wall,
-    )
-    return Trajectory(
-        t=T, q=Q, v=V, gaps=gaps, impulses=PS, active=ACT,
-        onsets=ImpactLog.from_rows(impacts), stats=stats, h=h, record_every=stride,
-        row_names=list(scene.row_names), scene=scene.describe(), energy=E,
-        kinetic_energy=KE, potential_energy=PE, status=status, message=message,
-        version=__version__, work={"forces": integ.work_forces, "contacts": integ.work_contacts},
-    )
-
-
-def _no_gaps(q: np.ndarray) -> np.ndarray:
-    """The gaps of a scene without contacts (none)."""
-    return np.zeros(0)
+    return t0, n_steps, stride, n_rec

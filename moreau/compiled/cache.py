@@ -1,0 +1,111 @@
+"""The compiled loop's machine code: loaded from numba's cache, or compiled once per machine
+and version under a lock (:func:`ensure_compiled`)."""
+
+from __future__ import annotations
+
+import contextlib
+import glob
+import logging
+import os
+import pickle
+import signal
+import threading
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+
+from moreau.compiled.runner import run_compiled
+from moreau.core.jitcache import cache_dir, clear, compile_lock
+
+__all__ = ["COMPILE_SECONDS", "ensure_compiled"]
+
+log = logging.getLogger(__name__)
+
+
+#: what the first compile of the loop takes on a 2-core machine (benchmarks/compile_cost.py), s
+COMPILE_SECONDS = 30
+_ready = threading.Event()
+_ready_lock = threading.Lock()
+
+
+def ensure_compiled() -> float:
+    """Load the compiled time loop from numba's cache, or compile it (once per machine
+    and version, saying so in one logged line) when it is not there; returns the seconds
+    it took (0 when this process has it already).
+
+    Processes started together on an empty cache compile once: the first holds a lock
+    in the cache directory (:func:`moreau.core.jitcache.compile_lock`), the others wait and
+    then load what it saved. Call it before starting worker processes, or to warm a
+    cache (``moreau compile`` does).
+    """
+    if _ready.is_set():
+        return 0.0
+    with _ready_lock:
+        if _ready.is_set():
+            return 0.0
+        t = time.perf_counter()
+        with compile_lock():
+            d = cache_dir()
+            cold = d is None or not glob.glob(os.path.join(d, "loop.run_chunk-*.nbi"))
+            if cold:
+                log.warning("moreau: compiling the time loop once for this machine (about %d s; later runs "
+                            "load it from %s)", COMPILE_SECONDS, d or "nowhere: the cache is not writable")
+            _ready.set()  # the warm-up run below calls ensure_compiled again
+            try:
+                try:
+                    # loading machine code runs through LLVM callbacks: a Ctrl-C or SIGTERM
+                    # raised inside one aborted the process (seen: exit -6), so during a load
+                    # (0.3 s) they wait and are acted on right after it
+                    with (contextlib.nullcontext() if cold else _signals_deferred()):
+                        _warm_up()
+                except (pickle.UnpicklingError, EOFError, ValueError, TypeError, AttributeError,
+                        ImportError, OSError) as exc:  # what an unreadable cache file raises
+                    removed = clear()
+                    log.warning("moreau: numba's cache in %s could not be read (%s: %s); removed %d files of it "
+                                "and compiling the time loop again (about %d s)", d, type(exc).__name__, exc,
+                                removed, COMPILE_SECONDS)
+                    _warm_up()
+            except BaseException:
+                _ready.clear()
+                raise
+        return time.perf_counter() - t
+
+
+@contextlib.contextmanager
+def _signals_deferred() -> Iterator[None]:
+    """Within the block, SIGINT and SIGTERM are recorded, and handled as before once it ends
+    (main thread only; elsewhere nothing changes)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    got: list[int] = []
+    old: dict[int, Any] = {}
+    for s in (signal.SIGINT, signal.SIGTERM):
+        old[int(s)] = signal.signal(s, lambda signum, frame: got.append(signum))
+    try:
+        yield
+    finally:
+        for num, handler in old.items():
+            signal.signal(num, handler)
+        for num in got:
+            handler = old[int(num)]
+            if callable(handler):
+                handler(num, None)
+            elif handler == signal.SIG_DFL:
+                os.kill(os.getpid(), num)
+
+
+def _warm_up() -> None:
+    """Two steps of a one-row scene: loads (or compiles) every compiled function a run calls."""
+    from moreau.model.barriers import LinearBarrier
+    from moreau.model.forces import ConstantForce
+    from moreau.model.scene import Contact, Scene
+    from moreau.model.system import FunctionSystem
+
+    scene = Scene(FunctionSystem(np.eye(1)), [ConstantForce([-1.0])],
+                  [Contact(LinearBarrier([[1.0]], [0.0]), 0.5)])
+    run_compiled(scene, None, 0.0, np.array([1e-3]), np.array([-1.0]), 1e-3, 2, theta=False, solver="exact",
+                 fallback=None, stride=1, bar=None, energy=True, tol=1e-8, drift_control=None,
+                 flight_gap=np.zeros(1), gmax0=np.full(1, np.inf))

@@ -1,0 +1,103 @@
+"""Compiled drift control: the projection of the end position onto g >= 0 — the twin of
+:mod:`moreau.step.drift` (PositionProjection, CombinedProjection)."""
+
+from __future__ import annotations
+
+from moreau.compiled import evaluate as ev
+from moreau.compiled.layout import (  # the loop's layout
+    C_FAILKIND,
+    C_PROJ,
+    DRIFT_COMBINED,
+    F_DRIFT_TOL,
+    NOT_SPD,
+    R_BOUNCED,
+    R_PINGAP,
+    R_PINNED,
+    S_DRIFT,
+    S_DRIFT_ITER,
+    SOLVER_FAILED,
+)
+from moreau.compiled.layout import part as _part
+from moreau.compiled.step import _contact_solve, _count, _user_failed
+from moreau.core import kernels as _k
+
+
+@_part
+def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw, rs,
+             in_contact):
+    """Drift control: move q onto g >= 0 (see PositionProjection and CombinedProjection).
+
+    The rows of the projection QP: with PositionProjection the eligible rows that
+    penetrate or were closed; with CombinedProjection the persistent contacts of the
+    step (closed, no restitution applied). Those held on g = 0 are marked pinned, and
+    stay pinned while they carry an impulse without bouncing and their gap does not grow
+    beyond where the projection left them."""
+    ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e, atol = model
+    n, m = ints[0], ints[1]
+    dtol = fset[F_DRIFT_TOL]
+    combined = iset[S_DRIFT] == DRIFT_COMBINED
+    sel = lw[8]
+    need = False
+    for r in range(m):
+        if combined:
+            if not (in_contact[r] and rs[r, R_BOUNCED] == 0.0 and gq[r] <= rs[r, R_PINGAP]):
+                rs[r, R_PINNED] = 0.0
+            sel[r] = active[r] and rs[r, R_BOUNCED] == 0.0
+        else:
+            sel[r] = eligible[r] and (gq[r] < 0.0 or active[r])
+        if sel[r] and gq[r] < -dtol:
+            need = True
+    if not need:
+        return True
+    G = lw[5]
+    dq = lw[6]
+    zero = lw[7]
+    for _ in range(iset[S_DRIFT_ITER]):
+        if not combined:
+            for r in range(m):
+                sel[r] = eligible[r] and (gq[r] < 0.0 or active[r])
+        na = _count(sel, m)
+        if _user_failed(ev.mass(ints, pool, user, q, cq, sq, M), cnt):
+            return False
+        if _k.cholesky(M, L, n) >= 0:
+            cnt[C_FAILKIND] = NOT_SPD
+            return False
+        if _user_failed(ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, G), cnt):
+            return False
+        GA = lw[0]
+        cA = lw[1]
+        j = 0
+        for r in range(m):
+            if sel[r]:
+                for i in range(n):
+                    GA[j, i] = G[r, i]
+                cA[j] = -gq[r]
+                j += 1
+        PA = lw[4]
+        if not _contact_solve(M, L, zero, GA, cA, na, dq, PA, iset, fset, cnt, acc, fail, ws):
+            cnt[C_FAILKIND] = SOLVER_FAILED
+            return False
+        for i in range(n):
+            q[i] += dq[i]
+        if ints[8]:
+            _k.trig(q, cq, sq)
+        if _user_failed(ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, gq), cnt):
+            return False
+        if combined:
+            j = 0
+            for r in range(m):
+                if sel[r]:
+                    if PA[j] > 0.0:
+                        rs[r, R_PINNED] = 1.0
+                        rs[r, R_PINGAP] = max(gq[r], 0.0)
+                    j += 1
+        done = True
+        for r in range(m):
+            if not combined:
+                sel[r] = eligible[r] and (gq[r] < 0.0 or active[r])
+            if sel[r] and gq[r] < -dtol:
+                done = False
+        if done:
+            break
+    cnt[C_PROJ] += 1
+    return True

@@ -1,0 +1,36 @@
+"""The compiled loop's data layout (status codes, indices into its settings, counters,
+accumulators, per-row state and impact log) and the numba options of its parts."""
+
+from numba import njit
+
+# status codes
+DONE, IMPACTS_FULL, SOLVER_FAILED, NONFINITE, NOT_SPD, NONFINITE_GAP, USER_FAILED = 0, 1, 2, 3, 4, 5, 6
+# settings (int array)
+S_THETA, S_DRIFT, S_DRIFT_ITER, S_STRIDE, S_NSTEPS, S_METHOD, S_FALLBACK, S_ENERGY, S_MEMORY, S_LOCATE = range(10)
+# drift control modes (S_DRIFT)
+DRIFT_NONE, DRIFT_POSITION, DRIFT_COMBINED = 0, 1, 2
+# per-row state of CombinedProjection (float array (m, 6)): gap at q_k, the gap where the
+# projection last held the row, held (pinned), restitution applied in this step, and for
+# a row that bounced at s into the step h/2 − s and (2 s − h) a_n (kernels.impact_law)
+R_GAP, R_PINGAP, R_PINNED, R_BOUNCED, R_DELAY, R_SHIFT = range(6)
+# impact-log columns
+I_T, I_STEP, I_ROW, I_UB, I_UA, I_P, I_LOST, I_FLIGHT, I_FAST = range(9)
+# settings (float array)
+F_H, F_T0, F_TOL, F_DRIFT_TOL, F_PE0 = range(5)
+# counters (int array)
+# (C_USER: the status of a user callable that failed, see moreau.compiled.usercalls.decode)
+C_REC, C_NIMP, C_SOLVES, C_FALLBACKS, C_CONTACT, C_PROJ, C_K, C_FAILKIND, C_USER = range(9)
+N_COUNTERS = 9
+# accumulators (float array)
+A_WORST, A_WORK_F, A_WORK_C = range(3)
+
+# The step's parts are inlined into the loop by numba (IR level), as are the evaluation
+# functions (moreau.compiled.evaluate); the kernels and LCP routines they call are inlined by LLVM
+# (forceinline) and compiled once each. Measured (benchmarks/compile_cost.py, and the
+# piston at e = 0.9 against the former build, best of 3-4 interleaved runs): numba
+# inlining at every level compiled for 7-10 min in 10.8 GB; LLVM inlining at every level
+# compiles in ~30 s but the step costs 8 % more; the kernels as plain calls 26 % more, and
+# the parts too (their tuples of arrays passed at every call) 38 % more. No CPython or C
+# entry points are built for what only the loop calls.
+part = njit(cache=True, nogil=True, _nrt=False, inline="always",  # type: ignore[call-overload]
+            no_cpython_wrapper=True, no_cfunc_wrapper=True)

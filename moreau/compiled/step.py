@@ -1,0 +1,202 @@
+"""The compiled Moreau–Jean step: the free acceleration, the velocity update with the
+contacts closed at the midpoint, and the contact solve with its check and fallback — the
+twin of :class:`moreau.step.integrator.MoreauJeanMidpoint` and
+:meth:`moreau.step.base.OneStepIntegrator.solve_contacts`."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from moreau.compiled import evaluate as ev
+from moreau.compiled.layout import (  # the loop's layout
+    A_WORST,
+    C_FAILKIND,
+    C_FALLBACKS,
+    C_K,
+    C_SOLVES,
+    C_USER,
+    DRIFT_COMBINED,
+    F_H,
+    F_TOL,
+    R_BOUNCED,
+    R_DELAY,
+    R_GAP,
+    R_PINNED,
+    R_SHIFT,
+    S_DRIFT,
+    S_FALLBACK,
+    S_LOCATE,
+    S_MEMORY,
+    S_METHOD,
+    SOLVER_FAILED,
+    USER_FAILED,
+)
+from moreau.compiled.layout import part as _part
+from moreau.contact.lcp import kkt_residuals_kernel, solve_one_step
+from moreau.core import kernels as _k
+
+
+@_part
+def _user_failed(status, cnt):
+    """True (and the status kept in ``cnt``) when a user callable failed."""
+    if status == 0:
+        return False
+    cnt[C_FAILKIND] = USER_FAILED
+    cnt[C_USER] = status
+    return True
+
+
+@_part
+def _count(flags, m):
+    """The number of True entries among the first m of ``flags``."""
+    k = 0
+    for r in range(m):
+        if flags[r]:
+            k += 1
+    return k
+
+
+@_part
+def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail, ws):
+    """Main LCP method, KKT check, fallback; False when both fail (residuals in ``fail``)."""
+    res = ws[16]
+    tol = fset[F_TOL]
+    # np.int64: numba would type the count as the literal 0 at one of the inlined call
+    # sites and compile the solver and the check a second time
+    k = np.int64(na)
+    for attempt in range(2):
+        method = iset[S_METHOD] if attempt == 0 else iset[S_FALLBACK]
+        if method < 0:
+            break
+        if attempt == 1:
+            cnt[C_FALLBACKS] += 1
+        st = solve_one_step(M, L, b, GA, cA, P_out, v_out, k, method, 1e-12, ws)
+        if st == 0:
+            kkt_residuals_kernel(M, L, b, GA, cA, v_out, P_out, k, res, ws[11], ws[12], ws[13], ws[14], ws[15],
+                                 ws[1])
+            worst = max(res[0], res[1], res[2], res[3])
+            if worst <= tol:
+                if worst > acc[A_WORST]:
+                    acc[A_WORST] = worst
+                return True
+            for i in range(4):
+                fail[attempt, i] = res[i]
+        else:
+            for i in range(4):
+                fail[attempt, i] = math.inf
+    return False
+
+
+@_part
+def _free_acceleration(n, const_mass, Minv, L, f, out):
+    """M⁻¹ f into ``out`` (with the inverse of a constant M, as the reference path)."""
+    if const_mass:
+        for i in range(n):
+            t = 0.0
+            for j in range(n):
+                t += Minv[i, j] * f[j]
+            out[i] = t
+    else:
+        _k.cho_solve(L, f, out, n)
+
+
+@_part
+def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, v_new, P, active,
+                     GA_all, cnt, acc, fail, ws, lw, last_imp, rs):
+    """v⁺ with the contacts closed at qm (gaps ``gm``); returns 1 (contact), 0 (free) or
+    −1 (failed: the solve, or a user callable; the status is in ``cnt[C_FAILKIND]``).
+    ``P`` (m,) and ``active`` (m,) are set for the step.
+
+    With combined drift control, a row's restitution acts only at an impact (see
+    :class:`moreau.step.drift.CombinedProjection`): it approaches faster than the smooth forces
+    change its normal velocity in one step, and it carried no impulse in the last
+    ``S_MEMORY`` steps; other closed rows take e = 0 (a persistent contact). A row is
+    then also closed when the projection holds it, or when it reaches the barrier by the
+    end of the step (2 g(q_m) − g(q_k) <= 0; with ``S_LOCATE`` the free step's end gap,
+    2 g(q_m) − g(q_k) + h²/2 G M⁻¹ f <= 0). Newton's law is :func:`moreau.core.kernels.impact_law`.
+    ``rs`` (m, 6) holds per row the gap at q_k, the gap the projection left it at, the
+    pinned and bounced flags, and a bounced row's h/2 − s and (2 s − h) a_n (columns
+    ``R_GAP`` ... ``R_SHIFT``)."""
+    ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e, atol = model
+    n, m = ints[0], ints[1]
+    h = fset[F_H]
+    combined = iset[S_DRIFT] == DRIFT_COMBINED
+    locate = combined and iset[S_LOCATE] == 1
+    rhs = lw[2]
+    if locate:  # the free step's end gap, + h²/2 G M⁻¹ f, decides which rows close
+        _free_acceleration(n, ints[2] == _k.MASS_CONST, Minv, L, f, rhs)
+        if _user_failed(ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, GA_all), cnt):
+            return -1
+    for r in range(m):
+        active[r] = gm[r] <= atol[r]
+        if combined:
+            reach = 2.0 * gm[r] - rs[r, R_GAP]
+            if locate:
+                du = 0.0
+                for i in range(n):
+                    du += GA_all[r, i] * rhs[i]
+                reach += 0.5 * h * h * du
+            active[r] = active[r] or rs[r, R_PINNED] != 0.0 or reach <= 0.0
+            rs[r, R_BOUNCED] = 0.0
+            rs[r, R_DELAY] = 0.0
+            rs[r, R_SHIFT] = 0.0
+        P[r] = 0.0
+    na = _count(active, m)
+    if na == 0:
+        if not locate:
+            _free_acceleration(n, ints[2] == _k.MASS_CONST, Minv, L, f, rhs)
+        for i in range(n):
+            v_new[i] = v[i] + h * rhs[i]
+        return 0
+    if combined:
+        if not locate:
+            _free_acceleration(n, ints[2] == _k.MASS_CONST, Minv, L, f, rhs)
+        k_now = cnt[C_K]
+        memory = iset[S_MEMORY]
+    cnt[C_SOLVES] += 1
+    if not locate:
+        if _user_failed(ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, GA_all), cnt):
+            return -1
+    GA = lw[0]
+    cA = lw[1]
+    j = 0
+    for r in range(m):
+        if active[r]:
+            u = 0.0
+            for i in range(n):
+                GA[j, i] = GA_all[r, i]
+                u += GA_all[r, i] * v[i]
+            er = e[r]
+            c = -er * u
+            if combined and er != 0.0:
+                c = 0.0
+                if k_now - last_imp[r] > memory:
+                    du = 0.0
+                    for i in range(n):
+                        du += GA_all[r, i] * rhs[i]
+                    cr, s_imp = _k.impact_law(er, u, du, rs[r, R_GAP], h, locate)
+                    if cr == cr:  # an impact: Newton's law where it happens
+                        rs[r, R_BOUNCED] = 1.0
+                        rs[r, R_DELAY] = 0.5 * h - s_imp
+                        rs[r, R_SHIFT] = (2.0 * s_imp - h) * du
+                        c = cr
+            cA[j] = c
+            j += 1
+    b = lw[3]
+    for i in range(n):
+        s = h * f[i]
+        for l in range(n):
+            s += M[i, l] * v[l]
+        b[i] = s
+    PA = lw[4]
+    if not _contact_solve(M, L, b, GA, cA, na, v_new, PA, iset, fset, cnt, acc, fail, ws):
+        cnt[C_FAILKIND] = SOLVER_FAILED
+        return -1
+    j = 0
+    for r in range(m):
+        if active[r]:
+            P[r] = PA[j]
+            j += 1
+    return 1

@@ -1,0 +1,57 @@
+"""The one assembler of a :class:`~moreau.results.trajectory.Trajectory`: both paths of
+:func:`moreau.simulate` hand their records here."""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+import numpy as np
+
+from moreau.core.version import __version__
+from moreau.results.impacts import ImpactLog, SolverStats
+from moreau.results.trajectory import Trajectory
+
+__all__ = ["assemble"]
+
+log = logging.getLogger(__name__)
+
+
+def assemble(scene: Any, *, t: np.ndarray, q: np.ndarray, v: np.ndarray, impulses: np.ndarray,
+             active: np.ndarray, onsets: ImpactLog, stats: SolverStats, h: float, stride: int, status: str,
+             message: str, work: dict[str, float], max_penetration: np.ndarray, energy: bool,
+             gaps: np.ndarray | None = None, kinetic: np.ndarray | None = None,
+             potential: np.ndarray | None = None) -> Trajectory:
+    """The Trajectory of a run from its records (arrays of N records, time-major).
+
+    ``gaps``, ``kinetic`` and ``potential`` are what the loop computed at the records (the
+    compiled loop does); the ones not given (the Python loop) are evaluated here on the
+    recorded states. A model function failing in that evaluation leaves NaN and a warning:
+    the trajectory is kept (the failure may be why the run stopped).
+    """
+    m = scene.nrows
+    N = t.shape[0]
+    if gaps is None:
+        gaps = np.full((N, m), np.nan)
+        _evaluate(lambda i: gaps.__setitem__(i, scene.gaps(q[i])), N if m else 0, "gaps")
+    if energy and kinetic is None:
+        kinetic = np.full(N, np.nan)
+        _evaluate(lambda i: kinetic.__setitem__(i, scene.kinetic_energy(q[i], v[i])), N, "kinetic energy")
+    if energy and potential is None:
+        potential = np.full(N, np.nan)
+        _evaluate(lambda i: potential.__setitem__(i, scene.potential_energy(q[i])), N, "potential energy")
+    total = kinetic + potential if energy and kinetic is not None and potential is not None else None
+    return Trajectory(
+        t=t, q=q, v=v, gaps=gaps, impulses=impulses, active=active, onsets=onsets, stats=stats, h=h,
+        record_every=stride, row_names=list(scene.row_names), scene=scene.describe(), energy=total,
+        kinetic_energy=kinetic if energy else None, potential_energy=potential if energy else None,
+        status=status, message=message, version=__version__, max_penetration=max_penetration, work=work,
+    )
+
+
+def _evaluate(at: Any, N: int, what: str) -> None:
+    try:
+        for i in range(N):
+            at(i)
+    except Exception as exc:  # noqa: BLE001 - reported, and the data kept
+        log.warning("could not evaluate the %s on the recorded states: %s", what, exc)

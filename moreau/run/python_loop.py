@@ -1,0 +1,141 @@
+"""The Python reference loop of :func:`moreau.simulate`: one
+:meth:`~moreau.step.base.OneStepIntegrator.step` call per step, recording every
+``stride``-th state and logging impacts."""
+
+from __future__ import annotations
+
+import logging
+import time
+from typing import Any
+
+import numpy as np
+
+from moreau.core.errors import SimulationError, SolverError, attach_trajectory
+from moreau.model.scene import Scene
+from moreau.results.assemble import assemble
+from moreau.results.impacts import ImpactLog, ImpactRow, SolverStats
+from moreau.results.trajectory import Trajectory
+from moreau.run.progress import progress_bar
+from moreau.step.base import OneStepIntegrator
+from moreau.step.checks import BadModelOutput, NonFiniteState
+
+__all__ = ["run_python"]
+
+log = logging.getLogger("moreau.run.simulation")
+
+
+def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, stride: int, n_rec: int,
+                progress: bool | dict[str, Any] | None, energy: bool, flight_gap: np.ndarray,
+               gmax: np.ndarray) -> Trajectory:
+    """The reference loop: one :meth:`OneStepIntegrator.step` call per step."""
+    n, m = scene.ndof, scene.nrows
+    t0 = integ.t
+    T = np.empty(n_rec)
+    Q = np.empty((n_rec, n))
+    V = np.empty((n_rec, n))
+    PS = np.zeros((n_rec, m))
+    ACT = np.zeros((n_rec, m), dtype=bool)
+    T[0], Q[0], V[0] = t0, integ.q, integ.v
+    rec = 1
+    impacts: list[ImpactRow] = []
+    P_acc = np.zeros(m)
+    act_acc = np.zeros(m, dtype=bool)
+    in_contact = np.zeros(m, dtype=bool)
+    has_contacts = m > 0
+    gmax = gmax.copy()
+
+    bar = progress_bar(progress, n_steps, scene.name)
+    pen = np.zeros(m)
+    chunk = max(1, min(10_000, n_steps // 200))
+
+    status, message = "completed", ""
+    error: BaseException | None = None
+    wall0 = time.perf_counter()
+    k = 0
+    try:
+        step, gaps_at = integ.step, integ.gaps_at
+        for k in range(1, n_steps + 1):
+            contact = step()
+            if has_contacts:
+                if contact:
+                    P = integ.P
+                    P_acc += P
+                    act_acc |= integ.active
+                    now = P > 0.0
+                    new = now & ~in_contact
+                    if new.any():
+                        _log_impacts(integ, np.flatnonzero(new), gmax > flight_gap, impacts)
+                    in_contact = now
+                elif in_contact.any():
+                    in_contact = np.zeros(m, dtype=bool)
+                g_end = gaps_at(integ.q, integ.v)
+                np.maximum(pen, -g_end, out=pen)
+                gmax = np.where(in_contact, -np.inf, np.maximum(gmax, g_end))
+            if k % stride == 0 or k == n_steps:
+                T[rec], Q[rec], V[rec] = integ.t, integ.q, integ.v
+                if has_contacts:
+                    PS[rec] = P_acc
+                    ACT[rec] = act_acc
+                    P_acc[:] = 0.0
+                    act_acc[:] = False
+                rec += 1
+            if bar is not None and k % chunk == 0:
+                bar.update(chunk)
+    except KeyboardInterrupt as exc:
+        status, message = "interrupted", f"interrupted by the user at step {k} (t = {integ.t:.9g})"
+        log.warning("%s; %d records computed so far are attached to the KeyboardInterrupt", message, rec)
+        error = exc
+    except SolverError as exc:
+        status, message, error = "failed", str(exc), exc
+    except (NonFiniteState, BadModelOutput) as exc:
+        status, message = "failed", str(exc)
+        error = SimulationError(message, None, exc.step)
+        error.__cause__ = exc
+    except Exception as exc:  # a user callable raised inside the step
+        status = "failed"
+        message = f"step {k - 1} (t = {integ.t:.9g}) raised {type(exc).__name__}: {exc}"
+        error = SimulationError(message, None, k - 1)
+        error.__cause__ = exc
+    finally:
+        if bar is not None:
+            bar.close()
+    wall = time.perf_counter() - wall0
+    if status != "completed" and T[rec - 1] != integ.t:
+        # keep the last good state even when it falls between two records
+        T[rec], Q[rec], V[rec] = integ.t, integ.q, integ.v
+        if has_contacts:
+            PS[rec], ACT[rec] = P_acc, act_acc
+        rec += 1
+
+    stats = SolverStats(
+        solver=integ.solver.name, fallback=integ.fallback.name if integ.fallback is not None else "",
+        steps=integ.k, contact_steps=integ.n_contact_steps, solves=integ.n_solves, fallbacks=integ.n_fallbacks,
+        projections=integ.n_projections, worst_residual=integ.worst_residual, wall_time=wall,
+    )
+    traj = assemble(scene, t=T[:rec], q=Q[:rec], v=V[:rec], impulses=PS[:rec], active=ACT[:rec],
+                    onsets=ImpactLog.from_rows(impacts), stats=stats, h=h, stride=stride, status=status,
+                    message=message, work={"forces": integ.work_forces, "contacts": integ.work_contacts},
+                    max_penetration=pen, energy=energy)
+    if error is not None:
+        attach_trajectory(error, traj)
+        raise error
+    return traj
+
+
+def _log_impacts(integ: OneStepIntegrator, rows: np.ndarray, after_flight: np.ndarray,
+                 out: list[ImpactRow]) -> None:
+    """Log the contact onsets of the last step (``rows``) that are impacts by the flight
+    test (``after_flight``, shape (m,)) or the velocity test (see :class:`ImpactLog`).
+
+    Velocity test: ``−U_before > h |a_n|`` with ``h a_n = U_free − U_before``; slower
+    onsets are a sliding contact closing again after the midpoint drift opened it for a
+    step (on a curved barrier the scheme does that).
+    """
+    d = integ.last_contact_details(rows)
+    t_start = integ.t - integ.h
+    for j, r in enumerate(rows):
+        fast = bool(-d.U_before[j] > abs(d.U_free[j] - d.U_before[j]))
+        flight = bool(after_flight[r])
+        if fast or flight:
+            out.append((t_start, integ.k - 1, int(r), float(d.U_before[j]), float(d.U_after[j]),
+                        float(integ.P[r]), float(d.energy_lost[j]), flight, fast))
