@@ -5,7 +5,7 @@ For a ladder of step sizes, each integrator (:class:`~moreau.MoreauJeanMidpoint`
 with polishing and at loose tolerances, the exact ``enum`` and ``daqp``) and with and
 without drift control (:class:`~moreau.PositionProjection`), measure the wall time of the
 run and its error against an independent reference; fit the observed order of
-convergence per configuration (:func:`moreau.diagnostics.convergence_order`).
+convergence per configuration (:func:`moreau.results.diagnostics.convergence_order`).
 
 Problems and their references (the *primary* error, plotted against wall time, first):
 

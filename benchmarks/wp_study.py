@@ -19,12 +19,12 @@ from wp_problems import (
     _angle_distance,
 )
 
-from moreau.diagnostics import convergence_order
+from moreau.results.diagnostics import convergence_order
 
 
 def _compiles(scene) -> bool:
     """Whether the scene runs in the compiled loop (every part has a kernel)."""
-    from moreau.lowering import NotCompilable, lower
+    from moreau.compiled.lowering import NotCompilable, lower
 
     try:
         lower(scene)
@@ -109,7 +109,7 @@ def _describe_ref(f: dict) -> str:
 
 def fit_orders(runs: Sequence[Run], metric: str | None = None) -> dict[tuple[str, str], float]:
     """Observed order per (problem, configuration label): the least-squares slope of
-    log(error) on log(h) (:func:`moreau.diagnostics.convergence_order`) over the runs
+    log(error) on log(h) (:func:`moreau.results.diagnostics.convergence_order`) over the runs
     with a finite positive error (NaN when fewer than 3 such runs). ``metric`` names an
     error of ``Run.metrics``; default the primary error."""
     groups: dict[tuple[str, str], list[Run]] = {}

@@ -1,6 +1,6 @@
 """A triple pendulum chain falling against three walls: impacts on curved constraints.
 
-Three links hang from a fixed pivot (absolute angles, :mod:`moreau.chain`): two uniform
+Three links hang from a fixed pivot (absolute angles, :mod:`moreau.model.chain`): two uniform
 rods (m = 1.0, 0.8 kg; l = 0.5, 0.45 m) and a third link with an off-axis centre of mass
 (m = 0.5 kg, J = 0.01 kg m², l = 0.4 m, centre of mass 0.25 m along and 0.02 m across the
 link), joint damping 0.01, 0.005, 0.005 N m s/rad, gravity 9.81 m/s². Three inclined
@@ -33,7 +33,7 @@ def chain_walls() -> tuple[mo.Scene, np.ndarray, np.ndarray]:
     q0, v0 : ndarray, shape (3,)
         Released from rest at (1.2, 0.3, −0.5) rad.
     """
-    from moreau.chain import ChainGravity, JointDamping, Link, PendulumChain, PointLineBarrier, PointLineRow
+    from moreau.model.chain import ChainGravity, JointDamping, Link, PendulumChain, PointLineBarrier, PointLineRow
 
     chain = PendulumChain([Link.rod(m=1.0, l=0.5), Link.rod(m=0.8, l=0.45),
                            Link(m=0.5, J=0.01, l=0.4, com=0.25, com_lateral=0.02)])

@@ -41,7 +41,7 @@ __all__ = ["register_ball", "register_piston", "register_sweep"]
 
 
 def _solver_option(parser: argparse.ArgumentParser, help: str) -> None:
-    from moreau.solvers import available_solvers
+    from moreau.contact.solvers import available_solvers
 
     parser.add_argument("--solver", choices=available_solvers(), default="exact", help=help)
 

@@ -19,7 +19,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 import moreau as mo
-from moreau._pool import interrupt_for_signal, run_jobs
+from moreau.sweeps.pool import interrupt_for_signal, run_jobs
 
 from .analysis import cycle_figures, max_penetration_ratio, mean_speed_rpm, settled_speed_rpm
 from .model import PistonModel, piston_model
@@ -50,7 +50,7 @@ class Case:
         Contact solver (``"exact"``: compiled dual active set).
     backend : str
         Where the loop runs: ``"auto"``, ``"compiled"`` or ``"python"`` (see
-        :func:`moreau.simulate`).
+        :func:`moreau.run.simulation`).
     drift_control : bool
         Drift control (:meth:`~moreau.problems.piston.model.PistonModel.drift_control`, a
         :class:`moreau.CombinedProjection`): positions projected back onto the cylinder
@@ -111,7 +111,7 @@ def run_case(case: Case, out: str, progress: bool | dict = False) -> dict:
     except (mo.SolverError, mo.SimulationError) as exc:
         traj = exc.trajectory
         log.error("case %s failed: %s", case.label, exc)
-    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM (moreau._pool.Terminated)
+    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM (moreau.sweeps.pool.Terminated)
         traj, status = getattr(exc, "trajectory", None), "interrupted"
         log.warning("case %s interrupted", case.label)
     wall = time.perf_counter() - wall0
@@ -227,7 +227,7 @@ def run_cases(cases: Sequence[Case], out: str, progress: bool = True, workers: i
 
     The files an earlier run left for these cases in ``out`` are removed first. On Ctrl-C
     or SIGTERM no further case starts, the running ones save what they computed, and the
-    ``KeyboardInterrupt`` (``moreau._pool.Terminated`` after SIGTERM) is re-raised
+    ``KeyboardInterrupt`` (``moreau.sweeps.pool.Terminated`` after SIGTERM) is re-raised
     with the rows of every case as ``exc.rows`` (status ``"interrupted"`` or
     ``"not started"`` for those that did not complete).
     """

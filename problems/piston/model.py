@@ -1,6 +1,6 @@
 """The piston – connecting rod – crankshaft engine as a moreau scene.
 
-Built only from moreau's public API: a three-link inverted :class:`~moreau.chain.PendulumChain`
+Built only from moreau's public API: a three-link inverted :class:`~moreau.model.chain.PendulumChain`
 in the paper's non-dimensional units (length l1, time 1/ω, M_11 = 1; see
 :mod:`moreau.problems.piston.params`), with the effects the scene asks for — any of
 ``"gravity"``, ``"damping"`` (joint damping), ``"gas"`` (gas force on the pin),
@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import moreau as mo
-from moreau.chain import (
+from moreau.model.chain import (
     ChainGravity,
     JointDamping,
     Link,
@@ -91,7 +91,7 @@ class PistonModel:
 
     def simulate(self, cycles: float, h: float = 1e-4, *, phi1: float = 0.0, **kwargs) -> mo.Trajectory:
         """Run ``cycles`` engine cycles (4π of non-dimensional time each, at speed 1) from
-        :meth:`initial_state`; ``kwargs`` go to :func:`moreau.simulate`. Defaults set
+        :meth:`initial_state`; ``kwargs`` go to :func:`moreau.run.simulation`. Defaults set
         here: ``penetration_limit`` = the clearance and ``flight_gap`` =
         ``FLIGHT_FRACTION`` × the clearance (both in units of l1, the gaps' unit), so
         ``traj.impacts`` counts the onsets after a corner left the wall by 2 % of the

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from moreau.chain import Units
+from moreau.model.chain import Units
 
 from .params import PistonParameters
 
@@ -12,7 +12,7 @@ __all__ = ["scene_units"]
 
 
 def scene_units(p: PistonParameters, u: Units) -> dict[str, Any]:
-    """The units dict of the engine scene (:mod:`moreau.units`).
+    """The units dict of the engine scene (:mod:`moreau.model.units`).
 
     Time is τ = ω t (ω = 2π n/60 at the reference speed n), lengths are in l1 and masses
     in μ = M̄_11 / l1² (so that M_11 = 1): t, v, gaps, impulses and energy are
