@@ -32,7 +32,7 @@ def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fai
     step (closed, no restitution applied). Those held on g = 0 are marked pinned, and
     stay pinned while they carry an impulse without bouncing and their gap does not grow
     beyond where the projection left them."""
-    ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e, atol = model
+    ints, _, _, bkind, boff, brow, bnrows, pool, _, _ = model
     n, m = ints[0], ints[1]
     dtol = fset[F_DRIFT_TOL]
     combined = iset[S_DRIFT] == DRIFT_COMBINED

@@ -82,7 +82,7 @@ def loop_workspace(n, m):
 def _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, f, gm, cnt):
     """The midpoint q_m = q + h/2 v and the model there: M(q_m) factorized (unless
     constant), f(t + h/2, q_m, v) and the gaps g(q_m); returns DONE or why not."""
-    ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e, atol = model
+    ints, ekind, eoff, bkind, boff, brow, bnrows, pool, _, _ = model
     n, m = ints[0], ints[1]
     for i in range(n):
         qm[i] = q[i] + 0.5 * h * v[i]
@@ -205,7 +205,7 @@ def _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc
               in_contact, pen, gmax):
     """The gaps at q⁺, drift control, the deepest penetration and each row's largest gap
     since its last contact; returns DONE or why not."""
-    ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e, atol = model
+    ints, _, _, bkind, boff, brow, bnrows, pool, _, _ = model
     m = ints[1]
     if _user_failed(ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, q_new, cq, sq, gq), cnt):
         return USER_FAILED
@@ -228,7 +228,7 @@ def _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc
 def _record(model, user, iset, fset, k, q, v, cq, sq, M, P_acc, act_acc, gq, T, Q, V, PS, ACT, GP, KE, PE, cnt):
     """Record the state after step k (and the impulses and activity summed since the last
     record, the gaps and, when asked, the energies); returns DONE or USER_FAILED."""
-    ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e, atol = model
+    ints, ekind, eoff, _, _, _, _, pool, _, _ = model
     n, m = ints[0], ints[1]
     rec = cnt[C_REC]
     T[rec] = fset[F_T0] + k * fset[F_H]
@@ -276,7 +276,7 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
     pass with f(v_k), then f((v_k + v*)/2)), the contact records, the end position, the
     gaps and drift control there, and a record every ``stride`` steps.
     """
-    ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e, atol = model
+    ints, ekind, eoff, _, _, _, _, pool, _, _ = model
     n, m = ints[0], ints[1]
     h, t0 = fset[F_H], fset[F_T0]
     stride, nsteps = iset[S_STRIDE], iset[S_NSTEPS]

@@ -119,7 +119,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     ``rs`` (m, 6) holds per row the gap at q_k, the gap the projection left it at, the
     pinned and bounced flags, and a bounced row's h/2 − s and (2 s − h) a_n (columns
     ``R_GAP`` ... ``R_SHIFT``)."""
-    ints, ekind, eoff, bkind, boff, brow, bnrows, pool, e, atol = model
+    ints, _, _, bkind, boff, brow, bnrows, pool, e, atol = model
     n, m = ints[0], ints[1]
     h = fset[F_H]
     combined = iset[S_DRIFT] == DRIFT_COMBINED
