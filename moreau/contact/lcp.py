@@ -22,9 +22,9 @@ Both are plain loops on small dense arrays: they run inside the compiled time lo
 called from Python, as the ``"exact"`` backend (:class:`moreau.contact.solvers.ExactSolver`).
 
 The pieces live in modules by job and are imported from here: the LCP methods in
-:mod:`~moreau.contact.active_set`, :func:`solve_one_step` and :func:`workspace` in
-:mod:`~moreau.contact.one_step`, the KKT check :func:`kkt_residuals_kernel` in
-:mod:`~moreau.contact.kkt`.
+``moreau.contact.active_set``, :func:`solve_one_step` and :func:`workspace` in
+``moreau.contact.one_step``, the KKT check :func:`kkt_residuals_kernel` in
+``moreau.contact.kkt``.
 """
 
 from __future__ import annotations

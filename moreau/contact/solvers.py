@@ -20,9 +20,9 @@ Backends
 ``"daqp"``, ``"quadprog"``, ``"qpsolvers:<name>"`` : :class:`QpsolversSolver`, exact
     active-set QPs through qpsolvers.
 
-The backends live in modules by job — :mod:`~moreau.contact.base` (the interface),
-:mod:`~moreau.contact.osqp`, :mod:`~moreau.contact.refine` (OSQP's exact refinement),
-:mod:`~moreau.contact.exact`, :mod:`~moreau.contact.qp` — and are imported from here.
+The backends live in modules by job — ``moreau.contact.base`` (the interface),
+``moreau.contact.osqp``, ``moreau.contact.refine`` (OSQP's exact refinement),
+``moreau.contact.exact``, ``moreau.contact.qp`` — and are imported from here.
 """
 
 from __future__ import annotations
