@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import moreau as mo
-from moreau.core import kernels as K
 from moreau.compiled.lowering import NotCompilable, lower
+from moreau.core import kernels as K
 from moreau.model.chain import ChainGravity, JointDamping, Link, PendulumChain, PointLineBarrier, PointLineRow
 from moreau.problems.bouncing_ball import bouncing_ball
 from moreau.problems.chain_walls import chain_walls
