@@ -4,7 +4,9 @@
 velocity-level contact conditions, in its QP form) and its KKT residuals;
 :mod:`~moreau.contact.lcp` holds the exact pivoting/enumeration kernels that both paths
 call; :mod:`~moreau.contact.solvers` the solver objects (exact, enumeration, OSQP,
-qpsolvers). A new solver, or new kinds of rows (friction, equality), go here.
+qpsolvers), each backend in its own module (``moreau.contact.base``,
+``moreau.contact.osqp`` with ``moreau.contact.refine``, ``moreau.contact.exact``,
+``moreau.contact.qp``). A new solver, or new kinds of rows (friction, equality), go here.
 
 May import: :mod:`moreau.core`. Knows nothing of systems, scenes or integrators.
 """

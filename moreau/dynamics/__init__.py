@@ -13,7 +13,7 @@ speed up with the simulation backend.
 * :mod:`~moreau.dynamics.lyapunov`: the largest exponent from two nearby trajectories, the
   spectrum from finite-difference Jacobians of the interval map with QR;
 * :mod:`~moreau.dynamics.tangent`: the spectrum from the tangent dynamics with saltation
-  matrices at the impacts (Müller 1995);
+  matrices at the impacts (Müller 1995), built on ``moreau.dynamics.saltation``;
 * :mod:`~moreau.dynamics.bifurcation`: bifurcation diagrams on :func:`moreau.sweeps.sweep`.
 """
 

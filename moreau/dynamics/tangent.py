@@ -78,122 +78,12 @@ import moreau as mo
 
 from .lyapunov import LyapunovResult, _setup, _stats, _transient
 from .maps import restart, split_state
+from .saltation import _expm
+from .saltation import _Flow as _Flow  # re-exported: the tests reach it here
 
 __all__ = ["lyapunov_spectrum_tangent"]
 
 log = logging.getLogger(__name__)
-
-
-class _Flow:
-    """``F(t, x)`` of a scene, its Jacobian, the Newton map and the saltation matrix."""
-
-    def __init__(self, scene: mo.Scene, eps: float) -> None:
-        self.scene = scene
-        self.n = scene.ndof
-        self.eps = eps
-        self.Minv = np.linalg.inv(scene.system.mass_matrix(np.zeros(self.n))) \
-            if scene.system.constant_mass else None
-
-    def jac(self, q: np.ndarray) -> np.ndarray:
-        """Contact Jacobian G(q), shape (m, n)."""
-        assert self.scene.jacobian is not None  # only called at contact steps
-        return np.asarray(self.scene.jacobian(q), float)
-
-    def gaps(self, q: np.ndarray) -> np.ndarray:
-        """Gaps g(q), shape (m,)."""
-        assert self.scene.gaps is not None  # only called at contact steps
-        return np.asarray(self.scene.gaps(q), float)
-
-    def solve_M(self, q: np.ndarray, b: np.ndarray) -> np.ndarray:
-        if self.Minv is not None:
-            return self.Minv @ b
-        return np.linalg.solve(self.scene.system.mass_matrix(q), b)
-
-    def accel(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """``M(q)⁻¹ f(t, q, v)``, shape (n,)."""
-        return self.solve_M(q, np.asarray(self.scene.force(t, q, v), float))
-
-    def field(self, t: float, x: np.ndarray) -> np.ndarray:
-        """``F(t, x) = (v, M⁻¹ f)``, shape (2n,)."""
-        q, v = split_state(x)
-        return np.concatenate([v, self.accel(t, q, v)])
-
-    def jacobian(self, t: float, x: np.ndarray) -> np.ndarray:
-        """``A = ∂F/∂x`` by forward differences, shape (2n, 2n)."""
-        n = self.n
-        q, v = split_state(x)
-        force = self.scene.force
-        Minv = self.Minv if self.Minv is not None else np.linalg.inv(self.scene.system.mass_matrix(q))
-        f0 = np.asarray(force(t, q, v), float)
-        a0 = Minv @ f0
-        A = np.zeros((2 * n, 2 * n))
-        A[:n, n:] = np.eye(n)
-        for j in range(n):
-            d = self.eps * max(1.0, abs(q[j]))
-            y = q.copy()
-            y[j] += d
-            A[n:, j] = (self.accel(t, y, v) - a0) / d
-            d = self.eps * max(1.0, abs(v[j]))
-            y = v.copy()
-            y[j] += d
-            A[n:, n + j] = Minv @ (np.asarray(force(t, q, y), float) - f0) / d
-        return A
-
-    def newton(self, q: np.ndarray, v: np.ndarray, row: int) -> np.ndarray:
-        """Post-impact velocity of one row, shape (n,)."""
-        G = self.jac(q)[row]
-        w = self.solve_M(q, G)
-        return v - (1.0 + self.scene.restitution[row]) * w * (G @ v) / (G @ w)
-
-    def saltation(self, t: float, x: np.ndarray, row: int) -> tuple[np.ndarray, np.ndarray]:
-        """``(S, x⁺)`` at the pre-impact state x of ``row``: S (2n, 2n), x⁺ (2n,)."""
-        n = self.n
-        q, v = split_state(x)
-        e = self.scene.restitution[row]
-        G = self.jac(q)[row]
-        w = self.solve_M(q, G)
-        U = float(G @ v)
-        vp = self.newton(q, v, row)
-        J = np.eye(2 * n)
-        J[n:, n:] -= (1.0 + e) * np.outer(w, G) / (G @ w)
-        for j in range(n):  # ∂v⁺/∂q by central differences
-            d = self.eps ** 0.5 * max(1.0, abs(q[j]))  # O(d²) error, d ~ 3e-4
-            qp, qm = q.copy(), q.copy()
-            qp[j] += d
-            qm[j] -= d
-            J[n:, j] = (self.newton(qp, v, row) - self.newton(qm, v, row)) / (2 * d)
-        Fm = np.concatenate([v, self.accel(t, q, v)])
-        Fp = np.concatenate([vp, self.accel(t, q, vp)])
-        nvec = np.concatenate([G, np.zeros(n)])
-        S = J + np.outer(Fp - J @ Fm, nvec) / U
-        return S, np.concatenate([q, vp])
-
-    def scheme_step(self, t: float, x: np.ndarray, h: float, rows: np.ndarray) -> np.ndarray:
-        """The midpoint step with the contact rows ``rows`` held closed (their law
-        ``G v⁺ = −e G v``), shape (2n,)."""
-        q, v = split_state(x)
-        qm = q + 0.5 * h * v
-        vf = v + h * self.accel(t + 0.5 * h, qm, v)
-        G = self.jac(qm)[rows]
-        W = np.column_stack([self.solve_M(qm, g) for g in G])  # M⁻¹Gᵀ, (n, r)
-        lam = np.linalg.solve(G @ W, G @ vf + self.scene.restitution[rows] * (G @ v))
-        vp = vf - W @ lam
-        return np.concatenate([qm + 0.5 * h * vp, vp])
-
-
-def _expm(B: np.ndarray) -> np.ndarray:
-    """exp(B) by scaling and squaring of a degree-6 Taylor polynomial (the scaled norm
-    ``‖B‖₁ / 2ˢ <= 1/4``: truncation below 1e-8 relative; ~10 µs for 6 × 6)."""
-    nrm = float(np.abs(B).sum(axis=0).max())
-    s = max(0, math.ceil(math.log2(nrm / 0.25))) if nrm > 0.25 else 0
-    B = B / 2.0 ** s
-    eye = np.eye(B.shape[0])
-    E = eye + B / 6.0
-    for j in (5, 4, 3, 2, 1):
-        E = eye + (B @ E) / j
-    for _ in range(s):
-        E = E @ E
-    return E
 
 
 def lyapunov_spectrum_tangent(scene: mo.Scene, q0, v0, h: float, *, interval: float, n_intervals: int,
@@ -269,18 +159,12 @@ def lyapunov_spectrum_tangent(scene: mo.Scene, q0, v0, h: float, *, interval: fl
     min_speed = math.inf
     trace_sum = 0.0
     lndet_sum = 0.0
-    warnings: list[str] = []
     from tqdm import tqdm
     bar = tqdm(total=n_all, disable=not progress, desc="Lyapunov spectrum (saltation)")
     i = 0
     while i < n_all:
         m = min(per_chunk, n_all - i)
-        q, v = split_state(x)
-        traj = restart(scene, (t, t + m * fmap.T), q, v, hh, **kw)
-        if traj.status != "completed":
-            raise RuntimeError(f"lyapunov_spectrum_tangent: the simulation stopped early ({traj.message})")
-        X = np.hstack([traj.q, traj.v])
-        P = traj.impulses if scene.nrows else np.zeros((X.shape[0], 0))
+        X, P = _reference(scene, fmap, x, t, m, kw)
         for s in range(m * ns):
             ts = t + s * hh
             xs, xe = X[s], X[s + 1]
@@ -288,67 +172,15 @@ def lyapunov_spectrum_tangent(scene: mo.Scene, q0, v0, h: float, *, interval: fl
             counted = i + s // ns >= n_align
             hit = np.flatnonzero(Ps > 0.0)
             if hit.size == 0:
-                A = flow.jacobian(ts + 0.5 * hh, 0.5 * (xs + xe))
-                Q = _expm(hh * A) @ Q
-                tr_step, ld_step = hh * np.trace(A), 0.0
+                Q, tr_step, ld_step = _smooth_step(flow, Q, ts, hh, xs, xe)
             elif np.any(P_prev[hit] > 0.0):
                 stats["persistent_steps"] += counted
-                if persistent == "raise":
-                    rows = [scene.row_names[r] for r in hit[P_prev[hit] > 0.0]]
-                    raise RuntimeError(
-                        f"lyapunov_spectrum_tangent: persistent contact of row(s) {rows} at t = {ts:.9g} "
-                        "(an impulse in consecutive steps: sliding, resting or chattering), outside the "
-                        "impact saltation theory; persistent='scheme' continues with the scheme's "
-                        "contact-step Jacobian (the sum then depends on h)")
-                Js = np.empty((dim, dim))
-                for j in range(dim):
-                    d = eps ** 0.5 * max(1.0, abs(xs[j]))
-                    yp, ym = xs.copy(), xs.copy()
-                    yp[j] += d
-                    ym[j] -= d
-                    Js[:, j] = (flow.scheme_step(ts, yp, hh, hit) - flow.scheme_step(ts, ym, hh, hit)) / (2 * d)
-                Q = Js @ Q
-                tr_step, ld_step = 0.0, float(np.log(abs(np.linalg.det(Js))))
+                Q, tr_step, ld_step = _persistent_step(flow, Q, ts, hh, xs, hit, P_prev, eps, persistent)
             else:
-                qs, vs = split_state(xs)
-                g = flow.gaps(qs)
-                U = flow.jac(qs) @ vs
-                tau = {int(r): (float(np.clip(g[r] / -U[r], -0.5 * hh, hh)) if U[r] < 0 else 0.5 * hh)
-                       for r in hit}
-                order = sorted(tau, key=tau.get)  # type: ignore[arg-type]
-                stats["multi_row_steps"] += counted and len(order) > 1
-                y, tau_done, tr_step, ld_step = xs.copy(), 0.0, 0.0, 0.0
-                A = flow.jacobian(ts, y)
-                for r in order:
-                    dt = tau[r] - tau_done
-                    y = y + dt * flow.field(ts + tau_done, y)
-                    Q = _expm(dt * A) @ Q
-                    tr_step += dt * np.trace(A)
-                    tau_done = tau[r]
-                    qy, vy = split_state(y)
-                    Ur = float(flow.jac(qy)[r] @ vy)
-                    if Ur >= 0.0:
-                        stats["skipped_rows"] += counted
-                        continue
-                    an = float(flow.jac(qy)[r] @ flow.accel(ts + tau_done, qy, vy))
-                    S, y = flow.saltation(ts + tau_done, y, r)
-                    Q = S @ Q
-                    ld_step += float(np.log(abs(np.linalg.det(S))))
-                    if counted:
-                        stats["n_impacts"] += 1
-                        stats["grazing"] += -Ur < hh * abs(an)
-                        min_speed = min(min_speed, -Ur)
-                    A = flow.jacobian(ts + tau_done, y)
-                dt = hh - tau_done
-                A = flow.jacobian(ts + tau_done + 0.5 * dt, 0.5 * (y + xe))
-                Q = _expm(dt * A) @ Q
-                tr_step += dt * np.trace(A)
+                Q, tr_step, ld_step, speed = _impact_step(flow, Q, ts, hh, xs, xe, hit, counted, stats)
+                min_speed = min(min_speed, speed)
             P_prev = Ps
-            Q, R = np.linalg.qr(Q)
-            d = np.diag(R)
-            if np.any(d == 0) or not np.all(np.isfinite(d)):
-                raise RuntimeError(f"lyapunov_spectrum_tangent: degenerate frame at t = {ts:.9g}")
-            Q = Q * np.sign(d)
+            Q, d = _reorthonormalized(Q, ts)
             ii = i + s // ns
             logs[ii] += np.log(np.abs(d))
             if counted:
@@ -361,6 +193,113 @@ def lyapunov_spectrum_tangent(scene: mo.Scene, q0, v0, h: float, *, interval: fl
         t += m * fmap.T
         i += m
     bar.close()
+    return _result(fmap, logs, times, x, n_align, n_intervals, n_blocks, eps, stats, min_speed, trace_sum,
+                   lndet_sum)
+
+
+# -- the steps of the tangent dynamics ----------------------------------------------------
+def _reference(scene: mo.Scene, fmap, x: np.ndarray, t: float, m: int, kw: dict) -> tuple[np.ndarray, np.ndarray]:
+    """The reference trajectory over m intervals from ``(t, x)``, recorded at every step:
+    its states X (steps + 1, 2n) and impulses P (steps + 1, rows)."""
+    q, v = split_state(x)
+    traj = restart(scene, (t, t + m * fmap.T), q, v, fmap.h, **kw)
+    if traj.status != "completed":
+        raise RuntimeError(f"lyapunov_spectrum_tangent: the simulation stopped early ({traj.message})")
+    X = np.hstack([traj.q, traj.v])
+    P = traj.impulses if scene.nrows else np.zeros((X.shape[0], 0))
+    return X, P
+
+
+def _smooth_step(flow: _Flow, Q: np.ndarray, ts: float, hh: float, xs: np.ndarray,
+                 xe: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """A step without impact: ``exp(h A)`` at the midpoint state. Returns ``(Q, h trace A,
+    ln|det| of the impacts = 0)``."""
+    A = flow.jacobian(ts + 0.5 * hh, 0.5 * (xs + xe))
+    Q = _expm(hh * A) @ Q
+    return Q, hh * np.trace(A), 0.0
+
+
+def _persistent_step(flow: _Flow, Q: np.ndarray, ts: float, hh: float, xs: np.ndarray, hit: np.ndarray,
+                     P_prev: np.ndarray, eps: float, persistent: str) -> tuple[np.ndarray, float, float]:
+    """A step of a persistent contact: raise (``persistent="raise"``), or the Jacobian of the
+    scheme's contact step with the rows ``hit`` held closed (central differences). Returns
+    ``(Q, 0, ln|det J|)``."""
+    scene = flow.scene
+    if persistent == "raise":
+        rows = [scene.row_names[r] for r in hit[P_prev[hit] > 0.0]]
+        raise RuntimeError(
+            f"lyapunov_spectrum_tangent: persistent contact of row(s) {rows} at t = {ts:.9g} "
+            "(an impulse in consecutive steps: sliding, resting or chattering), outside the "
+            "impact saltation theory; persistent='scheme' continues with the scheme's "
+            "contact-step Jacobian (the sum then depends on h)")
+    dim = xs.shape[0]
+    Js = np.empty((dim, dim))
+    for j in range(dim):
+        d = eps ** 0.5 * max(1.0, abs(xs[j]))
+        yp, ym = xs.copy(), xs.copy()
+        yp[j] += d
+        ym[j] -= d
+        Js[:, j] = (flow.scheme_step(ts, yp, hh, hit) - flow.scheme_step(ts, ym, hh, hit)) / (2 * d)
+    Q = Js @ Q
+    return Q, 0.0, float(np.log(abs(np.linalg.det(Js))))
+
+
+def _impact_step(flow: _Flow, Q: np.ndarray, ts: float, hh: float, xs: np.ndarray, xe: np.ndarray,
+                 hit: np.ndarray, counted: bool, stats: dict) -> tuple[np.ndarray, float, float, float]:
+    """A step with impacts of the rows ``hit``: ``exp((h − τ) A⁺) S exp(τ A⁻)``, the rows in
+    the order of their crossing instants τ; counts them in ``stats`` when ``counted``.
+    Returns ``(Q, Σ dt trace A, Σ ln|det S|, the slowest counted impact's speed or inf)``."""
+    min_speed = math.inf
+    qs, vs = split_state(xs)
+    g = flow.gaps(qs)
+    U = flow.jac(qs) @ vs
+    tau = {int(r): (float(np.clip(g[r] / -U[r], -0.5 * hh, hh)) if U[r] < 0 else 0.5 * hh)
+           for r in hit}
+    order = sorted(tau, key=tau.get)  # type: ignore[arg-type]
+    stats["multi_row_steps"] += counted and len(order) > 1
+    y, tau_done, tr_step, ld_step = xs.copy(), 0.0, 0.0, 0.0
+    A = flow.jacobian(ts, y)
+    for r in order:
+        dt = tau[r] - tau_done
+        y = y + dt * flow.field(ts + tau_done, y)
+        Q = _expm(dt * A) @ Q
+        tr_step += dt * np.trace(A)
+        tau_done = tau[r]
+        qy, vy = split_state(y)
+        Ur = float(flow.jac(qy)[r] @ vy)
+        if Ur >= 0.0:
+            stats["skipped_rows"] += counted
+            continue
+        an = float(flow.jac(qy)[r] @ flow.accel(ts + tau_done, qy, vy))
+        S, y = flow.saltation(ts + tau_done, y, r)
+        Q = S @ Q
+        ld_step += float(np.log(abs(np.linalg.det(S))))
+        if counted:
+            stats["n_impacts"] += 1
+            stats["grazing"] += -Ur < hh * abs(an)
+            min_speed = min(min_speed, -Ur)
+        A = flow.jacobian(ts + tau_done, y)
+    dt = hh - tau_done
+    A = flow.jacobian(ts + tau_done + 0.5 * dt, 0.5 * (y + xe))
+    Q = _expm(dt * A) @ Q
+    tr_step += dt * np.trace(A)
+    return Q, tr_step, ld_step, min_speed
+
+
+def _reorthonormalized(Q: np.ndarray, ts: float) -> tuple[np.ndarray, np.ndarray]:
+    """The frame re-orthonormalized by QR (diag R made positive) and diag R."""
+    Q, R = np.linalg.qr(Q)
+    d = np.diag(R)
+    if np.any(d == 0) or not np.all(np.isfinite(d)):
+        raise RuntimeError(f"lyapunov_spectrum_tangent: degenerate frame at t = {ts:.9g}")
+    return Q * np.sign(d), d
+
+
+def _result(fmap, logs: np.ndarray, times: np.ndarray, x: np.ndarray, n_align: int, n_intervals: int,
+            n_blocks: int, eps: float, stats: dict, min_speed: float, trace_sum: float,
+            lndet_sum: float) -> LyapunovResult:
+    """The exponents from the logs after the alignment, with their ``meta``."""
+    warnings: list[str] = []
     if stats["persistent_steps"]:
         warnings.append(f"{stats['persistent_steps']} persistent-contact steps taken with the scheme's "
                         "contact-step Jacobian: the smaller exponents and the sum depend on h")
@@ -368,7 +307,7 @@ def lyapunov_spectrum_tangent(scene: mo.Scene, q0, v0, h: float, *, interval: fl
     logs, times = logs[n_align:], times[n_align:]
     exps, err, running = _stats(logs, fmap.T, n_blocks)
     duration = n_intervals * fmap.T
-    meta = {"h": hh, "interval": fmap.T, "eps": eps, **stats,
+    meta = {"h": fmap.h, "interval": fmap.T, "eps": eps, **stats,
             "min_impact_speed": min_speed, "warnings": warnings}
     meta["mean_trace"] = trace_sum / duration
     meta["ln_det_impacts"] = lndet_sum / duration

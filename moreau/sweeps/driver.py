@@ -219,33 +219,16 @@ def sweep(
         finished points (``out`` lists every point, ``"not computed"`` for the others).
     """
     pd = _require("pandas", "sweeps return a pandas DataFrame: pip install 'moreau[sweeps]'")
-    if isinstance(executor, str) and executor not in ("processes", "serial") and ":" not in executor:
-        raise ValueError(f"executor must be 'processes', 'serial', a concurrent.futures.Executor, a "
-                         f"dask.distributed Client or a scheduler address such as tcp://host:8786, got {executor!r}")
+    _check_executor(executor)
     points = grid_points(grid)
     keys = [point_key(p) for p in points]
-    out_path = os.fspath(out) if out is not None else None
-    if out_path is not None:
-        fmt = _table_format(out_path)
-        if fmt == "parquet":
-            _require("pyarrow", "writing a .parquet table needs pyarrow: pip install pyarrow (or write .csv)")
+    out_path = _out_path(out)
     name = _fun_name(fun)
 
     results: list[tuple[dict | None, str | None] | None] = [None] * len(points)
     record = None
     if out_path is not None:
-        if os.path.isdir(out_path):
-            raise ValueError(f"out {out_path!r} is a directory; give the table's file name (.parquet or .csv)")
-        parent = os.path.dirname(os.path.abspath(out_path))
-        os.makedirs(parent, exist_ok=True)
-        fun_id = json.dumps(_fun_identity(fun, cache_key), sort_keys=True)
-        record = _Record(out_path + _PARTS_SUFFIX, fun_id)
-        record.check_manifest(name, _fun_source_hash(fun))
-        keys = [_record_key(p, fun_id) for p in points]
-        for i, k in enumerate(keys):
-            part = record.read(k, points[i])
-            if part is not None and not (retry_errors and part.get("error")):
-                results[i] = (part.get("result"), part.get("error"))
+        record, keys = _open_record(out_path, fun, cache_key, name, points, results, retry_errors)
     todo = [(i, points[i]) for i in range(len(points)) if results[i] is None]
     n_done = len(points) - len(todo)
     if n_done:
@@ -257,18 +240,7 @@ def sweep(
 
     bar = tqdm(total=len(points), initial=n_done, desc=f"sweep {name.rsplit('.', 1)[-1]}", unit="point",
                disable=not progress, smoothing=0.1)
-
-    def on_done(i: int, result: dict | None, error: str | None, quiet: bool = False) -> None:
-        if results[i] is not None and quiet:
-            return
-        results[i] = (result, error)
-        if record is not None:
-            record.write(keys[i], points[i], result, error)
-        if error is not None:
-            log.warning("point %s failed: %s", points[i], error)
-        if not quiet:
-            bar.update(1)
-
+    on_done = _recorder(results, record, keys, points, bar)
     client, owned = None, False
     if record is not None:
         try:
@@ -278,25 +250,9 @@ def sweep(
             raise
     try:
         client, owned = (None, False) if not todo else _dask_client(executor, dask_timeout)
-        if not todo:
-            pass
-        elif client is not None:
-            _run_dask(client, fun, todo, on_done)
-        elif executor == "serial":
-            _run_serial(fun, todo, on_done)
-        elif executor == "processes":
-            _run_processes(fun, todo, max(1, min(workers or os.cpu_count() or 1, len(todo))), on_done)
-        elif isinstance(executor, cf.Executor):
-            _run_futures(executor, fun, todo, on_done)
-        else:
-            raise ValueError(f"executor must be 'processes', 'serial', a concurrent.futures.Executor, "
-                             f"a dask.distributed Client or a scheduler address, got {executor!r}")
+        _dispatch(executor, client, workers, fun, todo, on_done)
     except KeyboardInterrupt:
-        done = sum(r is not None for r in results)
-        log.warning("sweep interrupted: %d of %d points finished%s", done, len(points),
-                    f" and recorded in {record.directory}; run it again to resume" if record else "")
-        if out_path is not None:  # every point, "not computed" for the unfinished ones
-            _write_table(_table(pd, points, results), out_path)
+        _interrupted(pd, points, results, record, out_path)
         raise
     finally:
         bar.close()
@@ -311,3 +267,86 @@ def sweep(
         log.info("sweep table written to %s", out_path)
     return df
 
+
+# -- the sweep's steps --------------------------------------------------------------------
+def _check_executor(executor: Any) -> None:
+    """Refuse an executor name that is neither a local one nor a scheduler address."""
+    if isinstance(executor, str) and executor not in ("processes", "serial") and ":" not in executor:
+        raise ValueError(f"executor must be 'processes', 'serial', a concurrent.futures.Executor, a "
+                         f"dask.distributed Client or a scheduler address such as tcp://host:8786, got {executor!r}")
+
+
+def _out_path(out: str | os.PathLike | None) -> str | None:
+    """``out`` as a path (None: nothing on disk), its format checked and its writer present."""
+    out_path = os.fspath(out) if out is not None else None
+    if out_path is not None:
+        fmt = _table_format(out_path)
+        if fmt == "parquet":
+            _require("pyarrow", "writing a .parquet table needs pyarrow: pip install pyarrow (or write .csv)")
+    return out_path
+
+
+def _open_record(out_path: str, fun: Callable[..., Mapping[str, Any]], cache_key: Any, name: str,
+                 points: list[dict[str, Any]], results: list, retry_errors: bool) -> tuple[_Record, list[str]]:
+    """The record of ``out_path`` and the points' keys in it; the finished points it holds
+    are put into ``results`` (those that raised only without ``retry_errors``)."""
+    if os.path.isdir(out_path):
+        raise ValueError(f"out {out_path!r} is a directory; give the table's file name (.parquet or .csv)")
+    parent = os.path.dirname(os.path.abspath(out_path))
+    os.makedirs(parent, exist_ok=True)
+    fun_id = json.dumps(_fun_identity(fun, cache_key), sort_keys=True)
+    record = _Record(out_path + _PARTS_SUFFIX, fun_id)
+    record.check_manifest(name, _fun_source_hash(fun))
+    keys = [_record_key(p, fun_id) for p in points]
+    for i, k in enumerate(keys):
+        part = record.read(k, points[i])
+        if part is not None and not (retry_errors and part.get("error")):
+            results[i] = (part.get("result"), part.get("error"))
+    return record, keys
+
+
+def _recorder(results: list, record: _Record | None, keys: list[str], points: list[dict[str, Any]],
+              bar: Any) -> Callable[..., None]:
+    """The callback of a finished point: into ``results``, the record and the bar."""
+
+    def on_done(i: int, result: dict | None, error: str | None, quiet: bool = False) -> None:
+        if results[i] is not None and quiet:
+            return
+        results[i] = (result, error)
+        if record is not None:
+            record.write(keys[i], points[i], result, error)
+        if error is not None:
+            log.warning("point %s failed: %s", points[i], error)
+        if not quiet:
+            bar.update(1)
+
+    return on_done
+
+
+def _dispatch(executor: Any, client: Any, workers: int | None, fun: Callable[..., Mapping[str, Any]],
+              todo: list[tuple[int, dict[str, Any]]], on_done: Callable[..., None]) -> None:
+    """Run the points ``todo`` where ``executor`` says (``client``: its Dask client, if any)."""
+    if not todo:
+        pass
+    elif client is not None:
+        _run_dask(client, fun, todo, on_done)
+    elif executor == "serial":
+        _run_serial(fun, todo, on_done)
+    elif executor == "processes":
+        _run_processes(fun, todo, max(1, min(workers or os.cpu_count() or 1, len(todo))), on_done)
+    elif isinstance(executor, cf.Executor):
+        _run_futures(executor, fun, todo, on_done)
+    else:
+        raise ValueError(f"executor must be 'processes', 'serial', a concurrent.futures.Executor, "
+                         f"a dask.distributed Client or a scheduler address, got {executor!r}")
+
+
+def _interrupted(pd: Any, points: list[dict[str, Any]], results: list, record: _Record | None,
+                 out_path: str | None) -> None:
+    """After an interrupt: say how far the sweep got and write the table of every point,
+    ``"not computed"`` for the unfinished ones."""
+    done = sum(r is not None for r in results)
+    log.warning("sweep interrupted: %d of %d points finished%s", done, len(points),
+                f" and recorded in {record.directory}; run it again to resume" if record else "")
+    if out_path is not None:
+        _write_table(_table(pd, points, results), out_path)

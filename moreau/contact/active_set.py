@@ -1,0 +1,202 @@
+"""The LCP methods of the exact contact solver: :func:`lcp_dual_active_set` (Goldfarb–Idnani
+on W) and :func:`lcp_enumerate`, on the leading k x k block of the work arrays.
+
+Described in :mod:`moreau.contact.lcp`, which re-exports them; :mod:`~moreau.contact.one_step`
+builds their W and w from the one-step problem.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from moreau.core.kernels import cho_solve, cholesky
+
+__all__ = ["lcp_dual_active_set", "lcp_enumerate", "OK", "FAILED"]
+
+OK, FAILED = 0, 1
+# allocation-free, so without reference counting; inlined by LLVM (see moreau.core.kernels.jit)
+_jit = njit(cache=True, nogil=True, forceinline=True, _nrt=False)  # type: ignore[call-overload]
+# internal helpers: no CPython or C entry points to build
+_inline = njit(cache=True, nogil=True, forceinline=True, _nrt=False,  # type: ignore[call-overload]
+               no_cpython_wrapper=True, no_cfunc_wrapper=True)
+
+
+@_inline
+def _solve_active(W, A, na, rhs, out, sub, fac):
+    """out[:na] = W[A, A]⁻¹ rhs[:na] by Cholesky; False when W[A, A] is not PD."""
+    for i in range(na):
+        for j in range(na):
+            sub[i, j] = W[A[i], A[j]]
+    if cholesky(sub, fac, na) >= 0:
+        return False
+    cho_solve(fac, rhs, out, na)
+    return True
+
+
+@_inline
+def _slacks(W, w, P, s, k):
+    """s = w + W P on the first k rows; returns min s."""
+    smin = math.inf
+    for i in range(k):
+        t = w[i]
+        for j in range(k):
+            t += W[i, j] * P[j]
+        s[i] = t
+        smin = min(smin, t)
+    return smin
+
+
+@_jit
+def lcp_dual_active_set(W, w, P, k, tol, s, A, inA, rhs, r, sub, fac):
+    """Solve ``0 <= P ⟂ w + W P >= 0`` (W PSD, the leading k x k block) by the
+    Goldfarb–Idnani dual method.
+
+    Parameters
+    ----------
+    W : ndarray, shape (>= k, >= k)
+    w : ndarray, shape (>= k,)
+    P : ndarray, shape (>= k,)
+        Output: the impulses P[:k].
+    k : int
+        Number of rows.
+    tol : float
+        Accept slacks >= −tol (velocity units).
+    s, A, inA, rhs, r, sub, fac : ndarray
+        Work arrays (from :func:`workspace`).
+
+    Returns
+    -------
+    int
+        ``OK`` or ``FAILED`` (infeasible problem, or no convergence in 10 (k + 1) steps).
+    """
+    for i in range(k):
+        P[i] = 0.0
+    if k == 1:  # closed form
+        if w[0] >= -tol:
+            return OK
+        if not W[0, 0] > 0.0:
+            return FAILED
+        P[0] = -w[0] / W[0, 0]
+        return OK
+    for i in range(k):
+        inA[i] = False
+    na = 0
+    converged = False
+    for _ in range(10 * (k + 1)):
+        _slacks(W, w, P, s, k)
+        p = -1
+        worst = 0.0
+        for i in range(k):
+            if not inA[i] and s[i] < -tol:
+                d = W[i, i]
+                score = s[i] / math.sqrt(d) if d > 0.0 else s[i]
+                if score < worst:
+                    worst, p = score, i
+        if p < 0:
+            converged = True
+            break
+        added = False
+        for _inner in range(k + 1):
+            # r = W_AA⁻¹ W_Ap: how the active impulses change per unit of P_p
+            if na > 0:
+                for i in range(na):
+                    rhs[i] = W[A[i], p]
+                if not _solve_active(W, A, na, rhs, r, sub, fac):
+                    return FAILED
+            schur = W[p, p]
+            for i in range(na):
+                schur -= W[p, A[i]] * r[i]
+            sp = w[p]
+            for j in range(k):
+                sp += W[p, j] * P[j]
+            t1 = math.inf
+            if schur > 1e-13 * max(W[p, p], 1e-300):
+                t1 = -sp / schur
+            t2 = math.inf
+            jblock = -1
+            for i in range(na):
+                if r[i] > 0.0:
+                    ti = P[A[i]] / r[i]
+                    if ti < t2:
+                        t2, jblock = ti, i
+            if t1 == math.inf and t2 == math.inf:
+                return FAILED  # row p cannot be satisfied: infeasible
+            t = min(t1, max(t2, 0.0))
+            for i in range(na):
+                P[A[i]] -= t * r[i]
+            P[p] += t
+            if t2 < t1:  # drop the blocking row, keep adding p
+                jb = A[jblock]
+                P[jb] = 0.0
+                inA[jb] = False
+                for i in range(jblock, na - 1):
+                    A[i] = A[i + 1]
+                na -= 1
+                continue
+            A[na] = p
+            inA[p] = True
+            na += 1
+            added = True
+            break
+        if not added:
+            return FAILED
+    if not converged:
+        return FAILED
+    # refine on the final active set: W_AA P_A = −w_A exactly
+    if na > 0:
+        for i in range(na):
+            rhs[i] = -w[A[i]]
+        if _solve_active(W, A, na, rhs, r, sub, fac):
+            ok = True
+            for i in range(na):
+                if r[i] < 0.0:
+                    ok = False
+            if ok:
+                for i in range(na):
+                    P[A[i]] = r[i]
+    return OK
+
+
+@_jit
+def lcp_enumerate(W, w, P, k, tol, s, A, rhs, x, sub, fac):
+    """Solve the same LCP by enumerating active sets, smallest first (k <= 12).
+
+    Returns ``OK`` or ``FAILED`` (more than 12 rows, or no active set passes).
+    """
+    for i in range(k):
+        P[i] = 0.0
+    if k > 12:
+        return FAILED
+    if _slacks(W, w, P, s, k) >= -tol:
+        return OK
+    for size in range(1, k + 1):
+        for mask in range(1, 1 << k):
+            na = 0
+            for i in range(k):
+                if mask >> i & 1:
+                    A[na] = i
+                    na += 1
+            if na != size:
+                continue
+            for i in range(na):
+                rhs[i] = -w[A[i]]
+            if not _solve_active(W, A, na, rhs, x, sub, fac):
+                continue
+            good = True
+            for i in range(na):
+                if x[i] < 0.0:
+                    good = False
+            if not good:
+                continue
+            for i in range(k):
+                P[i] = 0.0
+            for i in range(na):
+                P[A[i]] = x[i]
+            if _slacks(W, w, P, s, k) >= -tol:
+                return OK
+    for i in range(k):
+        P[i] = 0.0
+    return FAILED
+

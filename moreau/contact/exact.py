@@ -1,0 +1,72 @@
+"""The compiled exact backends called from the Python path: :class:`ExactSolver` (dual
+active set) and :class:`EnumerationSolver`, both running the kernels of
+:mod:`moreau.contact.lcp`."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from moreau.contact.base import ContactSolver, SolveFailed
+
+__all__ = ["ExactSolver", "EnumerationSolver"]
+
+
+class _CompiledLCPSolver(ContactSolver):
+    """A compiled LCP method of :mod:`moreau.contact.lcp` called from the Python path."""
+
+    exact = True
+    _method = 0
+
+    def solve(self, M, b, G, c, rows):
+        from moreau.contact.lcp import solve_one_step, workspace
+        from moreau.core.kernels import cholesky
+
+        k = rows.shape[0]
+        self._check_rows(k)
+        n = M.shape[0]
+        L = np.empty((n, n))
+        if cholesky(M, L, n) >= 0:
+            raise SolveFailed("the mass matrix is not positive definite")
+        P = np.zeros(k)
+        v = np.empty(n)
+        GA = np.ascontiguousarray(G[rows], dtype=float)
+        if solve_one_step(M, L, np.ascontiguousarray(b, dtype=float), GA,
+                          np.ascontiguousarray(c[rows], dtype=float), P, v, k, self._method, 1e-12,
+                          workspace(n, k)) != 0:
+            raise SolveFailed(f"{self.name} found no solution for {k} active rows")
+        return v, P
+
+    def _check_rows(self, k: int) -> None:
+        pass
+
+
+class ExactSolver(_CompiledLCPSolver):
+    """Exact dual active-set solver (Goldfarb–Idnani on the LCP, :mod:`moreau.contact.lcp`):
+    any number of active rows, redundant rows included. The default of the compiled path,
+    and the same code here."""
+
+    name = "exact"
+    _method = 0
+
+
+class EnumerationSolver(_CompiledLCPSolver):
+    """Exact LCP solver by enumeration of active sets, smallest first (:mod:`moreau.contact.lcp`).
+
+    For k active rows it tries at most 2^k sets, each a k x k Cholesky solve; singular
+    sub-blocks (redundant rows) are skipped. The default fallback.
+
+    Parameters
+    ----------
+    max_rows : int
+        Refuse (raise :class:`~moreau.contact.solvers.SolveFailed`) above this many active rows (at most 12).
+    """
+
+    name = "enum"
+    _method = 1
+
+    def __init__(self, max_rows: int = 12) -> None:
+        self.max_rows = min(int(max_rows), 12)
+
+    def _check_rows(self, k: int) -> None:
+        if k > self.max_rows:
+            raise SolveFailed(f"enumeration refuses {k} active rows (max_rows={self.max_rows})")

@@ -1,0 +1,113 @@
+"""The one-step QP through its LCP: :func:`solve_one_step` forms ``W = G M⁻¹ Gᵀ`` and
+``w = G M⁻¹ b − c``, calls an LCP method of :mod:`~moreau.contact.active_set`, and refines
+the answer (:func:`_refine`); :func:`workspace` allocates its work arrays once per run.
+Re-exported by :mod:`moreau.contact.lcp`."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from moreau.contact.active_set import OK, _inline, _jit, _solve_active, lcp_dual_active_set, lcp_enumerate
+from moreau.core.kernels import cho_solve, sym_product
+
+__all__ = ["solve_one_step", "workspace"]
+
+
+@njit(cache=True, nogil=True)
+def workspace(n, m):
+    """Work arrays for problems of up to m rows on n coordinates (allocated once per run;
+    the LCP methods, the solve and the KKT check work on leading blocks of them, creating
+    no array views)."""
+    mm = max(m, 1)
+    return (np.empty((mm, n)), np.empty(n), np.empty((mm, mm)), np.empty(mm), np.empty(mm),
+            np.empty(mm, dtype=np.int64), np.zeros(mm, dtype=np.bool_), np.empty(mm), np.empty(mm),
+            np.empty((mm, mm)), np.empty((mm, mm)), np.empty(mm), np.empty(n), np.empty(n),
+            np.empty(n), np.empty(n), np.empty(4))
+
+
+@_jit
+def solve_one_step(M, L, b, G, c, P, v, k, method, tol, ws):
+    """v, P of the one-step QP on the first k rows of G with the LCP solver ``method``
+    (0: dual active set, 1: enumeration); returns its status. ``L`` = chol(M), ``ws``
+    from :func:`workspace`."""
+    n = M.shape[0]
+    MinvGt = ws[0]  # row j: M⁻¹ G_jᵀ
+    row = ws[13]
+    for j in range(k):
+        for i in range(n):
+            row[i] = G[j, i]
+        cho_solve(L, row, row, n)
+        for i in range(n):
+            MinvGt[j, i] = row[i]
+    vfree = ws[1]
+    cho_solve(L, b, vfree, n)
+    W = ws[2]
+    w = ws[3]
+    scale = 1e-300
+    for i in range(k):
+        t = -c[i]
+        for j in range(n):
+            t += G[i, j] * vfree[j]
+        w[i] = t
+        scale = max(scale, abs(t), abs(c[i]))
+    sym_product(G, MinvGt, W, k, n)  # W = G M⁻¹ Gᵀ, exactly symmetric
+    if method == 0:
+        status = lcp_dual_active_set(W, w, P, k, tol * scale, ws[4], ws[5], ws[6], ws[7], ws[8], ws[9], ws[10])
+    else:
+        status = lcp_enumerate(W, w, P, k, tol * scale, ws[4], ws[5], ws[7], ws[8], ws[9], ws[10])
+    for i in range(n):
+        t = vfree[i]
+        for j in range(k):
+            t += MinvGt[j, i] * P[j]
+        v[i] = t
+    if status == OK:
+        # iterative refinement; repeated (twice at most) while the residual it corrected was
+        # above the round-off of G v − c: nearly dependent active rows (cond(W_AA) ~ 1e12)
+        # take two or three steps, a well-conditioned set none more
+        applied, residual, scale = _refine(G, c, P, v, k, W, MinvGt, ws)
+        for _ in range(2):
+            if not applied or residual <= 64.0 * 2.220446049250313e-16 * scale:
+                break
+            applied, residual, scale = _refine(G, c, P, v, k, W, MinvGt, ws)
+    return status
+
+
+@_inline
+def _refine(G, c, P, v, k, W, MinvGt, ws):
+    """One step of iterative refinement on the rows with P > 0: v⁺ = v_free + M⁻¹GᵀP
+    cancels large free velocities (an impulse that stops a driven joint), leaving G v⁺
+    off its bound c by round-off of the large terms; correct P and v by the residual.
+    Returns ``(applied, max |G_i v − c_i| before the correction, max (|c_i| + |G_i||v|))``
+    over those rows; nothing is applied when the residual is already at the round-off
+    of G v − c (64 ε of that scale)."""
+    A = ws[5]
+    rhs = ws[7]
+    dP = ws[8]
+    na = 0
+    worst = 0.0
+    scale = 0.0
+    for i in range(k):
+        if P[i] > 0.0:
+            t = -c[i]
+            s = abs(c[i])
+            for j in range(v.shape[0]):
+                t += G[i, j] * v[j]
+                s += abs(G[i, j] * v[j])
+            A[na] = i
+            rhs[na] = -t
+            na += 1
+            worst = max(worst, abs(t))
+            scale = max(scale, s)
+    if na == 0 or worst <= 64.0 * 2.220446049250313e-16 * scale:  # nothing to refine
+        return False, worst, scale
+    if not _solve_active(W, A, na, rhs, dP, ws[9], ws[10]):
+        return False, worst, scale
+    for a in range(na):
+        if P[A[a]] + dP[a] < 0.0:
+            return False, worst, scale
+    for a in range(na):
+        P[A[a]] += dP[a]
+        for j in range(v.shape[0]):
+            v[j] += MinvGt[A[a], j] * dP[a]
+    return True, worst, scale

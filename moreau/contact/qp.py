@@ -1,0 +1,77 @@
+"""Exact QP backends through qpsolvers (:class:`QpsolversSolver`: ``"daqp"``,
+``"quadprog"``, ``"qpsolvers:<name>"``), rebuilding the problem every step."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from moreau.contact.base import ContactSolver, SolveFailed
+
+__all__ = ["QpsolversSolver"]
+
+
+def _unconstrained_if_feasible(M, b, G, c, rows):
+    """The unconstrained minimizer ``v = M⁻¹ b`` when it satisfies every active row, else None.
+
+    Then it is the exact solution, with P = 0 (the QP is strictly convex). OSQP (1.x)
+    prints "Polishing not needed - no active set detected at optimal point" through
+    ``sys.stdout`` whenever polishing finds no active row, whatever ``verbose`` says; the
+    OSQP backends use this test (:class:`OSQPSolver` in its own units) to switch polishing
+    off for such a solve (polishing would not change the answer). Redirecting
+    ``sys.stdout`` or file descriptor 1 around each solve instead is process-global state
+    and breaks under threads. What remains: a solve whose true impulses are nonzero but
+    below OSQP's detection threshold can still print that line (measured: 1 in ~6 000
+    piston solves); it changes no result.
+    """
+    try:
+        v = np.linalg.solve(M, b)
+    except (np.linalg.LinAlgError, ValueError):
+        return None
+    if not np.all(np.isfinite(v)) or not np.all(G[rows] @ v >= c[rows]):
+        return None
+    return v
+
+class QpsolversSolver(ContactSolver):
+    """An exact QP backend through qpsolvers (``"daqp"``, ``"quadprog"``, ...).
+
+    Each step builds the QP on the active rows only and calls ``qpsolvers.solve_problem``
+    (so ``QpsolversSolver("osqp")`` rebuilds the OSQP workspace every step: the slow way,
+    kept for the benchmark that measures it).
+
+    Parameters
+    ----------
+    backend : str
+        A name in ``qpsolvers.available_solvers``.
+    **options
+        Passed to the backend (e.g. ``eps_abs=1e-9`` for OSQP).
+    """
+
+    def __init__(self, backend: str, **options) -> None:
+        import qpsolvers
+
+        if backend not in qpsolvers.available_solvers:
+            raise ValueError(
+                f"unknown or not installed qpsolvers backend {backend!r}; "
+                f"available: {sorted(qpsolvers.available_solvers)}"
+            )
+        self.backend = backend
+        self.name = backend if backend != "osqp" else "qpsolvers:osqp"
+        self.exact = backend != "osqp"
+        self.options = options
+        self._qpsolvers = qpsolvers
+
+    def solve(self, M, b, G, c, rows):
+        qp = self._qpsolvers
+        if self.backend == "osqp":  # keeps OSQP's polishing from printing
+            free = _unconstrained_if_feasible(M, b, G, c, rows)
+            if free is not None:
+                return free, np.zeros(rows.shape[0])
+        problem = qp.Problem(P=M, q=-b, G=-G[rows], h=-c[rows])
+        sol = qp.solve_problem(problem, solver=self.backend, **self.options)
+        if not sol.found or sol.x is None:
+            raise SolveFailed(f"{self.backend} found no solution")
+        P = sol.z if sol.z is not None else np.zeros(rows.shape[0])
+        return np.asarray(sol.x, dtype=float), np.asarray(P, dtype=float)
+
+    def describe(self):
+        return {"name": self.name, "options": self.options}
