@@ -14,12 +14,14 @@ The pieces, in the field's vocabulary, and where they live:
 * physics kernels and errors, the ground floor — :mod:`moreau.core`.
 """
 
+import sys
+
 from .core.compat import MOVED as _MOVED
 from .core.compat import install as _install_moved
 from .core.compat import moved as _moved
 from .core.version import DISTRIBUTION, __version__  # noqa: F401 - DISTRIBUTION is read by the packaging tests
 
-_install_moved()
+_install_moved(sys.modules[__name__])
 
 from .compiled.cache import ensure_compiled
 from .contact.problem import OneStepProblem, Residuals

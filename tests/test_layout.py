@@ -183,3 +183,7 @@ def test_every_former_module_path_still_imports(old):
              if issubclass(w.category, DeprecationWarning) and f"moreau.{old} moved" in str(w.message)]
     if module.__name__ != f"moreau.{old}":  # moved: the warning names the new path
         assert moved and module.__name__ in str(moved[0].message)
+    import moreau as mo
+
+    # a former module of the same name as a public function leaves the function in place
+    assert callable(mo.simulate) and mo.simulate.__name__ == "simulate"

@@ -154,7 +154,7 @@ def _fmt(x: object) -> str:
 
 
 def add_backend_option(parser: argparse.ArgumentParser) -> None:
-    """``--backend auto|compiled|python`` (see :func:`moreau.run.simulation`)."""
+    """``--backend auto|compiled|python`` (see :func:`moreau.simulate`)."""
     parser.add_argument("--backend", choices=("auto", "compiled", "python"), default="auto",
                         help="where the time loop runs: compiled (numba), python (the reference "
                              "path, to compare), auto (compiled when the scene and solver allow; default)")
@@ -162,7 +162,7 @@ def add_backend_option(parser: argparse.ArgumentParser) -> None:
 
 def simulate_and_save(scene: Scene, t_span: tuple[float, float], q0: Sequence[float], v0: Sequence[float],
                       h: float, out_stem: str, **kwargs: Any) -> Trajectory:
-    """:func:`moreau.run.simulation` that saves the trajectory in every case: ``out_stem.npz``
+    """:func:`moreau.simulate` that saves the trajectory in every case: ``out_stem.npz``
     when it completed, ``out_stem.partial.npz`` otherwise.
 
     Raises

@@ -4,7 +4,7 @@ by chunk, and turn its buffers into a :class:`~moreau.results.trajectory.Traject
 Python is entered only to start, to advance the progress bar between chunks (each
 about a quarter of a second of stepping), to honour Ctrl-C there, to grow the impact
 buffer, and to finish. Status codes of the loop become the exceptions of
-:func:`moreau.run.simulation`, each carrying the partial trajectory.
+:func:`moreau.simulate`, each carrying the partial trajectory.
 """
 
 from __future__ import annotations

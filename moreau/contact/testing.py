@@ -8,7 +8,7 @@ its KKT check — and fall back to its exact backend, counting the fallback in
 ``traj.stats.fallbacks``::
 
     faulty = FaultInjectingSolver("enum", fail_on={0, 10, 20}, mode="wrong")
-    traj = moreau.run.simulation(scene, (0, 1), q0, v0, 1e-3, solver=faulty, fallback="enum")
+    traj = moreau.simulate(scene, (0, 1), q0, v0, 1e-3, solver=faulty, fallback="enum")
     assert traj.stats.fallbacks == len(faulty.injected)
 """
 

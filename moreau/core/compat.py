@@ -57,7 +57,21 @@ class _MovedFinder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
         pass
 
 
-def install() -> None:
-    """Put the finder of former paths on ``sys.meta_path`` (once)."""
+class _Package(types.ModuleType):
+    """The ``moreau`` package: importing a former module path does not replace the public
+    name it shares (``import moreau.simulate`` leaves the function ``moreau.simulate``)."""
+
+    def __setattr__(self, name: str, value: object) -> None:
+        old = self.__dict__.get(name)
+        if (isinstance(value, types.ModuleType) and f"{self.__name__}.{name}" in MOVED
+                and old is not None and not isinstance(old, types.ModuleType)):
+            return
+        super().__setattr__(name, value)
+
+
+def install(package: types.ModuleType) -> None:
+    """Put the finder of former paths on ``sys.meta_path`` (once) and keep ``package``'s
+    public names from being replaced by the former modules of the same name."""
     if not any(isinstance(f, _MovedFinder) for f in sys.meta_path):
         sys.meta_path.append(_MovedFinder())
+    package.__class__ = _Package

@@ -25,7 +25,7 @@ class SolverError(RuntimeError):
         Scaled KKT residuals of the best candidate (or the error of each backend).
     trajectory : Trajectory or None
         The run up to the last good step (``status == "failed"``), attached by
-        :func:`moreau.run.simulation`; None when the solver was called outside a run.
+        :func:`moreau.simulate`; None when the solver was called outside a run.
     """
 
     def __init__(self, message: str, step: int, t: float, rows: list[str], residuals: dict[str, Any],

@@ -1,4 +1,4 @@
-"""Input checks shared by the public constructors and :func:`moreau.run.simulation`: each
+"""Input checks shared by the public constructors and :func:`moreau.simulate`: each
 refuses what is not documented and names the bad value and the argument.
 
 A *number* is a real int or float (Python or numpy); bools, strings, None and complex

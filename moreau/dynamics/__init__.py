@@ -2,7 +2,7 @@
 bifurcate? Tools for the non-smooth dynamics of any :class:`moreau.Scene`.
 
 The state is ``x = (q, v)``, shape (2n,). Every long run goes through
-:func:`moreau.run.simulation` (extra keyword arguments are passed through to it), so the tools
+:func:`moreau.simulate` (extra keyword arguments are passed through to it), so the tools
 speed up with the simulation backend.
 
 * :mod:`~moreau.dynamics.sections`: stroboscopic samples and Poincaré sections s(q, v) = 0,

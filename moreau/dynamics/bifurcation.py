@@ -1,6 +1,6 @@
 """Bifurcation diagrams on :func:`moreau.sweeps.sweep` (process pool or Dask, resumable).
 
-For every value of one parameter: build the scene, integrate with :func:`moreau.run.simulation`,
+For every value of one parameter: build the scene, integrate with :func:`moreau.simulate`,
 discard the transient, sample the stroboscopic section once per forcing period and keep
 the chosen state components — optionally with the largest Lyapunov exponent.
 """
@@ -61,7 +61,7 @@ def bifurcation_point(*, make_scene: Callable, param: str, value: float, q0, v0,
     max_period, rtol : int, float
         Period detection on the section (:func:`~moreau.dynamics.floquet.detect_period`).
     simulate_kwargs : dict, optional
-        Passed to :func:`moreau.run.simulation`.
+        Passed to :func:`moreau.simulate`.
 
     Returns
     -------

@@ -1,6 +1,6 @@
 """Lyapunov exponents of a non-smooth system from its simulated trajectories.
 
-Two methods, both on :func:`moreau.run.simulation` (any scene, impacts included):
+Two methods, both on :func:`moreau.simulate` (any scene, impacts included):
 
 * :func:`largest_lyapunov`: two nearby trajectories, the second renormalized to the
   distance ``d0`` from the first after every ``interval`` (Benettin et al. 1976).
@@ -224,7 +224,7 @@ def largest_lyapunov(scene: mo.Scene, q0, v0, h: float, *, interval: float, n_in
     progress : bool
         A tqdm bar over the intervals.
     **simulate_kwargs
-        Passed to :func:`moreau.run.simulation` (``solver="enum"`` is the default for scenes
+        Passed to :func:`moreau.simulate` (``solver="enum"`` is the default for scenes
         with contacts).
 
     Returns

@@ -1,7 +1,7 @@
 """The time-T map of a scene and finite-difference Jacobians of maps.
 
 A state is ``x = (q, v)``, shape (2n,). :class:`TimeMap` advances a state from ``t0`` to
-``t0 + T`` with :func:`moreau.run.simulation` (keyword arguments passed through), recording only
+``t0 + T`` with :func:`moreau.simulate` (keyword arguments passed through), recording only
 the end point.
 """
 
@@ -35,7 +35,7 @@ def split_state(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 class TimeMap:
-    """``x(t0) -> x(t0 + T)`` for a scene, integrated by :func:`moreau.run.simulation`.
+    """``x(t0) -> x(t0 + T)`` for a scene, integrated by :func:`moreau.simulate`.
 
     Parameters
     ----------
@@ -49,7 +49,7 @@ class TimeMap:
     t0 : float
         Start time of the map (the section phase of a forced system).
     **simulate_kwargs
-        Passed to :func:`moreau.run.simulation` (``solver=``, ``drift_control=``, ...).
+        Passed to :func:`moreau.simulate` (``solver=``, ``drift_control=``, ...).
 
     Attributes
     ----------
@@ -97,10 +97,10 @@ class TimeMap:
 
 
 def restart(scene: mo.Scene, t_span, q, v, h: float, **simulate_kwargs) -> mo.Trajectory:
-    """:func:`moreau.run.simulation` from a state a previous run ended in.
+    """:func:`moreau.simulate` from a state a previous run ended in.
 
     The midpoint scheme ends an impact step with a penetration of up to ~ (1 - e)|v|h/2,
-    which :func:`moreau.run.simulation` refuses as an initial state by default; a run that
+    which :func:`moreau.simulate` refuses as an initial state by default; a run that
     continues from such a state is what the uninterrupted run would have done, so that
     state's own penetration is accepted (``initial_penetration``), on whichever path the
     scene runs (the compiled loop when it compiles).
@@ -159,7 +159,7 @@ class PoincareMap:
     """The return map to a section ``s(q, v) = 0`` of an autonomous scene (e.g. an engine
     at a crank angle), on the coordinates ``free`` of the state.
 
-    Each call integrates from the section point with :func:`moreau.run.simulation` over
+    Each call integrates from the section point with :func:`moreau.simulate` over
     ``t_max`` (recording every step) and returns the state at the first crossing after
     ``t_min`` (linear interpolation between steps, as :func:`moreau.dynamics.poincare`).
 
@@ -183,7 +183,7 @@ class PoincareMap:
     t0 : float
         Start time of every run.
     **simulate_kwargs
-        Passed to :func:`moreau.run.simulation`.
+        Passed to :func:`moreau.simulate`.
     """
 
     def __init__(self, scene: mo.Scene, surface, h: float, x_ref, free, *, t_min: float, t_max: float,

@@ -141,7 +141,7 @@ def poincare_on_the_fly(scene: mo.Scene, q0, v0, h: float,
 
     Nothing but the crossings is stored, so the run length is bounded by the number of
     points wanted rather than by memory. Uses the Python one-step path (use
-    :func:`poincare` on a :func:`moreau.run.simulation` run when speed matters).
+    :func:`poincare` on a :func:`moreau.simulate` run when speed matters).
 
     Parameters
     ----------

@@ -2,7 +2,7 @@
 
 The method of Müller (1995, "Calculation of Lyapunov exponents for dynamic systems with
 discontinuities", Chaos Solitons Fractals 5(9):1671–1681), on the reference trajectory
-of :func:`moreau.run.simulation` (recorded at every step):
+of :func:`moreau.simulate` (recorded at every step):
 
 * between impacts the frame Φ (2n × k) follows the variational equation ``Φ' = A Φ`` of
   the smooth flow ``x' = F(t, x) = (v, M(q)⁻¹ f(t, q, v))`` (f: the scene's effects and

@@ -22,7 +22,7 @@ The units dict
     For non-dimensional quantities: ``value_SI = value * scales[name]`` in the unit
     ``si[name]`` (e.g. ``scales["t"] = 1/ω``, ``si["t"] = "s"``).
 
-An empty string means *not declared*; :func:`moreau.run.simulation` then assumes nothing, but
+An empty string means *not declared*; :func:`moreau.simulate` then assumes nothing, but
 the quantities it derives (kinetic energy ½ vᵀMv, impulses) are in the units the scene's
 mass matrix and forces make them (J and N s for a scene written in SI).
 """

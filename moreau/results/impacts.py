@@ -25,7 +25,7 @@ class ImpactLog:
     which it carried none, logged when it is an impact by either test:
 
     - ``flight``: since the row last carried an impulse, its gap at the end of some step
-      exceeded the *flight gap* (the ``flight_gap`` argument of :func:`moreau.run.simulation`;
+      exceeded the *flight gap* (the ``flight_gap`` argument of :func:`moreau.simulate`;
       for the piston 2 % of the clearance). Bounces that never lift the contact by more
       than that are the same contact.
     - ``fast`` (the velocity test): the row approached faster than the smooth forces

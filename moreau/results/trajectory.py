@@ -29,7 +29,7 @@ _FORMAT = 1
 
 @dataclass
 class Trajectory:
-    """The recorded result of :func:`moreau.run.simulation`. Arrays are time-major; every quantity
+    """The recorded result of :func:`moreau.simulate`. Arrays are time-major; every quantity
     is in the scene's units, named in ``units``.
 
     Attributes

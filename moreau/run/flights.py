@@ -2,7 +2,7 @@
 
 A row is *in flight* once its gap, at the end of some step since it last carried an
 impulse, exceeds its flight gap; its next contact onset is then an impact. Shared by
-both paths of :func:`moreau.run.simulation`.
+both paths of :func:`moreau.simulate`.
 """
 
 from __future__ import annotations

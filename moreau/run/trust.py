@@ -1,4 +1,4 @@
-"""Run-level checks of :func:`moreau.run.simulation`: what a step's own checks cannot see.
+"""Run-level checks of :func:`moreau.simulate`: what a step's own checks cannot see.
 
 * Before the run, every barrier's analytic Jacobian is compared with central finite
   differences of its gap at the initial state: a Jacobian of the wrong sign or scale

@@ -45,7 +45,7 @@ def check_initial_state(scene: Scene, t0: Any, q0: Any, v0: Any,
     Raises ``ValueError`` for non-finite or wrongly shaped q0/v0, a mass matrix that is
     not symmetric positive definite at q0, malformed forces/gaps/Jacobians, and a state
     that penetrates a barrier (gap < ``-penetration_tol``): moreau refuses it rather than
-    projecting silently. Shared by both paths of :func:`moreau.run.simulation`.
+    projecting silently. Shared by both paths of :func:`moreau.simulate`.
     """
     n, m = scene.ndof, scene.nrows
     t0 = float(t0)

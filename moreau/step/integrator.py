@@ -1,7 +1,7 @@
 """One-step integrators: the Moreau–Jean midpoint time-stepper.
 
 An integrator holds the state (t, q, v) of one scene and advances it by one step with
-:meth:`~OneStepIntegrator.step`; it has no loop (that is :func:`moreau.run.simulation`). It can
+:meth:`~OneStepIntegrator.step`; it has no loop (that is :func:`moreau.simulate`). It can
 be used by hand::
 
     integ = MoreauJeanMidpoint(scene, h=1e-3)
