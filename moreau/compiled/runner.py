@@ -49,9 +49,9 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
                  bar, energy: bool, tol: float, drift_control, flight_gap: np.ndarray,
                  gmax0: np.ndarray) -> Trajectory:
     """Run ``n_steps`` steps compiled from a validated initial state (see
-    :func:`moreau.run.simulation.simulate`, which calls this after
+    :func:`moreau.simulate`, which calls this after
     :func:`~moreau.compiled.cache.ensure_compiled`); ``gmax0`` is each row's initial flight
-    gap (:func:`moreau.run.flights.initial_flight`)."""
+    gap (``moreau.run.flights.initial_flight``)."""
     if cs is None:
         cs = lower(scene)
     method, fb = _methods(solver, fallback)

@@ -1,7 +1,7 @@
 """The compiled Moreau–Jean step: the free acceleration, the velocity update with the
 contacts closed at the midpoint, and the contact solve with its check and fallback — the
 twin of :class:`moreau.step.integrator.MoreauJeanMidpoint` and
-:meth:`moreau.step.base.OneStepIntegrator.solve_contacts`."""
+``OneStepIntegrator._solve_contact`` (``moreau.step.base``)."""
 
 from __future__ import annotations
 

@@ -2,7 +2,8 @@
 
 * :mod:`.params` — parameters (SI, the paper's defaults) and the closed form eq. (2.1)–(2.3);
 * :mod:`.pressure` — the synthetic four-stroke pressure curve and its K = 25 Fourier series
-  (parts in :mod:`.geometry`, :mod:`.pressure_curve`, :mod:`.fourier_fit`, :mod:`.calibration`);
+  (parts in :mod:`~moreau.problems.piston.geometry`, :mod:`~moreau.problems.piston.pressure_curve`,
+  :mod:`~moreau.problems.piston.fourier_fit`, :mod:`~moreau.problems.piston.calibration`);
 * :mod:`.model` — the moreau scene (:func:`piston_model`);
 * :mod:`.analysis` — crank angle, pin position, sides, slaps, cycles, mean and settled speed;
 * :mod:`.job`, :mod:`.study`, :mod:`.figures` — the main job, sweep studies, their figures.

@@ -92,7 +92,7 @@ def _log_counts(ax) -> None:
 
 
 def plot_sweep(df, x: str = "e", xlabel: str = "restitution e", title: str | None = None, log_x: bool = False):
-    """Four panels of a :func:`piston_point` sweep against one parameter: side changes,
+    """Four panels of a :func:`~moreau.problems.piston.study.piston_point` sweep against one parameter: side changes,
     impacts and energy dissipated at the impacts per cycle (every cycle a dot, the mean
     a line), and the crank speed (mean over the analyzed cycles, and the energy-balance estimate of
     the settled speed when the table has it) with the largest penetration / clearance.
@@ -139,7 +139,7 @@ def plot_sweep(df, x: str = "e", xlabel: str = "restitution e", title: str | Non
 def plot_section(long, x: str = "e", xlabel: str = "restitution e", title: str | None = None,
                  log_x: bool = False):
     """Bifurcation-like diagram: x_O3 and φ3 sampled once per cycle (rows of
-    :func:`section_long`) against a parameter, one colour per crank angle.
+    :func:`~moreau.problems.piston.study.section_long`) against a parameter, one colour per crank angle.
 
     Returns the matplotlib Figure (never shown).
     """

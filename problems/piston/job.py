@@ -50,7 +50,7 @@ class Case:
         Contact solver (``"exact"``: compiled dual active set).
     backend : str
         Where the loop runs: ``"auto"``, ``"compiled"`` or ``"python"`` (see
-        :func:`moreau.run.simulation`).
+        :func:`moreau.simulate`).
     drift_control : bool
         Drift control (:meth:`~moreau.problems.piston.model.PistonModel.drift_control`, a
         :class:`moreau.CombinedProjection`): positions projected back onto the cylinder

@@ -91,7 +91,7 @@ class PistonModel:
 
     def simulate(self, cycles: float, h: float = 1e-4, *, phi1: float = 0.0, **kwargs) -> mo.Trajectory:
         """Run ``cycles`` engine cycles (4π of non-dimensional time each, at speed 1) from
-        :meth:`initial_state`; ``kwargs`` go to :func:`moreau.run.simulation`. Defaults set
+        :meth:`initial_state`; ``kwargs`` go to :func:`moreau.simulate`. Defaults set
         here: ``penetration_limit`` = the clearance and ``flight_gap`` =
         ``FLIGHT_FRACTION`` × the clearance (both in units of l1, the gaps' unit), so
         ``traj.impacts`` counts the onsets after a corner left the wall by 2 % of the

@@ -162,7 +162,7 @@ def piston_point(e: float, D_mm: float = 80.04, cycles: int = 5, transient: int 
         1e-3: quick looks; with drift control the penetration stays below 0.1 % of the
         clearance at D = 80.04 mm).
     solver : str
-        Contact solver of :func:`moreau.run.simulation` (``"exact"`` runs compiled).
+        Contact solver of :func:`moreau.simulate` (``"exact"`` runs compiled).
     drift_control : bool
         Use the engine's drift control, :meth:`~moreau.problems.piston.model.PistonModel.drift_control` (every corner
         projected back onto the cylinder after each step, restitution only at impacts).
