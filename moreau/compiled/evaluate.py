@@ -41,18 +41,21 @@ def mass(ints, pool, user, q, c, s, M):
 
 
 @_internal
-def force(ints, ekind, eoff, pool, user, t, q, c, s, v, f):
-    """f(t, q, v) into ``f`` (n,): the bias terms and exactly the scene's effects;
-    ``c, s`` = cos q, sin q."""
+def force(ints, ekind, eoff, pool, user, t, q, c, s, v, f, fb):
+    """f(t, q, v) into ``f`` (n,): the bias terms and exactly the scene's effects; the bias
+    terms alone also into ``fb`` (n,) (for the energy ledger: they do no work); ``c, s`` =
+    cos q, sin q."""
     for i in range(f.shape[0]):
-        f[i] = 0.0
+        fb[i] = 0.0
     if ints[3]:
         if ints[2] == _k.MASS_CHAIN:
-            _k.add_chain_bias(pool, ints[4], c, s, v, f)
+            _k.add_chain_bias(pool, ints[4], c, s, v, fb)
         else:
-            st = call_user(user[U_BIAS], t, q, v, f, ints[0], ints[1])
+            st = call_user(user[U_BIAS], t, q, v, fb, ints[0], ints[1])
             if st != 0:
                 return st * 8 + U_BIAS
+    for i in range(f.shape[0]):
+        f[i] = fb[i]
     for e in range(ints[5]):
         kind, o = ekind[e], eoff[e]
         if kind == _k.CONST:

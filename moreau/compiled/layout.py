@@ -4,9 +4,11 @@ accumulators, per-row state and impact log) and the numba options of its parts."
 from numba import njit
 
 # status codes
-DONE, IMPACTS_FULL, SOLVER_FAILED, NONFINITE, NOT_SPD, NONFINITE_GAP, USER_FAILED = 0, 1, 2, 3, 4, 5, 6
+DONE, IMPACTS_FULL, SOLVER_FAILED, NONFINITE, NOT_SPD, NONFINITE_GAP, USER_FAILED, ENERGY_GROWTH = range(8)
 # settings (int array)
 S_THETA, S_DRIFT, S_DRIFT_ITER, S_STRIDE, S_NSTEPS, S_METHOD, S_FALLBACK, S_ENERGY, S_MEMORY, S_LOCATE = range(10)
+# (S_ECHECK: the energy check's interval in steps, 0 = off; see moreau.run.energy)
+S_ECHECK = 10
 # drift control modes (S_DRIFT)
 DRIFT_NONE, DRIFT_POSITION, DRIFT_COMBINED = 0, 1, 2
 # per-row state of CombinedProjection (float array (m, 6)): gap at q_k, the gap where the
@@ -16,13 +18,18 @@ R_GAP, R_PINGAP, R_PINNED, R_BOUNCED, R_DELAY, R_SHIFT = range(6)
 # impact-log columns
 I_T, I_STEP, I_ROW, I_UB, I_UA, I_P, I_LOST, I_FLIGHT, I_FAST = range(9)
 # settings (float array)
-F_H, F_T0, F_TOL, F_DRIFT_TOL, F_PE0 = range(5)
+F_H, F_T0, F_TOL, F_DRIFT_TOL, F_PE0, F_EWARN, F_ESTOP = range(7)
 # counters (int array)
 # (C_USER: the status of a user callable that failed, see moreau.compiled.usercalls.decode)
-C_REC, C_NIMP, C_SOLVES, C_FALLBACKS, C_CONTACT, C_PROJ, C_K, C_FAILKIND, C_USER = range(9)
-N_COUNTERS = 9
+# (C_EWARN: the step at which the energy check first warned, 0 = never; C_ELEVEL: the
+# bound the last check found passed, 0 none, 1 warn, 2 stop)
+C_REC, C_NIMP, C_SOLVES, C_FALLBACKS, C_CONTACT, C_PROJ, C_K, C_FAILKIND, C_USER, C_EWARN, C_ELEVEL = range(11)
+N_COUNTERS = 11
 # accumulators (float array)
-A_WORST, A_WORK_F, A_WORK_C = range(3)
+# (the energy check: kinetic energy at the start, the largest so far, the unaccounted energy
+# at the warning and at the last check, the work of the bias terms)
+A_WORST, A_WORK_F, A_WORK_C, A_KE0, A_KEMAX, A_DU_WARN, A_DU, A_WORK_B = range(8)
+N_ACCUMULATORS = 8
 
 # The step's parts are inlined into the loop by numba (IR level), as are the evaluation
 # functions (moreau.compiled.evaluate); the kernels and LCP routines they call are inlined by LLVM

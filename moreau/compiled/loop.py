@@ -19,9 +19,16 @@ from numba import njit
 from moreau.compiled import evaluate as ev
 from moreau.compiled.drift import _project
 from moreau.compiled.layout import (  # the loop's layout
+    A_DU,
+    A_DU_WARN,
+    A_KE0,
+    A_KEMAX,
+    A_WORK_B,
     A_WORK_C,
     A_WORK_F,
     C_CONTACT,
+    C_ELEVEL,
+    C_EWARN,
     C_FAILKIND,
     C_K,
     C_NIMP,
@@ -29,6 +36,9 @@ from moreau.compiled.layout import (  # the loop's layout
     DONE,
     DRIFT_COMBINED,
     DRIFT_NONE,
+    ENERGY_GROWTH,
+    F_ESTOP,
+    F_EWARN,
     F_H,
     F_PE0,
     F_T0,
@@ -50,6 +60,7 @@ from moreau.compiled.layout import (  # the loop's layout
     R_GAP,
     R_SHIFT,
     S_DRIFT,
+    S_ECHECK,
     S_ENERGY,
     S_LOCATE,
     S_NSTEPS,
@@ -72,14 +83,14 @@ def loop_workspace(n, m):
     mm = max(m, 1)
     own = (np.empty((n, n)), np.empty((n, n)), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n),
            np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(m), np.empty(m),
-           np.zeros(m), np.zeros(m, dtype=np.bool_), np.empty((m, n)), np.empty(n))
+           np.zeros(m), np.zeros(m, dtype=np.bool_), np.empty((m, n)), np.empty(n), np.empty(n))
     lw = (np.empty((mm, n)), np.empty(mm), np.empty(n), np.empty(n), np.empty(mm),
           np.empty((mm, n)), np.empty(n), np.zeros(n), np.zeros(mm, dtype=np.bool_))
     return own, workspace(n, m), lw
 
 
 @_part
-def _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, f, gm, cnt):
+def _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, f, fb, gm, cnt):
     """The midpoint q_m = q + h/2 v and the model there: M(q_m) factorized (unless
     constant), f(t + h/2, q_m, v) and the gaps g(q_m); returns DONE or why not."""
     ints, ekind, eoff, bkind, boff, brow, bnrows, pool, _, _ = model
@@ -95,7 +106,7 @@ def _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, f, gm
             return NOT_SPD
         if _k.cholesky(M, L, n) >= 0:
             return NOT_SPD
-    if _user_failed(ev.force(ints, ekind, eoff, pool, user, t + 0.5 * h, qm, cm, sm, v, f), cnt):
+    if _user_failed(ev.force(ints, ekind, eoff, pool, user, t + 0.5 * h, qm, cm, sm, v, f, fb), cnt):
         return USER_FAILED
     if m > 0:
         if _user_failed(ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, gm), cnt):
@@ -254,6 +265,44 @@ def _record(model, user, iset, fset, k, q, v, cq, sq, M, P_acc, act_acc, gq, T, 
     return DONE
 
 
+@_part
+def _energy_check(model, user, iset, fset, k, q, v, cq, sq, M, cnt, acc):
+    """The energy ledger's check (see :mod:`moreau.model.stability`): the kinetic energy
+    T(q, v) against T₀ plus the work of the applied forces (the bias terms do none:
+    vᵀ f_bias = −½ vᵀ Ṁ v is part of dT/dt) and of the contacts. Unaccounted energy above ``F_EWARN``
+    times the largest T so far is noted (``C_EWARN``); above ``F_ESTOP`` at two checks in a
+    row the run stops (ENERGY_GROWTH). Returns DONE, ENERGY_GROWTH or USER_FAILED."""
+    ints = model[0]
+    n = ints[0]
+    if _user_failed(ev.mass(ints, model[7], user, q, cq, sq, M), cnt):
+        return USER_FAILED
+    ke = 0.0
+    for i in range(n):
+        for l in range(n):
+            ke += v[i] * M[i, l] * v[l]
+    ke *= 0.5
+    if ke > acc[A_KEMAX]:
+        acc[A_KEMAX] = ke
+    du = ke - acc[A_KE0] - (acc[A_WORK_F] - acc[A_WORK_B])
+    acc[A_DU] = du
+    level = 0
+    if du > 1e-12 * (1.0 + acc[A_KEMAX]):
+        if du > fset[F_ESTOP] * acc[A_KEMAX]:
+            level = 2
+        elif du > fset[F_EWARN] * acc[A_KEMAX]:
+            level = 1
+    prev = cnt[C_ELEVEL]
+    cnt[C_ELEVEL] = level
+    # the stop bound counts when two checks in a row find it passed: a coarse step's
+    # transient at an impact (one step) warns, but is not a growth
+    if level == 2 and prev == 2:
+        return ENERGY_GROWTH
+    if cnt[C_EWARN] == 0 and level >= 1:
+        cnt[C_EWARN] = k
+        acc[A_DU_WARN] = du
+    return DONE
+
+
 # Compiled without reference counting (numba's internal ``_nrt`` flag): every array it
 # touches is owned by the caller and nothing is allocated, so the counts (an atomic
 # increment and decrement per array per use, measured at two thirds of a contact step's
@@ -283,7 +332,8 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
     theta = iset[S_THETA] == 1 and ints[7] == 1
     const_mass = ints[2] == _k.MASS_CONST
     own, ws, lw = work
-    M, L, cm, sm, cq, sq, qm, f, v_new, vbar, q_new, gm, gq, P, active, G, vfree = own
+    M, L, cm, sm, cq, sq, qm, f, v_new, vbar, q_new, gm, gq, P, active, G, vfree, fb = own
+    bias_work = iset[S_ECHECK] > 0 and ints[3] != 0
     if const_mass:
         if _user_failed(ev.mass(ints, pool, user, q, cq, sq, M), cnt):
             return USER_FAILED
@@ -295,7 +345,8 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
             return IMPACTS_FULL
         k = cnt[C_K]
         t = t0 + k * h
-        status = _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, f, gm, cnt)
+        nimp = cnt[C_NIMP]
+        status = _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, f, fb, gm, cnt)
         if status != DONE:
             return status
         # one call site of the velocity update, so the contact solve is compiled (inlined) once
@@ -304,7 +355,8 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
             if npass == 1:
                 for i in range(n):
                     vbar[i] = 0.5 * (v[i] + v_new[i])
-                if _user_failed(ev.force(ints, ekind, eoff, pool, user, t + 0.5 * h, qm, cm, sm, vbar, f), cnt):
+                if _user_failed(ev.force(ints, ekind, eoff, pool, user, t + 0.5 * h, qm, cm, sm, vbar, f, fb),
+                                 cnt):
                     return USER_FAILED
             code = _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, v_new, P,
                                     active, G, cnt, acc, fail, ws, lw, last_imp, rs)
@@ -314,11 +366,18 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
         for i in range(n):
             wf += f[i] * (v[i] + v_new[i])
         acc[A_WORK_F] += 0.5 * h * wf
+        if bias_work:  # the bias terms' share of it (fb: the bias of the last force evaluation)
+            wb = 0.0
+            for i in range(n):
+                wb += fb[i] * (v[i] + v_new[i])
+            acc[A_WORK_B] += 0.5 * h * wb
         _contact_records(n, m, t, k, h, code == 1, v, v_new, f, L, P, active, G, vfree, P_acc, act_acc,
                          in_contact, last_imp, gmax, fgap, rs, IMP, cnt, acc)
         if not _end_position(n, m, h, code == 1, iset, qm, v_new, L, P, G, rs, vbar, vfree, q_new):
             return NONFINITE
-        if ints[8] and (m > 0 or iset[S_ENERGY] == 1):
+        # the energy check: every S_ECHECK steps, and after a step with a logged impact
+        echeck = iset[S_ECHECK] > 0 and ((k + 1) % iset[S_ECHECK] == 0 or cnt[C_NIMP] > nimp)
+        if ints[8] and (m > 0 or iset[S_ENERGY] == 1 or echeck):
             _k.trig(q_new, cq, sq)
         if m > 0:
             status = _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc, fail, eligible,
@@ -330,6 +389,10 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
             v[i] = v_new[i]
         k += 1
         cnt[C_K] = k
+        if echeck:
+            status = _energy_check(model, user, iset, fset, k, q, v, cq, sq, M, cnt, acc)
+            if status != DONE:
+                return status
         if k % stride == 0 or k == nsteps:
             if _record(model, user, iset, fset, k, q, v, cq, sq, M, P_acc, act_acc, gq, T, Q, V, PS, ACT, GP, KE,
                        PE, cnt) != DONE:

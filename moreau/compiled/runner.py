@@ -10,6 +10,7 @@ buffer, and to finish. Status codes of the loop become the exceptions of
 from __future__ import annotations
 
 import logging
+import math
 import time
 import warnings
 
@@ -20,6 +21,7 @@ from moreau.compiled import loop as lp
 from moreau.compiled.lowering import CompiledScene, lower
 from moreau.compiled.usercalls import decode
 from moreau.core.errors import SimulationError, SolverError, attach_trajectory
+from moreau.model.stability import ENERGY_CHECK_EVERY, energy_growth_message
 from moreau.results.assemble import assemble
 from moreau.results.impacts import ImpactLog, SolverStats
 from moreau.results.trajectory import Trajectory
@@ -44,18 +46,12 @@ def _methods(solver, fallback) -> tuple[int, int]:
     return COMPILED_SOLVERS[solver], (-1 if fallback is None else COMPILED_SOLVERS[fallback])
 
 
-def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0: np.ndarray,
-                 h: float, n_steps: int, *, theta: bool, solver: str, fallback, stride: int,
-                 bar, energy: bool, tol: float, drift_control, flight_gap: np.ndarray,
-                 gmax0: np.ndarray) -> Trajectory:
-    """Run ``n_steps`` steps compiled from a validated initial state (see
-    :func:`moreau.simulate`, which calls this after
-    :func:`~moreau.compiled.cache.ensure_compiled`); ``gmax0`` is each row's initial flight
-    gap (``moreau.run.flights.initial_flight``)."""
-    if cs is None:
-        cs = lower(scene)
+def _settings(scene, t0: float, h: float, n_steps: int, theta: bool, solver: str, fallback, stride: int,
+              energy: bool, tol: float, drift_control, energy_growth) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The loop's settings (int and float arrays, see :mod:`moreau.compiled.layout`) and the
+    rows eligible for drift control."""
     method, fb = _methods(solver, fallback)
-    n, m = scene.ndof, scene.nrows
+    m = scene.nrows
     eligible = np.zeros(m, dtype=np.bool_)
     drift_iter, drift_tol = 1, 0.0
     if drift_control is not None and m:
@@ -66,10 +62,28 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
         drift_mode = lay.DRIFT_COMBINED if getattr(drift_control, "impacts_only", False) else lay.DRIFT_POSITION
     memory = int(getattr(drift_control, "memory", 0))
     locate = int(bool(getattr(drift_control, "locate_impacts", False)))
+    echeck = ENERGY_CHECK_EVERY if energy_growth is not None else 0
+    iset = np.array([int(theta), drift_mode, drift_iter, stride, n_steps, method, fb, int(energy), memory, locate,
+                     echeck], dtype=np.int64)
+    warn, stop = energy_growth if energy_growth is not None else (math.inf, math.inf)
+    return iset, np.array([h, t0, tol, drift_tol, 0.0, warn, stop]), eligible
+
+
+def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0: np.ndarray,
+                 h: float, n_steps: int, *, theta: bool, solver: str, fallback, stride: int,
+                 bar, energy: bool, tol: float, drift_control, flight_gap: np.ndarray,
+                 gmax0: np.ndarray, energy_growth: tuple[float, float] | None = None) -> Trajectory:
+    """Run ``n_steps`` steps compiled from a validated initial state (see
+    :func:`moreau.simulate`, which calls this after
+    :func:`~moreau.compiled.cache.ensure_compiled`); ``gmax0`` is each row's initial flight
+    gap (``moreau.run.flights.initial_flight``); ``energy_growth`` the energy check's
+    ``(warn, stop)`` (:mod:`moreau.model.stability`; None: no check)."""
+    if cs is None:
+        cs = lower(scene)
+    n, m = scene.ndof, scene.nrows
+    iset, fset, eligible = _settings(scene, t0, h, n_steps, theta, solver, fallback, stride, energy, tol,
+                                     drift_control, energy_growth)
     n_rec = n_steps // stride + 1 + (1 if n_steps % stride else 0)
-    iset = np.array([int(theta), drift_mode, drift_iter, stride, n_steps, method, fb, int(energy), memory, locate],
-                    dtype=np.int64)
-    fset = np.array([h, t0, tol, drift_tol, 0.0])
     T = np.empty(n_rec)
     Q = np.empty((n_rec, n))
     V = np.empty((n_rec, n))
@@ -91,7 +105,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     pen = np.zeros(m)
     cnt = np.zeros(lay.N_COUNTERS, dtype=np.int64)
     cnt[lay.C_REC] = 1
-    acc = np.zeros(3)
+    acc = np.zeros(lay.N_ACCUMULATORS)
     fail = np.zeros((2, 4))
     model = cs.arrays()
     user = cs.user.addresses
@@ -108,8 +122,9 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
             GP[0] = scene.gaps(q0)
             gmax[:] = gmax0
             rs[:, lay.R_GAP] = GP[0]
+        acc[lay.A_KE0] = acc[lay.A_KEMAX] = scene.kinetic_energy(q0, v0)
         if energy:
-            KE[0] = scene.kinetic_energy(q0, v0)
+            KE[0] = acc[lay.A_KE0]
             PE[0] = scene.potential_energy(q0)
         # the inverse of a constant M, as the reference path uses it for free steps
         Minv = np.linalg.inv(scene.system.mass_matrix(q0)) if scene.system.constant_mass else np.zeros((n, n))
@@ -151,6 +166,8 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
             if interrupt is None:
                 interrupt, status = exc, "interrupted"
                 message = "interrupted by the user while the result was assembled"
+    if cnt[lay.C_EWARN] > 0:
+        _energy_warning(scene, traj, int(cnt[lay.C_EWARN]), float(acc[lay.A_DU_WARN]), float(acc[lay.A_KEMAX]), h)
     if interrupt is not None:
         log.warning("%s; %d records computed so far are attached to the KeyboardInterrupt", traj.message, len(traj))
         attach_trajectory(interrupt, traj)
@@ -170,7 +187,7 @@ def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE,
     t_now = t0 + k * h
     if code != lay.DONE and status == "completed":
         status = "failed"
-        error = _error(code, scene, k, t_now, q, v, h, fail, cs, int(cnt[lay.C_USER]))
+        error = _error(code, scene, k, t_now, q, v, h, fail, cs, int(cnt[lay.C_USER]), acc)
         message = str(error)
     rec = int(cnt[lay.C_REC])
     if status != "completed" and T[rec - 1] != t_now and rec < n_rec + 1:
@@ -206,8 +223,11 @@ def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE,
     return traj, error
 
 
-def _error(code, scene, k, t, q, v, h, fail, cs, user_status):
+def _error(code, scene, k, t, q, v, h, fail, cs, user_status, acc):
     where = f"at step {k} (t = {t:.9g})"
+    if code == lay.ENERGY_GROWTH:
+        return SimulationError(energy_growth_message(scene, t, q, v, float(acc[lay.A_DU]), float(acc[lay.A_KEMAX]), h),
+                               None, k)
     if code == lay.USER_FAILED:
         return _user_error(scene, cs, user_status, where, k, t, q, v, h)
     if code == lay.SOLVER_FAILED:
@@ -263,3 +283,12 @@ def _user_error(scene, cs: CompiledScene, status: int, where: str, k: int, t: fl
             error = SimulationError(f"user {kind} {name!r} raised {type(exc).__name__}: {exc} {where}", None, k)
             error.__cause__ = exc
     return error
+
+
+def _energy_warning(scene, traj: Trajectory, step: int, du: float, ke_max: float, h: float) -> None:
+    """Warn once (``RuntimeWarning``, and in ``traj.warnings``) that the energy check's first
+    bound was passed at ``step``; the step size advice is from the record nearest before it."""
+    i = max(0, int(np.searchsorted(traj.t, traj.t[0] + step * h, side="right")) - 1)
+    msg = energy_growth_message(scene, traj.t[0] + step * h, traj.q[i], traj.v[i], du, ke_max, h)
+    traj.warnings.append(msg)
+    warnings.warn(msg, RuntimeWarning, stacklevel=4)

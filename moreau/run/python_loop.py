@@ -6,12 +6,14 @@ from __future__ import annotations
 
 import logging
 import time
+import warnings
 from typing import Any
 
 import numpy as np
 
 from moreau.core.errors import SimulationError, SolverError, attach_trajectory
 from moreau.model.scene import Scene
+from moreau.model.stability import ENERGY_CHECK_EVERY, energy_growth_message
 from moreau.results.assemble import assemble
 from moreau.results.impacts import ImpactLog, ImpactRow, SolverStats
 from moreau.results.trajectory import Trajectory
@@ -26,8 +28,9 @@ log = logging.getLogger("moreau.run.simulation")
 
 def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, stride: int, n_rec: int,
                 progress: bool | dict[str, Any] | None, energy: bool, flight_gap: np.ndarray,
-               gmax: np.ndarray) -> Trajectory:
-    """The reference loop: one :meth:`OneStepIntegrator.step` call per step."""
+               gmax: np.ndarray, energy_growth: tuple[float, float] | None = None) -> Trajectory:
+    """The reference loop: one :meth:`OneStepIntegrator.step` call per step, with the
+    energy check of :mod:`moreau.model.stability` every ``ENERGY_CHECK_EVERY`` steps."""
     n, m = scene.ndof, scene.nrows
     t0 = integ.t
     T = np.empty(n_rec)
@@ -50,6 +53,8 @@ def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, s
 
     status, message = "completed", ""
     error: BaseException | None = None
+    check = _EnergyCheck(scene, integ, energy_growth)
+    n_impacts = 0
     wall0 = time.perf_counter()
     k = 0
     try:
@@ -71,6 +76,9 @@ def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, s
                 g_end = gaps_at(integ.q, integ.v)
                 np.maximum(pen, -g_end, out=pen)
                 gmax = np.where(in_contact, -np.inf, np.maximum(gmax, g_end))
+            if k % ENERGY_CHECK_EVERY == 0 or len(impacts) > n_impacts:  # and after a logged impact
+                check(k)
+                n_impacts = len(impacts)
             if k % stride == 0 or k == n_steps:
                 T[rec], Q[rec], V[rec] = integ.t, integ.q, integ.v
                 if has_contacts:
@@ -85,6 +93,9 @@ def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, s
         status, message = "interrupted", f"interrupted by the user at step {k} (t = {integ.t:.9g})"
         log.warning("%s; %d records computed so far are attached to the KeyboardInterrupt", message, rec)
         error = exc
+    except _EnergyGrew as exc:
+        status, message = "failed", str(exc)
+        error = SimulationError(message, None, k)
     except SolverError as exc:
         status, message, error = "failed", str(exc), exc
     except (NonFiniteState, BadModelOutput) as exc:
@@ -116,6 +127,9 @@ def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, s
                     onsets=ImpactLog.from_rows(impacts), stats=stats, h=h, stride=stride, status=status,
                     message=message, work={"forces": integ.work_forces, "contacts": integ.work_contacts},
                     max_penetration=pen, energy=energy)
+    if check.warned is not None:
+        traj.warnings.append(check.warned)
+        warnings.warn(check.warned, RuntimeWarning, stacklevel=4)
     if error is not None:
         attach_trajectory(error, traj)
         raise error
@@ -139,3 +153,38 @@ def _log_impacts(integ: OneStepIntegrator, rows: np.ndarray, after_flight: np.nd
         if fast or flight:
             out.append((t_start, integ.k - 1, int(r), float(d.U_before[j]), float(d.U_after[j]),
                         float(integ.P[r]), float(d.energy_lost[j]), flight, fast))
+
+
+class _EnergyGrew(Exception):
+    """The energy check's stop bound was passed (the message says by how much)."""
+
+
+class _EnergyCheck:
+    """The energy check (see :mod:`moreau.model.stability`): T(q, v) against T₀ plus the
+    integrator's work of forces and contacts, relative to the largest T so far."""
+
+    def __init__(self, scene: Scene, integ: OneStepIntegrator, bounds: tuple[float, float] | None) -> None:
+        self.scene, self.integ, self.bounds = scene, integ, bounds
+        self.ke0 = self.ke_max = float(scene.kinetic_energy(integ.q, integ.v)) if bounds is not None else 0.0
+        integ.track_bias_work = bounds is not None and scene.system.has_bias
+        self.warned: str | None = None
+        self.level = 0  # the bound the last check found passed: 0 none, 1 warn, 2 stop
+
+    def __call__(self, k: int) -> None:
+        if self.bounds is None:
+            return
+        integ = self.integ
+        ke = float(self.scene.kinetic_energy(integ.q, integ.v))
+        self.ke_max = max(self.ke_max, ke)
+        du = ke - self.ke0 - (integ.work_forces - integ.work_bias)
+        warn, stop = self.bounds
+        level = 0
+        if du > 1e-12 * (1.0 + self.ke_max):
+            level = 2 if du > stop * self.ke_max else 1 if du > warn * self.ke_max else 0
+        prev, self.level = self.level, level
+        # the stop bound counts when two checks in a row find it passed (an impact step's
+        # transient warns, but is not a growth)
+        if level == 2 and prev == 2:
+            raise _EnergyGrew(energy_growth_message(self.scene, integ.t, integ.q, integ.v, du, self.ke_max, integ.h))
+        if self.warned is None and level >= 1:
+            self.warned = energy_growth_message(self.scene, integ.t, integ.q, integ.v, du, self.ke_max, integ.h)

@@ -16,6 +16,7 @@ from moreau.contact.solvers import ContactSolver
 from moreau.core.errors import attach_trajectory
 from moreau.core.validation import as_positive, as_record_every, as_time_span, checked_start
 from moreau.model.scene import Scene
+from moreau.model.stability import DEFAULT_ENERGY_GROWTH, as_energy_growth
 from moreau.results.trajectory import Trajectory
 from moreau.run.backend import DriftControl, choose_backend, initial_state_only
 from moreau.run.flights import flight_gaps, initial_flight
@@ -58,6 +59,7 @@ def simulate(
     penetration_limit: float | None = None,
     flight_gap: ArrayLike = 0.0,
     initial_penetration: float = 1e-12,
+    energy_growth: tuple[float, float] | None = DEFAULT_ENERGY_GROWTH,
 ) -> Trajectory:
     """Integrate a scene with a fixed step from ``t_span[0]`` to ``t_span[1]``.
 
@@ -76,16 +78,12 @@ def simulate(
         Step size (> 0).
     backend : {"auto", "compiled", "python"}
         Where the time loop runs. ``"compiled"``: the whole loop in machine code
-        (numba; :mod:`moreau.compiled.loop`), for scenes whose every part has a compiled kernel
-        (all built-in systems, effects and barriers, and user callables decorated with
-        ``@numba.njit``), the integrators :class:`MoreauJeanMidpoint` and
-        :class:`MoreauJeanPredictorCorrector`, drift control :class:`CombinedProjection` and
-        :class:`PositionProjection`, and the
-        compiled solvers ``"exact"`` and ``"enum"``; it raises ``ValueError`` naming
-        what does not compile. ``"python"``: the readable reference path, with any
-        solver. ``"auto"`` (default): compiled when everything compiles, else Python
-        (logged). Both paths evaluate the same kernels and return the same fields;
-        ``traj.stats.backend`` says which ran.
+        (:mod:`moreau.compiled.loop`) for scenes of built-in parts and ``@numba.njit`` user
+        callables, both Moreau–Jean integrators, both drift controls and the solvers
+        ``"exact"`` and ``"enum"``; ``ValueError`` names what does not compile.
+        ``"python"``: the readable reference path, with any solver. ``"auto"`` (default):
+        compiled when everything compiles, else Python (logged). Both paths evaluate the
+        same kernels and return the same fields; ``traj.stats.backend`` says which ran.
     solver : str or ContactSolver, optional
         Contact solver: ``"exact"`` (dual active set, exact, any number of rows; the
         default of the compiled path), ``"enum"`` (enumeration, ≤ 12 rows), ``"osqp"``
@@ -112,10 +110,8 @@ def simulate(
         refuse a mismatch (``ValueError`` naming the row); default True.
     initial_penetration : float
         An initial state with a gap below ``-initial_penetration`` (gap units) is refused
-        (default 1e-12). A run that continues from the state another run ended in may
-        start inside a barrier: the midpoint scheme ends an impact step with a penetration
-        of up to about (1 − e)|U|h/2, and a drift-controlled run leaves round-off-level
-        penetrations; pass that run's penetration limit here to continue it.
+        (default 1e-12); to continue from where another run ended (an impact step may end
+        inside a barrier by about (1 − e)|U|h/2), pass that run's penetration limit.
     penetration_limit : float, optional
         Largest acceptable penetration (gap units). Default: ``h·|U⁻|`` per row, the
         distance its impacts travel in one step. A run beyond it warns
@@ -127,6 +123,11 @@ def simulate(
         problem's length scale to count only bounces that lift the contact visibly (the
         bundled piston uses 2 % of the clearance); with 0 every bounce the step
         resolves counts. See :class:`moreau.ImpactLog`.
+    energy_growth : (float, float) or None
+        The energy check (:mod:`moreau.model.stability`): energy unaccounted for by the
+        work of the applied forces above ``warn`` (default 0.05) times the largest kinetic
+        energy so far warns once; above ``stop`` (0.1) the run stops (``SimulationError``
+        naming a stable step). None: no check.
 
     Returns
     -------
@@ -141,21 +142,21 @@ def simulate(
     SolverError
         Every backend failed on a step; ``exc.trajectory`` holds the run up to it.
     SimulationError
-        The state became non-finite, the mass matrix stopped being SPD, a model function
-        (mass matrix, force, gap, Jacobian) returned an array of another shape (the
-        message names it, with the expected and the received shape; checked at every
-        call on the Python path, at the initial state on the compiled one), or a user
-        callable raised; ``exc.trajectory`` holds the run up to the last good step.
+        The state became non-finite, the energy check stopped the run, the mass matrix
+        stopped being SPD, a model function returned an array of another shape (named;
+        checked at every call on the Python path, at the initial state on the compiled
+        one), or a user callable raised; ``exc.trajectory`` holds the run up to the last
+        good step.
     KeyboardInterrupt
         Re-raised after Ctrl-C with the part computed so far as ``exc.trajectory``
         (``status == "interrupted"``): nothing computed is lost, and a script that
         loops over runs stops.
     """
     plan = _plan(scene, t_span, h, tol, record_every, integrator, backend, solver, fallback, drift_control,
-                 check_jacobian, penetration_limit, flight_gap, initial_penetration)
+                 check_jacobian, penetration_limit, flight_gap, initial_penetration, energy_growth)
     run = _compiled_path if plan.path == "compiled" else _python_path
     traj = run(scene, plan, q0, v0, integrator, drift_control, check_jacobian, progress, energy)
-    traj.warnings = penetration_warnings(scene, traj, plan.h, plan.penetration_limit)
+    traj.warnings = traj.warnings + penetration_warnings(scene, traj, plan.h, plan.penetration_limit)
     return traj
 
 
@@ -176,12 +177,14 @@ class _Plan:
     flight_gap: np.ndarray
     penetration_limit: float | None
     initial_penetration: float
+    energy_growth: tuple[float, float] | None
 
 
 def _plan(scene: Scene, t_span: tuple[float, float], h: float, tol: float, record_every: int,
           integrator: type[OneStepIntegrator], backend: str, solver: str | ContactSolver | None,
           fallback: str | ContactSolver | None, drift_control: DriftControl | None, check_jacobian: bool,
-          penetration_limit: float | None, flight_gap: ArrayLike, initial_penetration: float) -> _Plan:
+          penetration_limit: float | None, flight_gap: ArrayLike, initial_penetration: float,
+          energy_growth: Any) -> _Plan:
     """Validate every argument once (``ValueError`` naming the bad one) and choose the path."""
     if not isinstance(scene, Scene):
         raise ValueError(f"scene must be a Scene, got {scene!r}")
@@ -197,7 +200,7 @@ def _plan(scene: Scene, t_span: tuple[float, float], h: float, tol: float, recor
     initial_penetration = as_positive(initial_penetration, "initial_penetration", allow_zero=True)
     path, cs, solver, fallback = choose_backend(backend, scene, integrator, solver, fallback, drift_control)
     return _Plan(t0, h, tol, n_steps, stride, n_rec, path, cs, solver, fallback, fg, penetration_limit,
-                 initial_penetration)
+                 initial_penetration, as_energy_growth(energy_growth))
 
 
 def _compiled_path(scene: Scene, plan: _Plan, q0: ArrayLike, v0: ArrayLike, integrator: type[OneStepIntegrator],
@@ -216,7 +219,7 @@ def _compiled_path(scene: Scene, plan: _Plan, q0: ArrayLike, v0: ArrayLike, inte
                             theta=integrator is MoreauJeanPredictorCorrector, solver=cast(str, plan.solver),
                             fallback=plan.fallback, stride=plan.stride, bar=bar, energy=energy, tol=plan.tol,
                             drift_control=drift_control, flight_gap=plan.flight_gap,
-                            gmax0=initial_flight(scene, q, v))
+                            gmax0=initial_flight(scene, q, v), energy_growth=plan.energy_growth)
     except KeyboardInterrupt as exc:  # before the loop took over: the initial state is the run
         if getattr(exc, "trajectory", None) is None:
             attach_trajectory(exc, initial_state_only(scene, t0, q, v, plan.h, plan.stride, plan.solver,
@@ -239,7 +242,7 @@ def _python_path(scene: Scene, plan: _Plan, q0: ArrayLike, v0: ArrayLike, integr
     if check_jacobian and scene.nrows:
         check_jacobians(scene, integ.q)
     return run_python(scene, integ, plan.h, plan.n_steps, plan.stride, plan.n_rec, progress, energy,
-                      plan.flight_gap, initial_flight(scene, integ.q, integ.v))
+                      plan.flight_gap, initial_flight(scene, integ.q, integ.v), plan.energy_growth)
 
 
 def _steps_and_records(scene: Scene, t_span: tuple[float, float], h: float,

@@ -153,6 +153,9 @@ class OneStepIntegrator(ABC):
         self.n_solves = self.n_fallbacks = self.n_contact_steps = self.n_projections = 0
         self.worst_residual = 0.0
         self.work_forces = self.work_contacts = 0.0
+        #: the bias terms' share of ``work_forces``, kept when ``track_bias_work`` is set
+        self.work_bias = 0.0
+        self.track_bias_work = False
         #: (M, G, v_k, v⁺, P) of the last contact step, for last_contact_details
         self._last: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
         self._initialized = True

@@ -124,14 +124,18 @@ class MoreauJeanMidpoint(OneStepIntegrator):
             return v + h * (self._Minv @ f), False
         return v + h * _solve_with(L, f), False  # the step's one factorization
 
-    def _finish(self, qm, v_new, contact: bool, f) -> bool:
+    def _finish(self, qm, v_new, contact: bool, f, v_arg=None) -> bool:
         """Move to q⁺ = q_m + h/2 v⁺ (then drift control), check, advance time; add the
-        step's energy-ledger terms (smooth-force and contact work)."""
+        step's energy-ledger terms (smooth-force and contact work; with ``track_bias_work``
+        the bias terms' share of the former, at the velocity ``v_arg`` f was evaluated at)."""
         q_new = qm + (0.5 * self.h) * v_new
         if contact and self._locate and self.bounced.any():
             q_new = q_new + self._impulse_timing()
         self._check_finite(q_new, v_new)
         self.work_forces += 0.5 * self.h * float(f @ (self.v + v_new))
+        if self.track_bias_work:
+            fb = self.scene.system.bias_force(qm, self.v if v_arg is None else v_arg)
+            self.work_bias += 0.5 * self.h * float(np.asarray(fb) @ (self.v + v_new))
         if contact:
             self.n_contact_steps += 1
             assert self._last is not None  # set by the contact solve of this step
@@ -191,9 +195,10 @@ class MoreauJeanPredictorCorrector(MoreauJeanMidpoint):
             M, L = self._mass_at(qm, v)
         force = self.force_at
         v_pred, _ = self._velocity_update(qm, M, L, force(tm, qm, v), v)
-        f = force(tm, qm, 0.5 * (v + v_pred))
+        v_arg = 0.5 * (v + v_pred)
+        f = force(tm, qm, v_arg)
         v_new, contact = self._velocity_update(qm, M, L, f, v)
-        return self._finish(qm, v_new, contact, f)
+        return self._finish(qm, v_new, contact, f, v_arg)
 
 
 #: The former name of :class:`MoreauJeanPredictorCorrector` (kept for existing scripts).

@@ -1,0 +1,102 @@
+"""How fast a model moves at a state, and the step that resolves it; the energy check's
+rule and messages (used by both paths of :func:`moreau.simulate`).
+
+The energy check compares the kinetic energy T(q, v) = ½ vᵀ M(q) v with T₀ plus the work
+of the applied forces (the smooth forces' work of ``traj.work`` less that of the bias
+terms, which do none). Newton impacts (e <= 1) can only remove energy, so they are not
+credited: energy above that is the scheme's own error, and an unstable step makes it grow
+exponentially (a long chain's fast tail at h = 1e-3, for instance). Checked every
+``ENERGY_CHECK_EVERY`` steps and after every step with a logged impact. Above a fraction
+``warn`` of the largest kinetic energy so far the run warns once (also for a one-step
+transient at an impact, which says the step is coarse for it); above ``stop`` at two checks in a row it stops with a
+:class:`~moreau.SimulationError` that names the time, the energy gained, the step size and
+a step size from the model's fastest mode at that state (:func:`stable_step`), keeping the
+trajectory. The defaults (5 %, 10 %) leave alone the first-order energy drift of a
+resolved run (a three-rod chain of 0.3 m at h = 1e-3 drifts by 2.9 % of its kinetic
+energy in 2 s, 0.3 % at 1e-4).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+__all__ = ["ENERGY_CHECK_EVERY", "DEFAULT_ENERGY_GROWTH", "as_energy_growth", "fastest_rates", "stable_step",
+           "energy_growth_message"]
+
+#: the check runs every this many steps (a mass-matrix evaluation each time)
+ENERGY_CHECK_EVERY = 8
+#: (warn, stop): fractions of the largest kinetic energy so far
+DEFAULT_ENERGY_GROWTH = (0.05, 0.1)
+
+
+def as_energy_growth(value: Any) -> tuple[float, float] | None:
+    """``energy_growth`` checked: None (no check) or ``(warn, stop)`` with 0 < warn <= stop."""
+    if value is None:
+        return None
+    try:
+        warn, stop = (float(x) for x in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"energy_growth must be None or (warn, stop), two fractions of the largest kinetic "
+                         f"energy, got {value!r}") from None
+    if not (0.0 < warn <= stop and math.isfinite(stop)):
+        raise ValueError(f"energy_growth must satisfy 0 < warn <= stop (finite), got {value!r}")
+    return warn, stop
+
+
+def _jacobian(fun: Any, x: np.ndarray) -> np.ndarray:
+    n = x.shape[0]
+    J = np.empty((n, n))
+    for j in range(n):
+        eps = 1e-6 * (1.0 + abs(x[j]))
+        dx = np.zeros(n)
+        dx[j] = eps
+        J[:, j] = (np.asarray(fun(x + dx), dtype=float) - np.asarray(fun(x - dx), dtype=float)) / (2.0 * eps)
+    return J
+
+
+def fastest_rates(scene: Any, t: float, q: np.ndarray, v: np.ndarray) -> tuple[float, float]:
+    """``(ω, ρ)`` at a state: ω the largest angular frequency of the linearized model,
+    √ of the largest eigenvalue of −M⁻¹ ∂f/∂q, and ρ the spectral radius of M⁻¹ ∂f/∂v (the
+    rate of the velocity-dependent forces, centrifugal terms included); both in 1/(time
+    unit), from central differences of the scene's force."""
+    q = np.asarray(q, dtype=float)
+    v = np.asarray(v, dtype=float)
+    M = np.asarray(scene.system.mass_matrix(q), dtype=float)
+    Kq = _jacobian(lambda x: scene.force(t, x, v), q)
+    Cv = _jacobian(lambda x: scene.force(t, q, x), v)
+    lam = np.linalg.eigvals(np.linalg.solve(M, -Kq))
+    omega = math.sqrt(max(0.0, float(np.max(lam.real)))) if lam.size else 0.0
+    rho = float(np.max(np.abs(np.linalg.eigvals(np.linalg.solve(M, Cv))))) if Cv.size else 0.0
+    return omega, rho
+
+
+#: the step resolves a motion of angular frequency ω when h ω <= RESOLVE (about 16 steps per
+#: period) and a velocity-dependent rate ρ when h ρ <= RESOLVE / 2
+RESOLVE = 0.4
+
+
+def stable_step(scene: Any, t: float, q: np.ndarray, v: np.ndarray) -> float:
+    """A step size that resolves the model's fastest motion at a state (:func:`fastest_rates`):
+    min(RESOLVE/ω, RESOLVE/(2ρ)); inf for a model with neither. A resolution rule, not a
+    proven bound: faster motion later in the run needs a smaller step (the 40-link chain's
+    whip reaches ω = 4500/s at t = 1.4 s from 750/s at 0.45 s; tests/hard_cases)."""
+    omega, rho = fastest_rates(scene, t, q, v)
+    return min(RESOLVE / omega if omega > 0 else math.inf, 0.5 * RESOLVE / rho if rho > 0 else math.inf)
+
+
+def energy_growth_message(scene: Any, t: float, q: np.ndarray, v: np.ndarray, du: float, ke_max: float,
+                          h: float) -> str:
+    """The words of the energy check (for a warning and for the error that stops a run)."""
+    try:
+        hs = stable_step(scene, t, q, v)
+        advice = (f"a step resolving the fastest motion at this state is about h = {hs:.2g} "
+                  f"(faster motion later may need less)"
+                  if math.isfinite(hs) else "the model has no fast mode at this state")
+    except Exception as exc:  # noqa: BLE001 - the message must not hide the finding
+        advice = f"(no step size estimate: {type(exc).__name__}: {exc})"
+    return (f"the energy grew by {du:.3g} beyond the work of the applied forces by t = {t:.6g} "
+            f"({du / ke_max:.1%} of the largest kinetic energy so far, {ke_max:.3g}) at h = {h:g}: "
+            f"the step is too large for this motion; {advice}")
