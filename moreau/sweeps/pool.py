@@ -27,6 +27,7 @@ import contextlib
 import logging
 import os
 import signal
+import sys
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -98,6 +99,7 @@ def _worker_init(parent_pid: int, started=None) -> None:
     _worker["started"] = started
     signal.signal(signal.SIGINT, _worker_signal)
     signal.signal(signal.SIGTERM, _worker_signal)
+    sys.unraisablehook = _unraisable
     threading.Thread(target=_watch_parent, args=(parent_pid,), daemon=True, name="moreau-parent-watch").start()
 
 
@@ -109,6 +111,18 @@ def _worker_signal(signum, frame) -> None:
     _worker["stopping"] = True
     _received["signum"] = signum
     raise Terminated("terminated (SIGTERM)") if signum == signal.SIGTERM else KeyboardInterrupt()
+
+
+def _unraisable(info: Any) -> None:
+    """A signal's exception raised inside a finalizer (an llvmlite object's ``__del__``, say)
+    cannot stop the job there: Python would only print it. Deliver the signal again, so the
+    job is interrupted where it can keep its results, and print nothing."""
+    signum = _received.get("signum")
+    if isinstance(info.exc_value, KeyboardInterrupt) and signum:
+        _worker["stopping"] = False
+        os.kill(os.getpid(), signum)
+        return
+    sys.__unraisablehook__(info)
 
 
 def _watch_parent(parent_pid: int) -> None:
