@@ -18,17 +18,12 @@ from numba import njit
 
 from moreau.compiled import evaluate as ev
 from moreau.compiled.drift import _project
+from moreau.compiled.energy import _energy_check, _kinetic_energy
 from moreau.compiled.layout import (  # the loop's layout
-    A_DU,
-    A_DU_WARN,
-    A_KE0,
-    A_KEMAX,
     A_WORK_B,
     A_WORK_C,
     A_WORK_F,
     C_CONTACT,
-    C_ELEVEL,
-    C_EWARN,
     C_FAILKIND,
     C_K,
     C_NIMP,
@@ -36,9 +31,6 @@ from moreau.compiled.layout import (  # the loop's layout
     DONE,
     DRIFT_COMBINED,
     DRIFT_NONE,
-    ENERGY_GROWTH,
-    F_ESTOP,
-    F_EWARN,
     F_H,
     F_PE0,
     F_T0,
@@ -253,53 +245,12 @@ def _record(model, user, iset, fset, k, q, v, cq, sq, M, P_acc, act_acc, gq, T, 
         P_acc[r] = 0.0
         act_acc[r] = False
     if iset[S_ENERGY] == 1:
-        if _user_failed(ev.mass(ints, pool, user, q, cq, sq, M), cnt):
-            return USER_FAILED
-        ke = 0.0
-        for i in range(n):
-            for l in range(n):
-                ke += v[i] * M[i, l] * v[l]
-        KE[rec] = 0.5 * ke
+        status, ke = _kinetic_energy(model, user, q, v, cq, sq, M, cnt)
+        if status != DONE:
+            return status
+        KE[rec] = ke
         PE[rec] = ev.potential(ints, ekind, eoff, pool, q, cq, sq) + fset[F_PE0]
     cnt[C_REC] = rec + 1
-    return DONE
-
-
-@_part
-def _energy_check(model, user, iset, fset, k, q, v, cq, sq, M, cnt, acc):
-    """The energy ledger's check (see :mod:`moreau.model.stability`): the kinetic energy
-    T(q, v) against T₀ plus the work of the applied forces (the bias terms do none:
-    vᵀ f_bias = −½ vᵀ Ṁ v is part of dT/dt) and of the contacts. Unaccounted energy above ``F_EWARN``
-    times the largest T so far is noted (``C_EWARN``); above ``F_ESTOP`` at two checks in a
-    row the run stops (ENERGY_GROWTH). Returns DONE, ENERGY_GROWTH or USER_FAILED."""
-    ints = model[0]
-    n = ints[0]
-    if _user_failed(ev.mass(ints, model[7], user, q, cq, sq, M), cnt):
-        return USER_FAILED
-    ke = 0.0
-    for i in range(n):
-        for l in range(n):
-            ke += v[i] * M[i, l] * v[l]
-    ke *= 0.5
-    if ke > acc[A_KEMAX]:
-        acc[A_KEMAX] = ke
-    du = ke - acc[A_KE0] - (acc[A_WORK_F] - acc[A_WORK_B])
-    acc[A_DU] = du
-    level = 0
-    if du > 1e-12 * (1.0 + acc[A_KEMAX]):
-        if du > fset[F_ESTOP] * acc[A_KEMAX]:
-            level = 2
-        elif du > fset[F_EWARN] * acc[A_KEMAX]:
-            level = 1
-    prev = cnt[C_ELEVEL]
-    cnt[C_ELEVEL] = level
-    # the stop bound counts when two checks in a row find it passed: a coarse step's
-    # transient at an impact (one step) warns, but is not a growth
-    if level == 2 and prev == 2:
-        return ENERGY_GROWTH
-    if cnt[C_EWARN] == 0 and level >= 1:
-        cnt[C_EWARN] = k
-        acc[A_DU_WARN] = du
     return DONE
 
 

@@ -32,14 +32,11 @@ def assemble(scene: Any, *, t: np.ndarray, q: np.ndarray, v: np.ndarray, impulse
     m = scene.nrows
     N = t.shape[0]
     if gaps is None:
-        gaps = np.full((N, m), np.nan)
-        _evaluate(lambda i: gaps.__setitem__(i, scene.gaps(q[i])), N if m else 0, "gaps")
+        gaps = _per_record(lambda i: scene.gaps(q[i]), N if m else 0, (N, m), "gaps")
     if energy and kinetic is None:
-        kinetic = np.full(N, np.nan)
-        _evaluate(lambda i: kinetic.__setitem__(i, scene.kinetic_energy(q[i], v[i])), N, "kinetic energy")
+        kinetic = _per_record(lambda i: scene.kinetic_energy(q[i], v[i]), N, (N,), "kinetic energy")
     if energy and potential is None:
-        potential = np.full(N, np.nan)
-        _evaluate(lambda i: potential.__setitem__(i, scene.potential_energy(q[i])), N, "potential energy")
+        potential = _per_record(lambda i: scene.potential_energy(q[i]), N, (N,), "potential energy")
     total = kinetic + potential if energy and kinetic is not None and potential is not None else None
     return Trajectory(
         t=t, q=q, v=v, gaps=gaps, impulses=impulses, active=active, onsets=onsets, stats=stats, h=h,
@@ -49,9 +46,12 @@ def assemble(scene: Any, *, t: np.ndarray, q: np.ndarray, v: np.ndarray, impulse
     )
 
 
-def _evaluate(at: Any, N: int, what: str) -> None:
+def _per_record(value: Any, N: int, shape: tuple[int, ...], what: str) -> np.ndarray:
+    """``value(i)`` for the first N records into an array of ``shape`` (NaN where not evaluated)."""
+    out = np.full(shape, np.nan)
     try:
         for i in range(N):
-            at(i)
+            out[i] = value(i)
     except Exception as exc:  # noqa: BLE001 - reported, and the data kept
         log.warning("could not evaluate the %s on the recorded states: %s", what, exc)
+    return out

@@ -188,8 +188,8 @@ def _plan(scene: Scene, t_span: tuple[float, float], h: float, tol: float, recor
     """Validate every argument once (``ValueError`` naming the bad one) and choose the path."""
     if not isinstance(scene, Scene):
         raise ValueError(f"scene must be a Scene, got {scene!r}")
-    t0, n_steps, stride, n_rec = _steps_and_records(scene, t_span, h, record_every)
     h, tol = as_positive(h, "step size h"), as_positive(tol, "tol")
+    t0, n_steps, stride, n_rec = _steps_and_records(scene, t_span, h, record_every)
     if not (isinstance(integrator, type) and issubclass(integrator, OneStepIntegrator)):
         raise ValueError(f"integrator must be a OneStepIntegrator subclass, got {integrator!r}")
     if penetration_limit is not None:
@@ -247,10 +247,9 @@ def _python_path(scene: Scene, plan: _Plan, q0: ArrayLike, v0: ArrayLike, integr
 
 def _steps_and_records(scene: Scene, t_span: tuple[float, float], h: float,
                        record_every: int) -> tuple[float, int, int, int]:
-    """``(t0, steps, record stride, records)`` of a run, refusing a step count or a record
-    size beyond the guards."""
+    """``(t0, steps, record stride, records)`` of a run with a checked step ``h``, refusing a
+    step count or a record size beyond the guards."""
     t0, t1 = as_time_span(t_span)
-    h = as_positive(h, "step size h")
     stride = int(as_record_every(record_every))
     ratio = (t1 - t0) / h
     if not ratio < _MAX_STEPS:

@@ -1,0 +1,68 @@
+"""The compiled energy check: the twin of ``_EnergyCheck`` in :mod:`moreau.run.python_loop`
+(the rule is :mod:`moreau.model.stability`'s)."""
+
+from moreau.compiled import evaluate as ev
+from moreau.compiled.layout import (  # the loop's layout
+    A_DU,
+    A_DU_WARN,
+    A_KE0,
+    A_KEMAX,
+    A_WORK_B,
+    A_WORK_F,
+    C_ELEVEL,
+    C_EWARN,
+    DONE,
+    ENERGY_GROWTH,
+    F_ESTOP,
+    F_EWARN,
+    USER_FAILED,
+)
+from moreau.compiled.layout import part as _part
+from moreau.compiled.step import _user_failed
+
+
+@_part
+def _kinetic_energy(model, user, q, v, cq, sq, M, cnt):
+    """``(status, T)``: T = ½ vᵀ M(q) v with M(q) evaluated into ``M``; status DONE, or
+    USER_FAILED when a user mass matrix failed."""
+    ints = model[0]
+    n = ints[0]
+    if _user_failed(ev.mass(ints, model[7], user, q, cq, sq, M), cnt):
+        return USER_FAILED, 0.0
+    ke = 0.0
+    for i in range(n):
+        for l in range(n):
+            ke += v[i] * M[i, l] * v[l]
+    return DONE, 0.5 * ke
+
+
+@_part
+def _energy_check(model, user, iset, fset, k, q, v, cq, sq, M, cnt, acc):
+    """The energy ledger's check (see :mod:`moreau.model.stability`): the kinetic energy
+    T(q, v) against T₀ plus the work of the applied forces (the bias terms do none:
+    vᵀ f_bias = −½ vᵀ Ṁ v is part of dT/dt) and of the contacts. Unaccounted energy above ``F_EWARN``
+    times the largest T so far is noted (``C_EWARN``); above ``F_ESTOP`` at two checks in a
+    row the run stops (ENERGY_GROWTH). Returns DONE, ENERGY_GROWTH or USER_FAILED."""
+    status, ke = _kinetic_energy(model, user, q, v, cq, sq, M, cnt)
+    if status != DONE:
+        return status
+    if ke > acc[A_KEMAX]:
+        acc[A_KEMAX] = ke
+    du = ke - acc[A_KE0] - (acc[A_WORK_F] - acc[A_WORK_B])
+    acc[A_DU] = du
+    level = 0
+    if du > 1e-12 * (1.0 + acc[A_KEMAX]):
+        if du > fset[F_ESTOP] * acc[A_KEMAX]:
+            level = 2
+        elif du > fset[F_EWARN] * acc[A_KEMAX]:
+            level = 1
+    prev = cnt[C_ELEVEL]
+    cnt[C_ELEVEL] = level
+    # the stop bound counts when two checks in a row find it passed: a coarse step's
+    # transient at an impact (one step) warns, but is not a growth
+    if level == 2 and prev == 2:
+        return ENERGY_GROWTH
+    if cnt[C_EWARN] == 0 and level >= 1:
+        cnt[C_EWARN] = k
+        acc[A_DU_WARN] = du
+    return DONE
