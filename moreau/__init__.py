@@ -44,7 +44,7 @@ from .model.forces import (
     LinearDamping,
     LinearSpring,
 )
-from .model.laws import NewtonImpact
+from .model.laws import NewtonImpact, NewtonImpactFriction
 from .model.scene import Contact, Scene
 from .model.system import FunctionSystem, MechanicalSystem
 from .results import diagnostics
@@ -62,6 +62,7 @@ __all__ = [
     "MoreauJeanMidpoint", "MoreauJeanPredictorCorrector", "OneStepIntegrator",
     "PositionProjection", "CombinedProjection",
     "NewtonImpact",
+    "NewtonImpactFriction",
     "OneStepProblem", "Residuals",
     "ImpactLog", "SolverStats", "Trajectory", "load",
     "Contact", "Scene",

@@ -8,11 +8,18 @@ import math
 from moreau.contact.active_set import _jit
 from moreau.core.kernels import cho_solve
 
-__all__ = ["kkt_residuals_kernel"]
+__all__ = ["kkt_residuals_kernel", "kkt_residuals_rows"]
 
 
 @_jit
 def kkt_residuals_kernel(M, L, b, G, c, v, P, k, out, Gv, GtP, r, d, x, y):
+    """Scaled KKT residuals of ``(v, P)`` for the one-step QP on the first k rows of G
+    (all unilateral): :func:`kkt_residuals_rows` with ``kn = k``."""
+    kkt_residuals_rows(M, L, b, G, c, v, P, k, k, out, Gv, GtP, r, d, x, y)
+
+
+@_jit
+def kkt_residuals_rows(M, L, b, G, c, v, P, k, kn, out, Gv, GtP, r, d, x, y):
     """Scaled KKT residuals of ``(v, P)`` for the one-step QP on the first k rows of G,
     written to ``out`` (4,): primal, dual, complementarity, stationarity (dimensionless).
 
@@ -29,6 +36,11 @@ def kkt_residuals_kernel(M, L, b, G, c, v, P, k, out, Gv, GtP, r, d, x, y):
     measure is invariant under a rescaling of any single coordinate (a change of units),
     so a light coordinate's velocity error is not hidden behind a heavy one's momentum.
     ``L`` is the Cholesky factor of M; Gv (>= k), GtP, r, d, x (n) are work arrays.
+
+    Only the first ``kn`` rows are unilateral (primal, dual and complementarity); rows
+    kn..k−1 (tangential rows of friction, with their own law check in
+    :mod:`moreau.contact.friction`) enter stationarity and the velocity scale. Returns
+    the velocity scale; ``Gv`` holds ``G v`` on return.
     """
     n = M.shape[0]
     for j in range(n):
@@ -44,7 +56,7 @@ def kkt_residuals_kernel(M, L, b, G, c, v, P, k, out, Gv, GtP, r, d, x, y):
     # 1e-300² underflowed to 0 (a ZeroDivisionError in the complementarity residual)
     vel = 1e-150
     for i in range(k):
-        vel = max(vel, abs(c[i]), abs(Gv[i]))
+        vel = max(vel, abs(c[i]) if i < kn else 0.0, abs(Gv[i]))
         a = 0.0
         f = 0.0
         for j in range(n):
@@ -54,7 +66,7 @@ def kkt_residuals_kernel(M, L, b, G, c, v, P, k, out, Gv, GtP, r, d, x, y):
     primal = 0.0
     dual = 0.0
     comp = 0.0
-    for i in range(k):
+    for i in range(kn):
         slack = Gv[i] - c[i]
         wi = 0.0
         for j in range(n):
@@ -81,7 +93,7 @@ def kkt_residuals_kernel(M, L, b, G, c, v, P, k, out, Gv, GtP, r, d, x, y):
         raw = max(raw, abs(d[i]) / sc)
     if raw <= 1e-12:
         out[3] = raw
-        return
+        return vel
     ev = 0.0
     ex = 0.0
     for i in range(n):
@@ -114,4 +126,4 @@ def kkt_residuals_kernel(M, L, b, G, c, v, P, k, out, Gv, GtP, r, d, x, y):
         floor = 16.0 * 2.220446049250313e-16 * r[i] * total
         stat = max(stat, max(0.0, abs(d[i]) - floor) / sc)
     out[3] = stat
-
+    return vel

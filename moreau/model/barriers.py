@@ -45,6 +45,9 @@ class Barrier(ABC):
     nrows: int = 1
     ndof: int | None = None
     constant_jacobian: bool = False
+    #: True when the barrier gives tangent rows (:meth:`tangent_jacobian`): a friction
+    #: law needs them
+    has_tangents: bool = False
 
     @abstractmethod
     def gap(self, q: np.ndarray) -> np.ndarray:
@@ -53,6 +56,17 @@ class Barrier(ABC):
     @abstractmethod
     def jacobian(self, q: np.ndarray) -> np.ndarray:
         """Jacobian G(q) = dg/dq, shape (m, n)."""
+
+    def tangent_jacobian(self, q: np.ndarray) -> np.ndarray:
+        """Tangent rows T(q), shape (m, n): row i maps v to the tangential velocity of the
+        point of row i along the barrier, in the plane and in the gap's length unit (a
+        unit tangent when the gap is a distance), so that ``|P_T| <= mu P_N`` compares
+        like with like. Either sign: Coulomb's law does not depend on it.
+
+        Raises ``NotImplementedError`` for a barrier without tangents (``has_tangents``
+        False): a friction law on it is refused when the :class:`~moreau.model.scene.Contact`
+        is built."""
+        raise NotImplementedError(f"{type(self).__name__} has no tangent rows")
 
     def row_names(self, prefix: str) -> list[str]:
         """Labels of the rows, e.g. ``["floor"]`` or ``["corner[0]", ...]``."""
@@ -88,11 +102,14 @@ class LinearBarrier(Barrier):
         Constant Jacobian; a vector is one row.
     b : array_like, shape (m,) or scalar
         Offsets (default 0).
+    tangent : array_like, shape (m, n) or (n,), optional
+        Constant tangent rows (see :meth:`Barrier.tangent_jacobian`), needed by a friction
+        law: for the floor above, ``tangent=[[1, 0]]``.
     """
 
     constant_jacobian = True
 
-    def __init__(self, A, b=0.0) -> None:
+    def __init__(self, A, b=0.0, tangent=None) -> None:
         try:
             one_row = np.ndim(A) == 1
         except ValueError:  # ragged: as_matrix names it
@@ -106,6 +123,20 @@ class LinearBarrier(Barrier):
             raise ValueError(f"LinearBarrier.A has an all-zero row: {self.A.tolist()}")
         self.A.setflags(write=False)
         self._p = _k.flat(self.A, self.b)  # layout of kernels.gaps_linear
+        self.T: np.ndarray | None = None
+        if tangent is not None:
+            one_row = np.ndim(tangent) == 1
+            self.T = as_matrix([tangent] if one_row else tangent, "LinearBarrier.tangent")
+            if self.T.shape != self.A.shape:
+                raise ValueError(f"LinearBarrier.tangent has shape {self.T.shape}, expected {self.A.shape} "
+                                 "(one tangent row per row of A)")
+            self.T.setflags(write=False)
+            self.has_tangents = True
+
+    def tangent_jacobian(self, q):
+        if self.T is None:
+            return super().tangent_jacobian(q)
+        return self.T
 
     def gap(self, q):
         out = np.empty(self.nrows)
@@ -138,6 +169,8 @@ class FunctionBarrier(Barrier):
         Number of rows m (default 1).
     ndof : int, optional
         Number of coordinates; checked by the scene.
+    tangent_jacobian : callable ``tangent_jacobian(q) -> (m, n)``, optional
+        Tangent rows (see :meth:`Barrier.tangent_jacobian`), needed by a friction law.
     """
 
     def __init__(
@@ -146,9 +179,15 @@ class FunctionBarrier(Barrier):
         jacobian: Callable[[np.ndarray], np.ndarray],
         nrows: int = 1,
         ndof: int | None = None,
+        tangent_jacobian: Callable[[np.ndarray], np.ndarray] | None = None,
     ) -> None:
         if not callable(gap) or not callable(jacobian):
             raise ValueError("FunctionBarrier: gap and jacobian must be callables")
+        if tangent_jacobian is not None:
+            if not callable(tangent_jacobian):
+                raise ValueError(f"FunctionBarrier: tangent_jacobian must be a callable, got {tangent_jacobian!r}")
+            self.tangent_jacobian = tangent_jacobian  # type: ignore[method-assign]
+            self.has_tangents = True
         if isinstance(nrows, bool) or not isinstance(nrows, (int, np.integer)) or nrows < 1:
             raise ValueError(f"FunctionBarrier: nrows must be a positive integer, got {nrows!r}")
         self.gap = gap  # type: ignore[method-assign]  # bound directly: no extra call layer

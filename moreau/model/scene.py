@@ -17,7 +17,7 @@ import numpy as np
 
 from moreau.model.barriers import Barrier
 from moreau.model.forces import Effect
-from moreau.model.laws import NewtonImpact
+from moreau.model.laws import NewtonImpact, NewtonImpactFriction
 from moreau.model.system import MechanicalSystem, check_spd
 from moreau.model.units import complete_units
 
@@ -37,22 +37,33 @@ class Contact:
     ----------
     barrier : Barrier
         The unilateral constraint g(q) >= 0 (one or several rows).
-    law : NewtonImpact or float or sequence of float
+    law : NewtonImpact or NewtonImpactFriction or float or sequence of float
         Newton restitution; a number is ``NewtonImpact(e)`` for every row, a sequence
-        gives one coefficient per row.
+        gives one coefficient per row. :class:`~moreau.model.laws.NewtonImpactFriction`
+        adds Coulomb friction; its barrier must give tangent rows
+        (``barrier.has_tangents``), else ``ValueError``.
     name : str
         Label of the contact in results and impact logs.
     """
 
     barrier: Barrier
-    law: NewtonImpact | float | Sequence[float] = field(default_factory=lambda: NewtonImpact(0.0))
+    law: NewtonImpact | NewtonImpactFriction | float | Sequence[float] = field(
+        default_factory=lambda: NewtonImpact(0.0))
     name: str = "contact"
 
     def __post_init__(self) -> None:
         if not isinstance(self.barrier, Barrier):
             raise ValueError(f"Contact {self.name!r}: barrier must be a Barrier, got {self.barrier!r}")
         law = self.law
-        if isinstance(law, NewtonImpact):
+        mu = np.zeros(self.barrier.nrows)
+        if isinstance(law, NewtonImpactFriction):
+            e, mu = law.per_row(self.barrier.nrows, self.name)
+            if np.any(mu > 0.0) and not self.barrier.has_tangents:
+                raise ValueError(
+                    f"Contact {self.name!r}: friction (mu = {law.mu}) needs tangent rows, and "
+                    f"{type(self.barrier).__name__} has none (LinearBarrier(A, b, tangent=T), "
+                    "FunctionBarrier(..., tangent_jacobian=...), or a chain's PointLineBarrier)")
+        elif isinstance(law, NewtonImpact):
             e = np.full(self.barrier.nrows, law.e)
         elif np.ndim(law) == 0:
             e = np.full(self.barrier.nrows, NewtonImpact(cast(float, law)).e)
@@ -64,8 +75,11 @@ class Contact:
                     f"{self.barrier.nrows} rows"
                 )
         object.__setattr__(self, "restitution", e)
+        object.__setattr__(self, "friction", mu)
 
     restitution: np.ndarray = field(init=False, repr=False, compare=False)
+    #: friction coefficient per row, shape (m,) (zeros without a friction law)
+    friction: np.ndarray = field(init=False, repr=False, compare=False)
 
 
 class Scene:
@@ -95,6 +109,13 @@ class Scene:
         Total number of contact rows m (sum over contacts).
     restitution : ndarray, shape (m,)
         Restitution per row.
+    friction : ndarray, shape (m,)
+        Friction coefficient per row (0: frictionless).
+    has_friction : bool
+        True when some row has friction; only then are tangent rows built and solved.
+    tangent_jacobian : callable or None
+        ``T(q)`` (m, n), the tangent rows of all contacts (zero rows where mu = 0); None
+        without friction.
     row_names : list of str
         Label per row.
     row_contact : ndarray of int, shape (m,)
@@ -136,6 +157,10 @@ class Scene:
         self.restitution = (
             np.concatenate([c.restitution for c in self.contacts]) if self.contacts else np.zeros(0)
         )
+        self.friction = (
+            np.concatenate([c.friction for c in self.contacts]) if self.contacts else np.zeros(0)
+        )
+        self.has_friction = bool(np.any(self.friction > 0.0))
         self.row_contact = np.concatenate(
             [np.full(c.barrier.nrows, i) for i, c in enumerate(self.contacts)]
         ).astype(int) if self.contacts else np.zeros(0, dtype=int)
@@ -152,6 +177,7 @@ class Scene:
         self.constant_jacobian = all(c.barrier.constant_jacobian for c in self.contacts)
         self.force = self._build_force()
         self.gaps, self.jacobian = self._build_barrier_calls()
+        self.tangent_jacobian = self._build_tangent_call() if self.has_friction else None
 
     # -- specialized evaluation -------------------------------------------------------
     def _build_force(self) -> ForceFn:
@@ -196,6 +222,19 @@ class Scene:
             lambda q: np.vstack([j(q) for j in jacs])
         )
 
+    def _build_tangent_call(self) -> GapFn:
+        """T(q) of all rows: each frictional contact's tangent rows, zeros elsewhere."""
+        n = self.ndof
+        parts = [(c.barrier.tangent_jacobian if np.any(c.friction > 0.0) else None, c.barrier.nrows)
+                 for c in self.contacts]
+        if len(parts) == 1 and parts[0][0] is not None:
+            return parts[0][0]
+
+        def tangent_jacobian(q: np.ndarray) -> np.ndarray:
+            return np.vstack([np.asarray(t(q), dtype=float) if t is not None else np.zeros((m, n))
+                              for t, m in parts])
+        return tangent_jacobian
+
     # -- energy -----------------------------------------------------------------------
     def kinetic_energy(self, q: np.ndarray, v: np.ndarray) -> float:
         """½ vᵀ M(q) v (the scene's energy unit, J in SI)."""
@@ -238,6 +277,11 @@ class Scene:
                 )
             if not np.all(np.isfinite(G)):
                 raise ValueError(f"Jacobian of contact {c.name!r}{where} is not finite: {G.tolist()}")
+            if np.any(c.friction > 0.0):
+                T = np.asarray(b.tangent_jacobian(q), dtype=float)
+                if T.shape != (b.nrows, n) or not np.all(np.isfinite(T)):
+                    raise ValueError(f"tangent rows of contact {c.name!r}{where} have shape {T.shape}, "
+                                     f"expected ({b.nrows}, {n}), or are not finite: {T.tolist()}")
 
     def describe(self) -> dict[str, Any]:
         """The scene's parameters as JSON-serializable data (saved with results)."""
@@ -246,7 +290,8 @@ class Scene:
             "system": self.system.describe(),
             "effects": [e.describe() for e in self.effects],
             "contacts": [
-                {"name": c.name, "barrier": c.barrier.describe(), "restitution": c.restitution.tolist()}
+                {"name": c.name, "barrier": c.barrier.describe(), "restitution": c.restitution.tolist(),
+                 **({"friction": c.friction.tolist()} if np.any(c.friction > 0.0) else {})}
                 for c in self.contacts
             ],
             "units": self.units,

@@ -72,6 +72,8 @@ class PointLineBarrier(Barrier):
         m, n = len(self.rows), chain.ndof
         A = np.empty((m, n))
         B = np.empty((m, n))
+        At = np.empty((m, n))  # the tangent rows: the same projection on the line's direction
+        Bt = np.empty((m, n))
         g0 = np.empty(m)
         self.normals = np.empty((m, 2))
         for r, row in enumerate(self.rows):
@@ -88,13 +90,16 @@ class PointLineBarrier(Barrier):
             nrm = nrm / length
             a = as_vector(row.line_point, f"{where}: line_point", 2)
             A[r], B[r] = chain._projection(nrm, C, S)
+            At[r], Bt[r] = chain._projection(np.array([nrm[1], -nrm[0]]), C, S)
             g0[r] = float(nrm @ (chain.pivot - a))
             self.normals[r] = nrm
         self.nrows, self.ndof = m, n
         self._n = n
         self._A, self._B, self._g0 = A, B, g0
         self._p = _k.flat(g0, A, B)  # layout of kernels.gaps_trig
+        self._pt = _k.flat(np.zeros(m), At, Bt)  # the tangent rows, same layout
         self.normals.setflags(write=False)
+        self.has_tangents = True
 
     def gap(self, q):
         out = np.empty(self.nrows)
@@ -104,6 +109,13 @@ class PointLineBarrier(Barrier):
     def jacobian(self, q):
         out = np.empty((self.nrows, self._n))
         _k.jacobian_trig(self._p, 0, self.nrows, *_k.cos_sin(q), out, 0)
+        return out
+
+    def tangent_jacobian(self, q):
+        """Row r: the velocity of the point along its line, direction (n_y, −n_x) (m/s
+        per unit of q̇)."""
+        out = np.empty((self.nrows, self._n))
+        _k.jacobian_trig(self._pt, 0, self.nrows, *_k.cos_sin(q), out, 0)
         return out
 
     def kernel(self):

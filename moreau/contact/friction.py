@@ -1,0 +1,219 @@
+"""The one-step problem with planar Coulomb friction, solved exactly by Lemke's method.
+
+Rows of one step (all at the midpoint): k normal rows ``U_N = G_N v`` with lower bounds
+c (Newton's law), then kf tangential rows ``U_T = G_T v``, one per normal row j with
+``mu_j > 0`` (``fidx[f] = j``). With ``W = G M⁻¹ Gᵀ`` and ``w = G v_free − [c; 0]`` for the
+stacked ``G = [G_N; G_T]`` the post-step velocities are ``U = W P + w`` and the law is
+
+    0 <= P_N ⟂ U_N >= 0,    |P_T| <= mu P_N,    U_T ≠ 0  ⇒  P_T = −mu P_N sign(U_T).
+
+The friction cone splits into two complementarity pairs per frictional contact (Glocker
+& Pfeiffer; Acary & Brogliato 2008, §13.4): with ``σ_R = mu P_N + P_T`` and the negative
+part ``U_T⁻`` of the slip velocity,
+
+    0 <= σ_R ⟂ U_T + U_T⁻ >= 0,    0 <= U_T⁻ ⟂ 2 mu P_N − σ_R >= 0,
+
+so ``z = (P_N, σ_R, U_T⁻)`` solves an LCP of size k + 2 kf whose matrix is neither
+symmetric nor positive definite:
+
+    [ W_NN − W_NT μ   W_NT   0  ]          [ w_N ]
+    [ W_TN − W_TT μ   W_TT   D  ]  z   +   [ w_T ]
+    [ 2 D μ           −D     0  ]          [  0  ]
+
+(μ the kf x k matrix with ``μ[f, fidx[f]] = mu_fidx[f]``: each contact's own coefficient
+multiplies its own normal impulse — with one mu for all contacts a mix-up of contacts
+here would be invisible). The third block row and column are scaled by
+``D = diag(W_TT)`` so that every row is a velocity and every unknown an impulse (the
+solution does not change). :func:`lcp_lemke` solves it; a secondary ray is returned as
+the status ``RAY``, never as an answer. :func:`friction_residuals_kernel` checks the
+answer against the full law, as the KKT check does for the frictionless problem.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from moreau.contact.active_set import _jit
+from moreau.contact.kkt import kkt_residuals_rows
+from moreau.contact.lemke import OK, lcp_lemke
+from moreau.core.kernels import cho_solve, sym_product
+
+__all__ = ["friction_workspace", "solve_friction_step", "friction_residuals_kernel"]
+
+
+@njit(cache=True, nogil=True)
+def friction_workspace(n, m, mf):
+    """Work arrays for up to m normal and mf tangential rows on n coordinates."""
+    r = max(m + mf, 1)
+    p = max(m + 2 * mf, 1)
+    return (np.empty((r, n)), np.empty(n), np.empty((r, r)), np.empty(r), np.zeros((p, p)), np.empty(p),
+            np.empty(p), np.empty((p, 2 * p + 2)), np.empty(p, dtype=np.int64), np.empty(p), np.empty(n),
+            np.empty(r), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(6))
+
+
+@_jit
+def solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, ws):
+    """v and ``P = [P_N (k); P_T (kf)]`` of the one-step problem with friction (module
+    docstring) on the first k normal rows of G and the kf tangential rows after them.
+
+    ``L`` = chol(M); ``c`` (>= k) the normal rows' lower bounds; ``mu`` (>= k) their
+    friction coefficients; ``fidx`` (>= kf) the normal row of each tangential row;
+    ``ws`` from :func:`friction_workspace`. Returns the status of :func:`lcp_lemke`
+    (``OK``, ``RAY``: no solution found, ``FAILED``).
+    """
+    n = M.shape[0]
+    R = k + kf
+    p = k + 2 * kf
+    MinvGt, vfree, W, w, A, qv, z, T, basis, xb, row = ws[0], ws[1], ws[2], ws[3], ws[4], ws[5], ws[6], ws[7], \
+        ws[8], ws[9], ws[10]
+    for j in range(R):
+        for i in range(n):
+            row[i] = G[j, i]
+        cho_solve(L, row, row, n)
+        for i in range(n):
+            MinvGt[j, i] = row[i]
+    cho_solve(L, b, vfree, n)
+    sym_product(G, MinvGt, W, R, n)
+    for i in range(R):
+        t = -c[i] if i < k else 0.0
+        for j in range(n):
+            t += G[i, j] * vfree[j]
+        w[i] = t
+    for i in range(p):
+        for j in range(p):
+            A[i, j] = 0.0
+    for i in range(R):  # the normal and the σ_R rows: U = W P + w with P_T = σ_R − μ P_N
+        for j in range(k):
+            A[i, j] = W[i, j]
+        for f in range(kf):
+            j = fidx[f]
+            A[i, j] -= mu[j] * W[i, k + f]
+            A[i, k + f] = W[i, k + f]
+        qv[i] = w[i]
+    for f in range(kf):
+        i = k + f
+        d = max(W[i, i], 1e-300)
+        A[i, R + f] = d  # + U_T⁻ (scaled to an impulse)
+        A[R + f, fidx[f]] = 2.0 * mu[fidx[f]] * d  # the left edge: 2 μ P_N − σ_R >= 0
+        A[R + f, i] = -d
+        qv[R + f] = 0.0
+    status = lcp_lemke(A, qv, z, p, T, basis, xb)
+    if status != OK:
+        return status
+    for j in range(k):
+        P[j] = z[j]
+    for f in range(kf):
+        P[k + f] = z[k + f] - mu[fidx[f]] * z[fidx[f]]
+    for i in range(n):
+        t = vfree[i]
+        for j in range(R):
+            t += MinvGt[j, i] * P[j]
+        v[i] = t
+    return OK
+
+
+@_jit
+def friction_residuals_kernel(M, L, b, G, c, mu, fidx, v, P, k, kf, out, ws):
+    """Scaled residuals of ``(v, P)`` against the full law, into ``out`` (6,): primal,
+    dual, complementarity of the normal rows and stationarity (as
+    :func:`~moreau.contact.kkt.kkt_residuals_rows`), then the cone,
+    ``max (|P_T| − mu P_N) w_T / vel``, and stick/slip,
+    ``max ((mu P_N + P_T) U_T⁺ + (mu P_N − P_T) U_T⁻) w_T / vel²`` (``w_T = Σ_j G_Tj² / M_jj``
+    turns an impulse into the velocity it makes; ``vel`` the velocity scale of the KKT
+    check). All dimensionless; ``ws`` from :func:`friction_workspace`."""
+    R = k + kf
+    Gv = ws[11]
+    vel = kkt_residuals_rows(M, L, b, G, c, v, P, R, k, out, Gv, ws[12], ws[13], ws[14], ws[15], ws[16])
+    cone = 0.0
+    slip = 0.0
+    for f in range(kf):
+        i = k + f
+        j = fidx[f]
+        wi = 0.0
+        for l in range(M.shape[0]):
+            wi += G[i, l] * G[i, l] / M[l, l]
+        pn = mu[j] * P[j]
+        pt = P[i]
+        cone = max(cone, (abs(pt) - pn) * wi / vel)
+        u = Gv[i]
+        slip = max(slip, ((pn + pt) * max(u, 0.0) + (pn - pt) * max(-u, 0.0)) * wi / (vel * vel))
+    out[4] = cone
+    out[5] = slip
+
+
+def _frictional(TA: np.ndarray, muA: np.ndarray, GA: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(G stacked [G_N; G_T of the rows with mu > 0], fidx)``."""
+    fidx = np.flatnonzero(muA > 0.0).astype(np.int64)
+    return np.ascontiguousarray(np.vstack([GA, TA[fidx]]), dtype=float), fidx
+
+
+def friction_one_step(M: np.ndarray, b: np.ndarray, GA: np.ndarray, cA: np.ndarray, TA: np.ndarray,
+                      muA: np.ndarray, L: np.ndarray | None = None,
+                      ) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
+    """Solve the one-step problem with friction on k active rows by Lemke's method.
+
+    Parameters
+    ----------
+    M : ndarray, shape (n, n)
+        Mass matrix (symmetric positive definite).
+    b : ndarray, shape (n,)
+        ``M v_k + h f``.
+    GA, TA : ndarray, shape (k, n)
+        Normal and tangent rows of the active contacts.
+    cA, muA : ndarray, shape (k,)
+        Lower bounds of the normal velocities; friction coefficients (0: no tangent row).
+    L : ndarray, shape (n, n), optional
+        Cholesky factor of M.
+
+    Returns
+    -------
+    status : int
+        0 (solved), 2 (a secondary ray: no solution found), 1 (failed).
+    v : ndarray, shape (n,)
+    PN, PT : ndarray, shape (k,)
+        Normal and tangential impulses (PT zero where mu = 0).
+    """
+    from moreau.core.kernels import cholesky
+
+    M = np.ascontiguousarray(M, dtype=float)
+    n, k = M.shape[0], GA.shape[0]
+    if L is None:
+        L = np.empty((n, n))
+        if cholesky(M, L, n) >= 0:
+            raise np.linalg.LinAlgError("the mass matrix is not positive definite")
+    G, fidx = _frictional(TA, muA, GA)
+    kf = fidx.shape[0]
+    P = np.zeros(k + kf)
+    v = np.empty(n)
+    status = solve_friction_step(M, np.ascontiguousarray(L, dtype=float), np.ascontiguousarray(b, dtype=float), G,
+                                 np.ascontiguousarray(cA, dtype=float), np.ascontiguousarray(muA, dtype=float),
+                                 fidx, k, kf, P, v, friction_workspace(n, k, kf))
+    PT = np.zeros(k)
+    PT[fidx] = P[k:]
+    return int(status), v, P[:k].copy(), PT
+
+
+def friction_residuals(M: np.ndarray, b: np.ndarray, GA: np.ndarray, cA: np.ndarray, TA: np.ndarray,
+                       muA: np.ndarray, v: np.ndarray, PN: np.ndarray, PT: np.ndarray,
+                       L: np.ndarray | None = None) -> np.ndarray:
+    """The six scaled residuals of :func:`friction_residuals_kernel` (primal, dual,
+    complementarity, stationarity, cone, stick/slip) of an answer ``(v, PN, PT)``; shapes
+    as in :func:`friction_one_step`. A mass matrix that is not positive definite gives
+    infinite residuals."""
+    from moreau.core.kernels import cholesky
+
+    M = np.ascontiguousarray(M, dtype=float)
+    n, k = M.shape[0], GA.shape[0]
+    if L is None:
+        L = np.empty((n, n))
+        if cholesky(M, L, n) >= 0:
+            return np.full(6, np.inf)
+    G, fidx = _frictional(TA, muA, GA)
+    kf = fidx.shape[0]
+    P = np.concatenate([PN, PT[fidx]]).astype(float)
+    out = np.empty(6)
+    friction_residuals_kernel(M, np.ascontiguousarray(L, dtype=float), np.ascontiguousarray(b, dtype=float), G,
+                              np.ascontiguousarray(cA, dtype=float), np.ascontiguousarray(muA, dtype=float), fidx,
+                              np.ascontiguousarray(v, dtype=float), P, k, kf, out, friction_workspace(n, k, kf))
+    return out

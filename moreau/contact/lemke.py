@@ -1,0 +1,170 @@
+"""Lemke's complementary pivoting for a general LCP: :func:`lcp_lemke`.
+
+Finds z with ``w = A z + q``, ``0 <= z ⟂ w >= 0`` for the leading k x k block of A, A not
+necessarily symmetric nor positive (semi-)definite — the planar friction LCP of
+:mod:`moreau.contact.friction` is neither. The method (Lemke 1965; Cottle, Pang & Stone,
+*The Linear Complementarity Problem*, 1992, §4.4) adds an artificial variable z0 with
+covering vector 1, ``w − A z − 1 z0 = q``, starts from the almost complementary basis with
+z0 at the most negative q_i, and pivots: the complement of the variable that left the basis
+enters, the ratio test picks the row that leaves. It ends either with z0 leaving (a
+solution) or on a column without a positive entry — a *secondary ray*: no solution was
+found, which for the matrices of friction problems can mean that none exists. That is a
+status (:data:`RAY`), never an answer.
+
+Degenerate problems (ties in the ratio test, frequent in contact problems: a sticking
+contact with zero slip, a contact that closes with zero normal velocity) are handled by
+the lexicographic ratio test on the rows of ``B⁻¹`` (the columns of the w variables in the
+tableau), which excludes cycling. The basic solution is refined once against the original
+data with the tableau's ``B⁻¹``.
+
+Plain loops on small dense arrays: compiled once, called from the compiled time loop and
+from the Python path alike.
+"""
+
+from __future__ import annotations
+
+from moreau.contact.active_set import _inline, _jit
+
+__all__ = ["lcp_lemke", "lemke_workspace_shape", "OK", "FAILED", "RAY"]
+
+OK, FAILED, RAY = 0, 1, 2
+
+
+def lemke_workspace_shape(k: int) -> tuple[int, int]:
+    """Shape of the tableau :func:`lcp_lemke` needs for k rows: ``(k, 2 k + 2)``."""
+    return max(k, 1), 2 * max(k, 1) + 2
+
+
+@_inline
+def _pivot(T, k, ncol, r, c):
+    """Gauss–Jordan pivot of the tableau's first k rows and ``ncol`` columns on (r, c)."""
+    p = T[r, c]
+    for j in range(ncol):
+        T[r, j] /= p
+    for i in range(k):
+        if i != r:
+            f = T[i, c]
+            if f != 0.0:
+                for j in range(ncol):
+                    T[i, j] -= f * T[r, j]
+            T[i, c] = 0.0
+    T[r, c] = 1.0
+
+
+@_inline
+def _lex_less(T, k, i, ci, r, cr):
+    """True when row i of ``B⁻¹`` divided by ci is lexicographically smaller than row r
+    divided by cr (the tie-break of the ratio test)."""
+    for j in range(k):
+        a = T[i, j] / ci
+        b = T[r, j] / cr
+        if a < b:
+            return True
+        if a > b:
+            return False
+    return i < r
+
+
+@_jit
+def lcp_lemke(A, q, z, k, T, basis, xb):
+    """Solve ``w = A z + q, 0 <= z ⟂ w >= 0`` on the leading k x k block by Lemke's method.
+
+    Parameters
+    ----------
+    A : ndarray, shape (>= k, >= k)
+        The LCP matrix (any sign pattern); not modified.
+    q : ndarray, shape (>= k,)
+    z : ndarray, shape (>= k,)
+        Out: the solution (zero when q >= 0).
+    k : int
+        Number of rows.
+    T : ndarray, shape (>= k, >= 2 k + 2)
+        Work: the tableau ``[B⁻¹ | −B⁻¹A | −B⁻¹1 | B⁻¹q]``.
+    basis : ndarray of int64, shape (>= k,)
+        Work, then the final basis: variable j < k is w_j, k <= j < 2k is z_{j−k}.
+    xb : ndarray, shape (>= k,)
+        Work.
+
+    Returns
+    -------
+    int
+        :data:`OK`, :data:`RAY` (secondary ray: no solution found) or :data:`FAILED`
+        (pivot limit, 50 (k + 1) pivots, reached: cycling by round-off).
+    """
+    qmin = 0.0
+    r = -1
+    for i in range(k):
+        z[i] = 0.0
+        if q[i] < qmin or (q[i] == qmin and r >= 0):  # ties: the last index (lexicographic)
+            qmin = q[i]
+            r = i
+    if r < 0:  # q >= 0: z = 0 solves it
+        return OK
+    nv = 2 * k + 1  # w, z, z0
+    rhs = nv
+    z0 = 2 * k
+    for i in range(k):
+        for j in range(k):
+            T[i, j] = 1.0 if i == j else 0.0
+            T[i, k + j] = -A[i, j]
+        T[i, z0] = -1.0
+        T[i, rhs] = q[i]
+        basis[i] = i
+    entering = z0
+    status = FAILED
+    for _ in range(50 * (k + 1)):
+        leaving = basis[r]
+        _pivot(T, k, nv + 1, r, entering)
+        basis[r] = entering
+        if leaving == z0:
+            status = OK
+            break
+        entering = leaving + k if leaving < k else leaving - k  # the complement enters
+        cmax = 0.0
+        rscale = 0.0
+        for i in range(k):
+            cmax = max(cmax, abs(T[i, entering]))
+            rscale = max(rscale, abs(T[i, rhs]))
+        r = -1
+        best = 0.0
+        for i in range(k):
+            ci = T[i, entering]
+            if ci <= 1e-12 * cmax:
+                continue
+            ri = T[i, rhs]
+            th = 0.0 if abs(ri) <= 1e-14 * rscale else ri / ci  # round-off of a zero is zero
+            if r < 0 or th < best - 1e-12 * abs(best):
+                r, best = i, th
+            elif th <= best + 1e-12 * abs(best):  # a tie: z0 leaves if it can, else the lexicographic rule
+                if basis[i] == z0 or (basis[r] != z0 and _lex_less(T, k, i, ci, r, T[r, entering])):
+                    r = i
+                    best = min(best, th)
+        if r < 0:
+            status = RAY
+            break
+    if status != OK:
+        return status
+    # the basic solution, refined once against the original data: x_B += B⁻¹ (q − B x_B)
+    for i in range(k):
+        xb[i] = T[i, rhs]
+    for i in range(k):  # residual of w − A z = q on row i
+        t = q[i]
+        for a in range(k):
+            var = basis[a]
+            if var < k:
+                if var == i:
+                    t -= xb[a]
+            else:
+                t += A[i, var - k] * xb[a]
+        z[i] = t  # z is free until the end: the residual
+    for a in range(k):
+        t = xb[a]
+        for i in range(k):
+            t += T[a, i] * z[i]
+        xb[a] = max(t, 0.0)
+    for i in range(k):
+        z[i] = 0.0
+    for a in range(k):
+        if basis[a] >= k:
+            z[basis[a] - k] = xb[a]
+    return OK
