@@ -104,6 +104,8 @@ def lower(scene: Scene) -> CompiledScene:
     """
     if not isinstance(scene, Scene):
         raise ValueError(f"scene must be a Scene, got {scene!r}")
+    if scene.has_friction:
+        raise NotCompilable("friction (a NewtonImpactFriction law with mu > 0) has no compiled form yet")
     n = scene.ndof
     pool = _Pool()
     sysm = scene.system

@@ -45,5 +45,18 @@ class ContactSolver(ABC):
     ) -> tuple[np.ndarray, np.ndarray]:
         """Solve ``min ½ vᵀMv − bᵀv  s.t.  G[rows] v >= c[rows]``; return ``(v, P[rows])``."""
 
+    def solve_friction(
+        self, M: np.ndarray, b: np.ndarray, G: np.ndarray, c: np.ndarray, T: np.ndarray, mu: np.ndarray,
+        rows: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Solve the one-step problem with planar Coulomb friction (see
+        :mod:`moreau.contact.friction`) on the active ``rows``; ``T`` (m, n) the tangent
+        rows, ``mu`` (m,) the friction coefficients (tangent rows are used where mu > 0).
+        Return ``(v, P_N[rows], P_T[rows])`` (P_T zero where mu = 0).
+
+        Raises :class:`SolveFailed` when the backend has no friction solve (this default)
+        or found no answer."""
+        raise SolveFailed(f"solver {self.name!r} does not solve problems with friction")
+
     def describe(self) -> dict:
         return {"name": self.name}

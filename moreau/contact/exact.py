@@ -39,6 +39,18 @@ class _CompiledLCPSolver(ContactSolver):
     def _check_rows(self, k: int) -> None:
         pass
 
+    def solve_friction(self, M, b, G, c, T, mu, rows):
+        """Lemke's method on the friction LCP (:func:`moreau.contact.friction.friction_one_step`)."""
+        from moreau.contact.friction import friction_one_step
+
+        self._check_rows(rows.shape[0])
+        status, v, PN, PT = friction_one_step(M, b, np.ascontiguousarray(G[rows]), c[rows],
+                                              np.ascontiguousarray(T[rows]), mu[rows])
+        if status != 0:
+            what = "ended on a secondary ray (no solution found)" if status == 2 else "reached its pivot limit"
+            raise SolveFailed(f"Lemke's method {what} for {rows.shape[0]} active rows, mu = {mu[rows].tolist()}")
+        return v, PN, PT
+
 
 class ExactSolver(_CompiledLCPSolver):
     """Exact dual active-set solver (Goldfarb–Idnani on the LCP, :mod:`moreau.contact.lcp`):
@@ -66,6 +78,25 @@ class EnumerationSolver(_CompiledLCPSolver):
 
     def __init__(self, max_rows: int = 12) -> None:
         self.max_rows = min(int(max_rows), 12)
+
+    def solve_friction(self, M, b, G, c, T, mu, rows):
+        """Enumeration of open/stick/slip states (:mod:`moreau.contact.friction_enum`, at
+        most 6 active rows): independent of Lemke's LCP."""
+        from moreau.contact.friction_enum import MAX_CONTACTS, friction_enumerate
+        from moreau.contact.tresca import delassus
+
+        k = rows.shape[0]
+        if k > min(self.max_rows, MAX_CONTACTS):
+            raise SolveFailed(f"enumeration with friction refuses {k} active rows (max {MAX_CONTACTS})")
+        W, w, _, MinvGt, vfree = delassus(M, b, G, c, T, mu, rows)
+        fidx = np.flatnonzero(mu[rows] > 0.0)
+        P = friction_enumerate(W, w, mu[rows], fidx)
+        if P is None:
+            raise SolveFailed(f"no contact state satisfies the friction law for {k} active rows, "
+                              f"mu = {mu[rows].tolist()}")
+        PT = np.zeros(k)
+        PT[fidx] = P[k:]
+        return vfree + MinvGt @ P, P[:k].copy(), PT
 
     def _check_rows(self, k: int) -> None:
         if k > self.max_rows:

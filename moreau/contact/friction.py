@@ -39,7 +39,11 @@ from moreau.contact.kkt import kkt_residuals_rows
 from moreau.contact.lemke import OK, lcp_lemke
 from moreau.core.kernels import cho_solve, sym_product
 
-__all__ = ["friction_workspace", "solve_friction_step", "friction_residuals_kernel"]
+__all__ = ["friction_workspace", "solve_friction_step", "friction_residuals_kernel", "friction_one_step",
+           "friction_residuals", "FRICTION_RESIDUALS"]
+
+#: the names of the six residuals of :func:`friction_residuals_kernel`, in order
+FRICTION_RESIDUALS = ("primal", "dual", "complementarity", "stationarity", "cone", "slip")
 
 
 @njit(cache=True, nogil=True)

@@ -148,5 +148,48 @@ class OSQPSolver(ContactSolver):
             self.n_unsettled += 1
         return _upper_solve(L, u), p * r[rows]
 
+    def solve_friction(self, M, b, G, c, T, mu, rows):
+        """Coulomb friction as a fixed point over Tresca QPs (:mod:`moreau.contact.tresca`),
+        each solved by OSQP, set up once per step and updated with the new friction bounds."""
+        from moreau.contact.tresca import solve_by_tresca
+
+        return solve_by_tresca(M, b, G, c, T, mu, rows, _BoxQP(self.eps, self.max_iter))
+
     def describe(self):
         return {"name": self.name, "eps": self.eps, "polish": self.polish}
+
+
+class _BoxQP:
+    """``min ½ pᵀWp + wᵀp, lower <= p <= upper`` by OSQP with polishing: set up at the
+    first call, then only the bounds updated (warm-started) while W and w stay the same
+    arrays (the QPs of one Tresca fixed point)."""
+
+    def __init__(self, eps: float, max_iter: int) -> None:
+        self.eps, self.max_iter = eps, max_iter
+        self._W = None
+        self._s = None
+
+    def __call__(self, W, w, lower, upper):
+        import osqp
+        import scipy.sparse as sp
+
+        try:  # the unconstrained minimum when it is inside the box (OSQP's polishing
+            # would only print that it found no active bound)
+            p = np.linalg.solve(W, -w)
+            if np.all(p >= lower) and np.all(p <= upper):
+                return p
+        except np.linalg.LinAlgError:
+            pass
+        if self._s is None or W is not self._W:
+            self._s = osqp.OSQP()
+            n = w.shape[0]
+            self._s.setup(sp.triu(sp.csc_matrix(W), format="csc"), w, sp.identity(n, format="csc"), lower, upper,
+                          verbose=False, eps_abs=self.eps, eps_rel=self.eps, polishing=True, warm_starting=True,
+                          max_iter=self.max_iter)
+            self._W = W
+        else:
+            self._s.update(l=lower, u=upper)
+        res = self._s.solve(raise_error=False)
+        if res.info.status_val != osqp.SolverStatus.OSQP_SOLVED:
+            raise SolveFailed(f"OSQP status {res.info.status!r} on a Tresca problem after {res.info.iter} iterations")
+        return np.clip(res.x, lower, upper)

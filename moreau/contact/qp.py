@@ -73,5 +73,19 @@ class QpsolversSolver(ContactSolver):
         P = sol.z if sol.z is not None else np.zeros(rows.shape[0])
         return np.asarray(sol.x, dtype=float), np.asarray(P, dtype=float)
 
+    def solve_friction(self, M, b, G, c, T, mu, rows):
+        """Coulomb friction as a fixed point over Tresca QPs (:mod:`moreau.contact.tresca`)."""
+        from moreau.contact.tresca import solve_by_tresca
+
+        qp = self._qpsolvers
+
+        def box_qp(W, w, lower, upper):
+            sol = qp.solve_problem(qp.Problem(P=W, q=w, lb=lower, ub=upper), solver=self.backend, **self.options)
+            if not sol.found or sol.x is None:
+                raise SolveFailed(f"{self.backend} found no solution of a Tresca problem")
+            return np.clip(np.asarray(sol.x, dtype=float), lower, upper)
+
+        return solve_by_tresca(M, b, G, c, T, mu, rows, box_qp)
+
     def describe(self):
         return {"name": self.name, "options": self.options}

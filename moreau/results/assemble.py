@@ -21,12 +21,14 @@ def assemble(scene: Any, *, t: np.ndarray, q: np.ndarray, v: np.ndarray, impulse
              active: np.ndarray, onsets: ImpactLog, stats: SolverStats, h: float, stride: int, status: str,
              message: str, work: dict[str, float], max_penetration: np.ndarray, energy: bool,
              gaps: np.ndarray | None = None, kinetic: np.ndarray | None = None,
-             potential: np.ndarray | None = None) -> Trajectory:
+             potential: np.ndarray | None = None, tangential_impulses: np.ndarray | None = None,
+             slip: np.ndarray | None = None) -> Trajectory:
     """The Trajectory of a run from its records (arrays of N records, time-major).
 
     ``gaps``, ``kinetic`` and ``potential`` are what the loop computed at the records (the
     compiled loop does); the ones not given (the Python loop) are evaluated here on the
-    recorded states. A model function failing in that evaluation leaves NaN and a warning:
+    recorded states. With friction (``tangential_impulses`` given) the slip velocities
+    ``T(q) v`` at the records likewise. A model function failing in that evaluation leaves NaN and a warning:
     the trajectory is kept (the failure may be why the run stopped).
     """
     m = scene.nrows
@@ -37,12 +39,19 @@ def assemble(scene: Any, *, t: np.ndarray, q: np.ndarray, v: np.ndarray, impulse
         kinetic = _per_record(lambda i: scene.kinetic_energy(q[i], v[i]), N, (N,), "kinetic energy")
     if energy and potential is None:
         potential = _per_record(lambda i: scene.potential_energy(q[i]), N, (N,), "potential energy")
+    if tangential_impulses is not None and slip is None:  # the slip velocities T(q) v at the records
+        slip = _per_record(lambda i: scene.tangent_jacobian(q[i]) @ v[i], N, (N, m), "slip velocities")
+    sticking = None
+    if tangential_impulses is not None:  # strictly inside the cone: Coulomb's law holds the slip at 0
+        bound = (1.0 - 1e-9) * np.asarray(scene.friction) * impulses
+        sticking = active & (impulses > 0.0) & (np.abs(tangential_impulses) < bound)
     total = kinetic + potential if energy and kinetic is not None and potential is not None else None
     return Trajectory(
         t=t, q=q, v=v, gaps=gaps, impulses=impulses, active=active, onsets=onsets, stats=stats, h=h,
         record_every=stride, row_names=list(scene.row_names), scene=scene.describe(), energy=total,
         kinetic_energy=kinetic if energy else None, potential_energy=potential if energy else None,
         status=status, message=message, version=__version__, max_penetration=max_penetration, work=work,
+        tangential_impulses=tangential_impulses, slip_velocity=slip, sticking=sticking,
     )
 
 

@@ -73,8 +73,10 @@ class Trajectory:
     work : dict
         Energy-ledger terms summed over every step: ``"forces"``, the work of the smooth
         forces h fᵀ(v_k + v⁺)/2, and ``"contacts"``, the work of the contact impulses
-        ½ Pᵀ(U⁻ + U⁺) (≤ 0 for e ≤ 1), in the scene's energy unit. They close the
-        discrete balance ΔT = forces + contacts exactly for a constant mass matrix.
+        ½ Pᵀ(U⁻ + U⁺) (≤ 0 for e ≤ 1), in the scene's energy unit; with friction also
+        ``"friction"``, the work of the tangential impulses ½ P_Tᵀ(U_T⁻ + U_T⁺) (≤ 0 for
+        Coulomb's law). They close the discrete balance ΔT = forces + contacts (+ friction)
+        exactly for a constant mass matrix.
     warnings : list of str
         What the run-level checks found (a penetration beyond its limit, see
         :mod:`moreau.run.trust`); empty for a clean run. Kept by ``save``/``load``.
@@ -86,6 +88,17 @@ class Trajectory:
         (files written before units existed load with the undeclared defaults).
     extra : dict
         Whatever the caller attaches (JSON-serializable); kept by ``save``/``load``.
+    tangential_impulses : ndarray, shape (N, m) or None
+        With friction: the tangential (friction) impulses summed since the previous
+        record, per row (zero where mu = 0), in the impulse unit; None without friction.
+    slip_velocity : ndarray, shape (N, m) or None
+        With friction: the tangential velocity ``T(q) v`` of every row at the records
+        (zero rows where mu = 0). None without friction.
+    sticking : ndarray of bool, shape (N, m) or None
+        With friction: True where the row carried a normal impulse since the previous
+        record and its friction impulse stayed strictly inside the cone,
+        ``|P_T| < mu P_N`` (Coulomb's law then holds the slip at zero); a sliding row
+        is on the cone's edge. None without friction.
     """
 
     t: np.ndarray
@@ -111,6 +124,9 @@ class Trajectory:
     work: dict[str, float] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     units: dict[str, Any] = field(default_factory=dict)
+    tangential_impulses: np.ndarray | None = None
+    slip_velocity: np.ndarray | None = None
+    sticking: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         ndof = self.q.shape[1] if self.q.ndim == 2 else 0
@@ -195,7 +211,8 @@ class Trajectory:
             "t": self.t, "q": self.q, "v": self.v, "gaps": self.gaps,
             "impulses": self.impulses, "active": self.active,
         }
-        for name in ("energy", "kinetic_energy", "potential_energy", "max_penetration"):
+        for name in ("energy", "kinetic_energy", "potential_energy", "max_penetration", "tangential_impulses",
+                     "slip_velocity", "sticking"):
             if getattr(self, name) is not None:
                 arrays[name] = getattr(self, name)
         for name in _impact_arrays():
@@ -268,13 +285,16 @@ class Trajectory:
                 message=meta["message"], version=meta["version"], extra=meta.get("extra", {}),
                 max_penetration=data.get("max_penetration"), work=meta.get("work", {}),
                 warnings=list(meta.get("warnings", [])), units=meta.get("units", {}),
+                tangential_impulses=data.get("tangential_impulses"), slip_velocity=data.get("slip_velocity"),
+                sticking=data.get("sticking"),
             )
         except (KeyError, TypeError) as exc:
             raise ValueError(f"trajectory file {path!r} is incomplete: missing {exc}") from None
         except ValueError as exc:  # malformed units
             raise ValueError(f"trajectory file {path!r}: {exc}") from None
         N = traj.t.shape[0]
-        for name in ("q", "v", "gaps", "impulses", "active", "energy", "kinetic_energy", "potential_energy"):
+        for name in ("q", "v", "gaps", "impulses", "active", "energy", "kinetic_energy", "potential_energy",
+                     "tangential_impulses", "slip_velocity", "sticking"):
             a = getattr(traj, name)
             if a is not None and a.shape[0] != N:
                 raise ValueError(f"trajectory file {path!r} is inconsistent: {name} has "

@@ -38,10 +38,13 @@ def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, s
     V = np.empty((n_rec, n))
     PS = np.zeros((n_rec, m))
     ACT = np.zeros((n_rec, m), dtype=bool)
+    friction = scene.has_friction
+    PTS = np.zeros((n_rec, m) if friction else (0, m))  # tangential impulses per record
     T[0], Q[0], V[0] = t0, integ.q, integ.v
     rec = 1
     impacts: list[ImpactRow] = []
     P_acc = np.zeros(m)
+    PT_acc = np.zeros(m)
     act_acc = np.zeros(m, dtype=bool)
     in_contact = np.zeros(m, dtype=bool)
     has_contacts = m > 0
@@ -65,6 +68,8 @@ def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, s
                 if contact:
                     P = integ.P
                     P_acc += P
+                    if friction:
+                        PT_acc += integ.PT
                     act_acc |= integ.active
                     now = P > 0.0
                     new = now & ~in_contact
@@ -84,6 +89,9 @@ def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, s
                 if has_contacts:
                     PS[rec] = P_acc
                     ACT[rec] = act_acc
+                    if friction:
+                        PTS[rec] = PT_acc
+                        PT_acc[:] = 0.0
                     P_acc[:] = 0.0
                     act_acc[:] = False
                 rec += 1
@@ -116,6 +124,8 @@ def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, s
         T[rec], Q[rec], V[rec] = integ.t, integ.q, integ.v
         if has_contacts:
             PS[rec], ACT[rec] = P_acc, act_acc
+            if friction:
+                PTS[rec] = PT_acc
         rec += 1
 
     stats = SolverStats(
@@ -125,8 +135,9 @@ def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, s
     )
     traj = assemble(scene, t=T[:rec], q=Q[:rec], v=V[:rec], impulses=PS[:rec], active=ACT[:rec],
                     onsets=ImpactLog.from_rows(impacts), stats=stats, h=h, stride=stride, status=status,
-                    message=message, work={"forces": integ.work_forces, "contacts": integ.work_contacts},
-                    max_penetration=pen, energy=energy)
+                    message=message, work={"forces": integ.work_forces, "contacts": integ.work_contacts,
+                                           **({"friction": integ.work_friction} if friction else {})},
+                    max_penetration=pen, energy=energy, tangential_impulses=PTS[:rec] if friction else None)
     if check.warned is not None:
         traj.warnings.append(check.warned)
         warnings.warn(check.warned, RuntimeWarning, stacklevel=4)

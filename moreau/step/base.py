@@ -9,6 +9,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from moreau.contact.friction import FRICTION_RESIDUALS, friction_residuals
 from moreau.contact.problem import kkt_residuals
 from moreau.contact.solvers import ContactSolver, SolveFailed, make_solver
 from moreau.core.errors import SolverError
@@ -141,6 +142,11 @@ class OneStepIntegrator(ABC):
         self._no_contact = self.active.copy()
         self._no_contact.setflags(write=False)
         self.P = np.zeros(m)
+        #: tangential (friction) impulses of the last step, shape (m,); zeros without friction
+        self.PT = np.zeros(m)
+        self._PT_active = np.zeros(0)
+        self._mu = scene.friction
+        self._T: np.ndarray | None = None  # the tangent rows of the last contact step
         self.last_impulse_step = np.full(m, -(1 << 62), dtype=np.int64)
         self.pinned = np.zeros(m, dtype=bool)
         self.pin_gap = np.zeros(m)
@@ -153,6 +159,8 @@ class OneStepIntegrator(ABC):
         self.n_solves = self.n_fallbacks = self.n_contact_steps = self.n_projections = 0
         self.worst_residual = 0.0
         self.work_forces = self.work_contacts = 0.0
+        #: work of the friction impulses (<= 0 for Coulomb's law), not in ``work_contacts``
+        self.work_friction = 0.0
         #: the bias terms' share of ``work_forces``, kept when ``track_bias_work`` is set
         self.work_bias = 0.0
         self.track_bias_work = False
@@ -165,15 +173,20 @@ class OneStepIntegrator(ABC):
         """Advance the state by one step h; return True when a contact problem was solved."""
 
     # -- contact solve ------------------------------------------------------------------
-    def _solve_contact(self, M, b, G, c, rows, kind: str = "contact", L=None):
+    def _solve_contact(self, M, b, G, c, rows, kind: str = "contact", L=None, T=None):
         """Solve the step's QP with the main solver, check it, fall back if needed.
 
         ``kind`` names the problem in errors (``"contact"``, or ``"projection"`` for drift
         control, whose solves are not counted in ``n_solves``). ``L``: the Cholesky factor
-        of M when the step has it (the check then does not factorize M again).
+        of M when the step has it (the check then does not factorize M again). ``T``: the
+        tangent rows (m, n) of a scene with friction; the solve is then the friction
+        problem, checked against the full law (cone and stick/slip too), and its
+        tangential impulses of the active rows are left in ``self._PT_active``.
         """
         if kind == "contact":
             self.n_solves += 1
+        if T is not None:
+            return self._solve_friction(M, b, G, c, T, rows, L)
         GA, cA = G[rows], c[rows]
         failures: dict[str, dict[str, float] | str] = {}
         for solver in (self.solver, self.fallback):
@@ -197,6 +210,34 @@ class OneStepIntegrator(ABC):
         raise SolverError(
             f"{kind} solve failed at step {self.k} (t = {self.t:.9g}), active rows {names}: {failures}",
             step=self.k, t=self.t, rows=names, residuals=failures,
+        )
+
+    def _solve_friction(self, M, b, G, c, T, rows, L):
+        """The friction problem of :meth:`_solve_contact`: main solver, law check, fallback."""
+        GA, cA, TA, muA = G[rows], c[rows], T[rows], self._mu[rows]
+        failures: dict[str, dict[str, float] | str] = {}
+        for solver in (self.solver, self.fallback):
+            if solver is None:
+                break
+            if failures:
+                self.n_fallbacks += 1
+                log.debug("step %d: %s failed (%s), falling back to %s", self.k, self.solver.name,
+                          failures[self.solver.name], solver.name)
+            try:
+                v, PN, PT = solver.solve_friction(M, b, G, c, T, self._mu, rows)
+                res = friction_residuals(M, b, GA, cA, TA, muA, v, PN, PT, L=L)
+                worst = float(res.max())
+                if worst <= self.tol:
+                    self.worst_residual = max(self.worst_residual, worst)
+                    self._PT_active = PT
+                    return v, PN
+                failures[solver.name] = dict(zip(FRICTION_RESIDUALS, res.tolist()))
+            except (SolveFailed, np.linalg.LinAlgError, ValueError) as exc:
+                failures[solver.name] = str(exc)
+        names = [self.scene.row_names[i] for i in rows]
+        raise SolverError(
+            f"contact solve with friction failed at step {self.k} (t = {self.t:.9g}), active rows {names}, "
+            f"mu = {muA.tolist()}: {failures}", step=self.k, t=self.t, rows=names, residuals=failures,
         )
 
     def _mass_at(self, q, v) -> tuple[np.ndarray, np.ndarray]:
@@ -242,6 +283,10 @@ class OneStepIntegrator(ABC):
     def gaps_at(self, q, v=None) -> np.ndarray:
         """The scene's gaps g(q), their shape checked (``BadModelOutput``)."""
         return self._evaluate(self.scene.gaps, (q,), self._shape_g, "gaps", self.t, q, v)
+
+    def tangent_at(self, q, v=None) -> np.ndarray:
+        """The scene's tangent rows T(q) (friction), their shape checked (``BadModelOutput``)."""
+        return self._evaluate(self.scene.tangent_jacobian, (q,), self._shape_G, "tangent", self.t, q, v)
 
     def jacobian_at(self, q, v=None) -> np.ndarray:
         """The scene's Jacobian G(q), its shape checked (``BadModelOutput``)."""

@@ -68,7 +68,7 @@ def check_initial_state(scene: Scene, t0: Any, q0: Any, v0: Any,
 
 
 _COMPOSITE = {"mass": "mass matrix", "force": "force of the scene", "gaps": "gaps of the scene",
-              "jacobian": "Jacobian of the scene"}
+              "jacobian": "Jacobian of the scene", "tangent": "tangent rows of the scene"}
 
 
 def _locate_bad_shape(scene: Scene, kind: str, t, q, v, where: str) -> str | None:
@@ -91,6 +91,10 @@ def _locate_bad_shape(scene: Scene, kind: str, t, q, v, where: str) -> str | Non
             b = c.barrier
             if kind == "gaps":
                 parts.append((f"gap of contact {c.name!r}", partial(b.gap, q), (b.nrows,)))
+            elif kind == "tangent":
+                if np.any(c.friction > 0.0):
+                    parts.append((f"tangent rows of contact {c.name!r}", partial(b.tangent_jacobian, q),
+                                  (b.nrows, n)))
             else:
                 parts.append((f"Jacobian of contact {c.name!r}", partial(b.jacobian, q), (b.nrows, n)))
     for what, call, shape in parts:

@@ -114,10 +114,15 @@ class MoreauJeanMidpoint(OneStepIntegrator):
                 else:
                     c = -self._e * U
                 b = M @ v + h * f
-                v_new, PA = self._solve_contact(M, b, G, c, rows, L=L)
+                T = self.tangent_at(qm, v) if scene.has_friction else None
+                v_new, PA = self._solve_contact(M, b, G, c, rows, L=L, T=T)
                 P = np.zeros(scene.nrows)
                 P[rows] = PA
                 self.active, self.P = active, P
+                if T is not None:
+                    self.PT = np.zeros(scene.nrows)
+                    self.PT[rows] = self._PT_active
+                    self._T = T
                 self._last = (M, G, v, v_new, P)
                 return v_new, True
         if self._Minv is not None:  # a constant mass matrix
@@ -142,10 +147,15 @@ class MoreauJeanMidpoint(OneStepIntegrator):
             _, G, v_old, _, P = self._last
             act = self.active
             self.work_contacts += 0.5 * float(P[act] @ (G[act] @ (v_old + v_new)))
+            if self._T is not None:
+                self.work_friction += 0.5 * float(self.PT[act] @ (self._T[act] @ (v_old + v_new)))
         elif self.active is not self._no_contact:
             # no contact in this step (also when only a θ predictor closed one): clear
             self.active = self._no_contact
             self.P = np.zeros(self.scene.nrows)
+            if self._T is not None:
+                self.PT = np.zeros(self.scene.nrows)
+                self._T = None
         self.contact_step = contact
         if contact:
             self.last_impulse_step[self.P > 0.0] = self.k
