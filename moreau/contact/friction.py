@@ -40,7 +40,7 @@ from moreau.contact.lemke import OK, lcp_lemke
 from moreau.core.kernels import cho_solve, sym_product
 
 __all__ = ["friction_workspace", "solve_friction_step", "friction_residuals_kernel", "friction_one_step",
-           "friction_residuals", "FRICTION_RESIDUALS"]
+           "friction_residuals", "painleve_rows", "FRICTION_RESIDUALS"]
 
 #: the names of the six residuals of :func:`friction_residuals_kernel`, in order
 FRICTION_RESIDUALS = ("primal", "dual", "complementarity", "stationarity", "cone", "slip")
@@ -221,3 +221,27 @@ def friction_residuals(M: np.ndarray, b: np.ndarray, GA: np.ndarray, cA: np.ndar
                               np.ascontiguousarray(cA, dtype=float), np.ascontiguousarray(muA, dtype=float), fidx,
                               np.ascontiguousarray(v, dtype=float), P, k, kf, out, friction_workspace(n, k, kf))
     return out
+
+
+def painleve_rows(L: np.ndarray, GA: np.ndarray, TA: np.ndarray, muA: np.ndarray, PN: np.ndarray,
+                  PT: np.ndarray, U_T: np.ndarray) -> np.ndarray:
+    """Indices (into the k active rows) of sliding contacts in Painlevé's region: the
+    normal velocity the sliding friction impulse makes along with the normal impulse,
+    ``W_NN − mu s W_NT`` (s the slip direction), is not positive — the normal row then
+    has a non-positive "effective inverse mass", and the one-step problem can have
+    several solutions (lift-off, a sliding contact with a large impulse, a tangential
+    impact) or none. ``L`` = chol(M); ``U_T`` (k,) the post-step slip velocities."""
+    from moreau.core.kernels import cho_solve
+
+    out = []
+    n = L.shape[0]
+    x = np.empty(n)
+    for j in np.flatnonzero(muA > 0.0):
+        edge = abs(PT[j]) >= (1.0 - 1e-9) * muA[j] * PN[j]
+        if not edge or (PN[j] == 0.0 and U_T[j] == 0.0):
+            continue
+        s = -np.sign(PT[j]) if PN[j] > 0.0 else np.sign(U_T[j])
+        cho_solve(L, np.ascontiguousarray(GA[j], dtype=float), x, n)
+        if float(GA[j] @ x) - muA[j] * s * float(TA[j] @ x) <= 0.0:
+            out.append(int(j))
+    return np.array(out, dtype=np.int64)

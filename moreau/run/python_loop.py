@@ -138,9 +138,10 @@ def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, s
                     message=message, work={"forces": integ.work_forces, "contacts": integ.work_contacts,
                                            **({"friction": integ.work_friction} if friction else {})},
                     max_penetration=pen, energy=energy, tangential_impulses=PTS[:rec] if friction else None)
-    if check.warned is not None:
-        traj.warnings.append(check.warned)
-        warnings.warn(check.warned, RuntimeWarning, stacklevel=4)
+    for said in (check.warned, integ.painleve):
+        if said is not None:
+            traj.warnings.append(said)
+            warnings.warn(said, RuntimeWarning, stacklevel=4)
     if error is not None:
         attach_trajectory(error, traj)
         raise error

@@ -9,7 +9,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from moreau.contact.friction import FRICTION_RESIDUALS, friction_residuals
+from moreau.contact.friction import FRICTION_RESIDUALS, friction_residuals, painleve_rows
 from moreau.contact.problem import kkt_residuals
 from moreau.contact.solvers import ContactSolver, SolveFailed, make_solver
 from moreau.core.errors import SolverError
@@ -161,6 +161,9 @@ class OneStepIntegrator(ABC):
         self.work_forces = self.work_contacts = 0.0
         #: work of the friction impulses (<= 0 for Coulomb's law), not in ``work_contacts``
         self.work_friction = 0.0
+        #: steps with a sliding contact in Painlevé's region, and the first one's message
+        self.n_painleve = 0
+        self.painleve: str | None = None
         #: the bias terms' share of ``work_forces``, kept when ``track_bias_work`` is set
         self.work_bias = 0.0
         self.track_bias_work = False
@@ -230,6 +233,7 @@ class OneStepIntegrator(ABC):
                 if worst <= self.tol:
                     self.worst_residual = max(self.worst_residual, worst)
                     self._PT_active = PT
+                    self._check_painleve(M, L, GA, TA, muA, PN, PT, v, rows)
                     return v, PN
                 failures[solver.name] = dict(zip(FRICTION_RESIDUALS, res.tolist()))
             except (SolveFailed, np.linalg.LinAlgError, ValueError) as exc:
@@ -239,6 +243,22 @@ class OneStepIntegrator(ABC):
             f"contact solve with friction failed at step {self.k} (t = {self.t:.9g}), active rows {names}, "
             f"mu = {muA.tolist()}: {failures}", step=self.k, t=self.t, rows=names, residuals=failures,
         )
+
+    def _check_painleve(self, M, L, GA, TA, muA, PN, PT, v, rows) -> None:
+        """Count the steps with a sliding contact in Painlevé's region (see
+        :func:`moreau.contact.friction.painleve_rows`) and keep the first one's message."""
+        if L is None:
+            L = np.linalg.cholesky(M)
+        bad = painleve_rows(L, GA, TA, muA, PN, PT, TA @ v)
+        if bad.size:
+            self.n_painleve += 1
+            if self.painleve is None:
+                names = [self.scene.row_names[rows[j]] for j in bad]
+                self.painleve = (
+                    f"Painlevé's paradox: at t = {self.t:.9g} (step {self.k}) the sliding contact(s) {names} "
+                    f"(mu = {muA[bad].tolist()}) have a non-positive effective normal inverse mass: the one-step "
+                    "problem can have several solutions (lift-off, sliding, a tangential impact) or none, and "
+                    "the motion from here on depends on the step size")
 
     def _mass_at(self, q, v) -> tuple[np.ndarray, np.ndarray]:
         """``(M(q), L)`` with L its Cholesky factor, factorized once as the compiled step
