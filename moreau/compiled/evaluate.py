@@ -93,8 +93,9 @@ def gaps(ints, bkind, boff, brow, bnrows, pool, user, q, c, s, g):
 
 @_internal
 def jacobian(ints, bkind, boff, brow, bnrows, pool, user, q, c, s, G):
-    """G(q) into ``G`` (m, n); ``c, s`` = cos q, sin q."""
-    for ic in range(ints[6]):
+    """G(q) into ``G`` (m + mf, n): the contacts' rows, then the tangent rows of friction
+    (the barriers after the first ``ints[6]``); ``c, s`` = cos q, sin q."""
+    for ic in range(bkind.shape[0]):
         kind = bkind[ic]
         if kind == _k.BAR_LINEAR:
             _k.jacobian_linear(pool, boff[ic], bnrows[ic], G, brow[ic])

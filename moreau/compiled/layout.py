@@ -28,8 +28,9 @@ N_COUNTERS = 11
 # accumulators (float array)
 # (the energy check: kinetic energy at the start, the largest so far, the unaccounted energy
 # at the warning and at the last check, the work of the bias terms)
-A_WORST, A_WORK_F, A_WORK_C, A_KE0, A_KEMAX, A_DU_WARN, A_DU, A_WORK_B = range(8)
-N_ACCUMULATORS = 8
+# (A_WORK_T: the work of the friction impulses)
+A_WORST, A_WORK_F, A_WORK_C, A_KE0, A_KEMAX, A_DU_WARN, A_DU, A_WORK_B, A_WORK_T = range(9)
+N_ACCUMULATORS = 9
 
 # The step's parts are inlined into the loop by numba (IR level), as are the evaluation
 # functions (moreau.compiled.evaluate); the kernels and LCP routines they call are inlined by LLVM

@@ -60,6 +60,7 @@ from moreau.compiled.layout import (  # the loop's layout
     S_THETA,
     USER_FAILED,
 )
+from moreau.compiled.friction import _friction_records, friction_work
 from moreau.compiled.layout import part as _part
 from moreau.compiled.step import _user_failed, _velocity_update
 from moreau.contact.lcp import workspace
@@ -69,16 +70,18 @@ _jit = njit(cache=True, nogil=True)
 
 
 @_jit
-def loop_workspace(n, m):
-    """The work arrays of :func:`run_chunk` for n coordinates and m rows (allocated once
-    per run, outside the loop: the loop itself allocates nothing)."""
+def loop_workspace(n, m, mf, mu, tangent_row):
+    """The work arrays of :func:`run_chunk` for n coordinates, m rows and mf tangent rows
+    (friction; mu (m,) and tangent_row (m,) from the lowered scene), allocated once per
+    run, outside the loop: the loop itself allocates nothing."""
     mm = max(m, 1)
+    ma = max(m + mf, 1)  # the Jacobian's rows: contacts, then tangents
     own = (np.empty((n, n)), np.empty((n, n)), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n),
            np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(m), np.empty(m),
-           np.zeros(m), np.zeros(m, dtype=np.bool_), np.empty((m, n)), np.empty(n), np.empty(n))
-    lw = (np.empty((mm, n)), np.empty(mm), np.empty(n), np.empty(n), np.empty(mm),
-          np.empty((mm, n)), np.empty(n), np.zeros(n), np.zeros(mm, dtype=np.bool_))
-    return own, workspace(n, m), lw
+           np.zeros(m), np.zeros(m, dtype=np.bool_), np.empty((m + mf, n)), np.empty(n), np.empty(n))
+    lw = (np.empty((ma, n)), np.empty(mm), np.empty(n), np.empty(n), np.empty(ma),
+          np.empty((ma, n)), np.empty(n), np.zeros(n), np.zeros(mm, dtype=np.bool_))
+    return own, workspace(n, m), lw, friction_work(n, m, mf, mu, tangent_row)
 
 
 @_part
@@ -146,7 +149,7 @@ def _log_onsets(n, m, t, k, h, v, v_new, f, L, P, G, vfree, in_contact, gmax, fg
 
 @_part
 def _contact_records(n, m, t, k, h, contact, v, v_new, f, L, P, active, G, vfree, P_acc, act_acc, in_contact,
-                     last_imp, gmax, fgap, rs, IMP, cnt, acc):
+                     last_imp, gmax, fgap, rs, IMP, cnt, acc, friction, fr):
     """After the velocity update: impulses and activity summed up to the next record, the
     contact work, the impact log, and which rows are in contact now."""
     if not contact:
@@ -169,6 +172,8 @@ def _contact_records(n, m, t, k, h, contact, v, v_new, f, L, P, active, G, vfree
             acc[A_WORK_C] += 0.5 * P[r] * (ub + ua)
             if P[r] > 0.0 and not in_contact[r]:
                 onset = True
+    if friction:
+        _friction_records(n, m, v, v_new, G, active, fr, acc)
     if onset:
         _log_onsets(n, m, t, k, h, v, v_new, f, L, P, G, vfree, in_contact, gmax, fgap, rs, IMP, cnt)
     for r in range(m):
@@ -228,7 +233,8 @@ def _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc
 
 
 @_part
-def _record(model, user, iset, fset, k, q, v, cq, sq, M, P_acc, act_acc, gq, T, Q, V, PS, ACT, GP, KE, PE, cnt):
+def _record(model, user, iset, fset, k, q, v, cq, sq, M, P_acc, act_acc, gq, T, Q, V, PS, ACT, GP, KE, PE, cnt,
+            PT_acc, PTS):
     """Record the state after step k (and the impulses and activity summed since the last
     record, the gaps and, when asked, the energies); returns DONE or USER_FAILED."""
     ints, ekind, eoff, _, _, _, _, pool, _, _ = model
@@ -244,6 +250,10 @@ def _record(model, user, iset, fset, k, q, v, cq, sq, M, P_acc, act_acc, gq, T, 
         GP[rec, r] = gq[r]
         P_acc[r] = 0.0
         act_acc[r] = False
+    if ints[9] > 0:
+        for r in range(m):
+            PTS[rec, r] = PT_acc[r]
+            PT_acc[r] = 0.0
     if iset[S_ENERGY] == 1:
         status, ke = _kinetic_energy(model, user, q, v, cq, sq, M, cnt)
         if status != DONE:
@@ -260,7 +270,7 @@ def _record(model, user, iset, fset, k, q, v, cq, sq, M, P_acc, act_acc, gq, T, 
 # time) would be pure overhead. User callables run in their own wrappers (usercalls).
 @njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]  # numba's internal flag
 def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
-              T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work):
+              T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work, PTS):
     """Advance the run to step ``k_end`` (see the module docstring); returns a status.
 
     State (q, v, step ``cnt[C_K]``, contact flags, impulse accumulators, per row the
@@ -270,7 +280,8 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
     built-in scene). ``fgap`` (m,) is each row's flight gap: a contact onset after the
     gap exceeded it is an impact. ``rs`` (m, 6) is the per-row state of
     CombinedProjection (see ``_velocity_update``); ``work`` comes from
-    :func:`loop_workspace`.
+    :func:`loop_workspace`; ``PTS`` (records, m) receives the tangential impulses of a
+    scene with friction (unused without).
 
     One step: the model at the midpoint, the velocity update (twice with θ: a predictor
     pass with f(v_k), then f((v_k + v*)/2)), the contact records, the end position, the
@@ -282,7 +293,8 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
     stride, nsteps = iset[S_STRIDE], iset[S_NSTEPS]
     theta = iset[S_THETA] == 1 and ints[7] == 1
     const_mass = ints[2] == _k.MASS_CONST
-    own, ws, lw = work
+    own, ws, lw, fr = work
+    friction = ints[9] > 0
     M, L, cm, sm, cq, sq, qm, f, v_new, vbar, q_new, gm, gq, P, active, G, vfree, fb = own
     bias_work = iset[S_ECHECK] > 0 and ints[3] != 0
     if const_mass:
@@ -310,7 +322,7 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
                                  cnt):
                     return USER_FAILED
             code = _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, v_new, P,
-                                    active, G, cnt, acc, fail, ws, lw, last_imp, rs)
+                                    active, G, cnt, acc, fail, ws, lw, last_imp, rs, fr)
             if code < 0:
                 return cnt[C_FAILKIND]
         wf = 0.0  # smooth-force work of the step, h fᵀ (v + v⁺)/2
@@ -323,7 +335,7 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
                 wb += fb[i] * (v[i] + v_new[i])
             acc[A_WORK_B] += 0.5 * h * wb
         _contact_records(n, m, t, k, h, code == 1, v, v_new, f, L, P, active, G, vfree, P_acc, act_acc,
-                         in_contact, last_imp, gmax, fgap, rs, IMP, cnt, acc)
+                         in_contact, last_imp, gmax, fgap, rs, IMP, cnt, acc, friction, fr)
         if not _end_position(n, m, h, code == 1, iset, qm, v_new, L, P, G, rs, vbar, vfree, q_new):
             return NONFINITE
         # the energy check: every S_ECHECK steps, and after a step with a logged impact
@@ -346,6 +358,6 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
                 return status
         if k % stride == 0 or k == nsteps:
             if _record(model, user, iset, fset, k, q, v, cq, sq, M, P_acc, act_acc, gq, T, Q, V, PS, ACT, GP, KE,
-                       PE, cnt) != DONE:
+                       PE, cnt, fr[3], PTS) != DONE:
                 return USER_FAILED
     return DONE

@@ -37,18 +37,24 @@ class CompiledScene:
     ----------
     ints : ndarray of int64
         ``[n, m, mass_kind, has_bias, mass_off, n_effects, n_contacts, velocity_dependent,
-        needs_trig]`` (needs_trig: some kernel uses cos q, sin q).
+        needs_trig, mf]`` (needs_trig: some kernel uses cos q, sin q; mf: the number of
+        tangent rows, 0 without friction).
     ekind, eoff : ndarray of int64, shape (n_effects,)
         Kernel code and pool offset of each effect.
-    bkind, boff, brow : ndarray of int64, shape (n_contacts,)
-        Kernel code, pool offset and first row of each contact's barrier.
-    bnrows : ndarray of int64, shape (n_contacts,)
+    bkind, boff, brow : ndarray of int64, shape (n_contacts + n_frictional,)
+        Kernel code, pool offset and first row of each contact's barrier, then of the
+        tangent rows of each contact with friction (rows m, m + 1, ... of the Jacobian).
+    bnrows : ndarray of int64, shape (n_contacts + n_frictional,)
         Rows of each barrier.
     pool : ndarray of float64
         All parameters, flattened.
     restitution : ndarray, shape (m,)
     activation_tol : ndarray, shape (m,)
         A row is closed when its gap is at most this (see ``Scene.activation_tol``).
+    friction : ndarray, shape (m,)
+        Friction coefficient per row.
+    tangent_row : ndarray of int64, shape (m,)
+        The Jacobian row of each row's tangent (−1 without friction).
     user : UserKernels
         The addresses of the scene's user slots (mass, bias, forces, gaps, Jacobians;
         0 for an empty slot, all 0 for a built-in scene) and the wrappers behind them.
@@ -67,6 +73,8 @@ class CompiledScene:
     pool: np.ndarray
     restitution: np.ndarray
     activation_tol: np.ndarray
+    friction: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    tangent_row: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     user: UserKernels = field(default_factory=lambda: UserKernels(np.zeros(5, dtype=np.int64), (None,) * 5))
     user_callables: dict = field(default_factory=dict)
 
@@ -104,8 +112,6 @@ def lower(scene: Scene) -> CompiledScene:
     """
     if not isinstance(scene, Scene):
         raise ValueError(f"scene must be a Scene, got {scene!r}")
-    if scene.has_friction:
-        raise NotCompilable("friction (a NewtonImpactFriction law with mu > 0) has no compiled form yet")
     n = scene.ndof
     pool = _Pool()
     sysm = scene.system
@@ -174,16 +180,34 @@ def lower(scene: Scene) -> CompiledScene:
         bnrows.append(c.barrier.nrows)
         row += c.barrier.nrows
 
+    # friction: each frictional contact's tangent rows as one more barrier whose Jacobian
+    # (rows m, m + 1, ... of G) the same evaluation computes; its gaps are never evaluated
+    tmap = np.full(scene.nrows, -1, dtype=np.int64)
+    mf = 0
+    for c, first in zip(scene.contacts, brow[:len(scene.contacts)]):
+        if not np.any(c.friction > 0.0):
+            continue
+        spec = c.barrier.tangent_kernel()
+        if spec is None:
+            raise NotCompilable(f"contact {c.name!r} ({type(c.barrier).__name__}): its tangent rows have no "
+                                "compiled kernel, so friction on it runs on the Python path")
+        bkind.append(spec[0])
+        boff.append(pool.add(*spec[1]))
+        brow.append(scene.nrows + mf)
+        bnrows.append(c.barrier.nrows)
+        tmap[first:first + c.barrier.nrows] = scene.nrows + mf + np.arange(c.barrier.nrows)
+        mf += c.barrier.nrows
     i64 = lambda x: np.array(x, dtype=np.int64)  # noqa: E731
     needs_trig = (mass_kind == _k.MASS_CHAIN or any(k in (_k.TRIG, _k.FOURIER_PT) for k in ekind)
                   or any(k == _k.BAR_TRIG for k in bkind))
-    ints = i64([n, scene.nrows, mass_kind, int(has_bias), mass_off, len(ekind), len(bkind),
-                int(scene.velocity_dependent), int(needs_trig)])
+    ints = i64([n, scene.nrows, mass_kind, int(has_bias), mass_off, len(ekind), len(scene.contacts),
+                int(scene.velocity_dependent), int(needs_trig), mf])
     return CompiledScene(
         ints=ints, ekind=i64(ekind), eoff=i64(eoff), bkind=i64(bkind), boff=i64(boff),
         brow=i64(brow), bnrows=i64(bnrows), pool=pool.array(),
         restitution=np.ascontiguousarray(scene.restitution, dtype=float),
         activation_tol=np.ascontiguousarray(scene.activation_tol, dtype=float),
+        friction=np.ascontiguousarray(scene.friction, dtype=float), tangent_row=tmap,
         user=_user(scene, mass_fun, bias_fun, force_fns, force_names, bar_fns, bar_rows, bar_nrows, bar_names),
         user_callables={"mass": [(type(sysm).__name__ + ".mass", mass_fun)],
                         "bias": [(type(sysm).__name__ + ".bias", bias_fun)],

@@ -20,6 +20,7 @@ from moreau.compiled import layout as lay
 from moreau.compiled import loop as lp
 from moreau.compiled.lowering import CompiledScene, lower
 from moreau.compiled.usercalls import decode
+from moreau.contact.friction import FRICTION_RESIDUALS
 from moreau.core.errors import SimulationError, SolverError, attach_trajectory
 from moreau.model.stability import ENERGY_CHECK_EVERY, energy_growth_message
 from moreau.results.assemble import assemble
@@ -106,11 +107,13 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     cnt = np.zeros(lay.N_COUNTERS, dtype=np.int64)
     cnt[lay.C_REC] = 1
     acc = np.zeros(lay.N_ACCUMULATORS)
-    fail = np.zeros((2, 4))
+    fail = np.zeros((2, 6))
     model = cs.arrays()
     user = cs.user.addresses
     run = lp.run_chunk
-    work = lp.loop_workspace(n, m)
+    mf = int(cs.ints[9])
+    work = lp.loop_workspace(n, m, mf, cs.friction, cs.tangent_row)
+    PTS = np.zeros((n_rec, m) if mf else (1, m))
 
     status, message, interrupt = "completed", "", None
     chunk = 2000
@@ -138,7 +141,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
                 code = run(model, user, iset, fset, Minv, eligible, q, v,
                            min(n_steps, k_before + chunk), in_contact, P_acc, act_acc,
                            T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax,
-                           fgap, rs, work)
+                           fgap, rs, work, PTS)
                 if bar is not None:
                     bar.update(int(cnt[lay.C_K]) - k_before)
                 if code == lay.IMPACTS_FULL:
@@ -160,7 +163,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
         try:
             traj, error = _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE, IMP,
                                     q, v, P_acc, act_acc, pen, cnt, acc, fail, cs, t0, h, stride, solver,
-                                    fallback, energy, wall)
+                                    fallback, energy, wall, PTS if mf else None, work[3][3])
             break
         except KeyboardInterrupt as exc:
             if interrupt is None:
@@ -179,8 +182,9 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
 
 
 def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE, IMP, q, v, P_acc, act_acc,
-              pen, cnt, acc, fail, cs, t0, h, stride, solver, fallback, energy, wall):
-    """The Trajectory (and the error to raise, if any) from the loop's buffers."""
+              pen, cnt, acc, fail, cs, t0, h, stride, solver, fallback, energy, wall, PTS=None, PT_acc=None):
+    """The Trajectory (and the error to raise, if any) from the loop's buffers (``PTS``:
+    the tangential impulses of a scene with friction, else None)."""
     m = scene.nrows
     error = None
     k = int(cnt[lay.C_K])
@@ -194,6 +198,8 @@ def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE,
         # keep the last good state even when it falls between two records
         T, Q, V, PS, ACT, GP, KE, PE = (np.concatenate([a[:rec], a[:1]]) for a in (T, Q, V, PS, ACT, GP, KE, PE))
         T[rec], Q[rec], V[rec], PS[rec], ACT[rec] = t_now, q, v, P_acc, act_acc
+        if PTS is not None:
+            PTS = np.concatenate([PTS[:rec], PT_acc[None, :]])
         if m:
             GP[rec] = scene.gaps(q)
         if energy:
@@ -217,8 +223,10 @@ def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE,
     traj = assemble(
         scene, t=T[:rec], q=Q[:rec], v=V[:rec], impulses=PS[:rec], active=ACT[:rec], onsets=onsets, stats=stats,
         h=h, stride=stride, status=status, message=message, max_penetration=pen.copy(), energy=energy,
-        work={"forces": float(acc[lay.A_WORK_F]), "contacts": float(acc[lay.A_WORK_C])},
+        work={"forces": float(acc[lay.A_WORK_F]), "contacts": float(acc[lay.A_WORK_C]),
+              **({"friction": float(acc[lay.A_WORK_T])} if PTS is not None else {})},
         gaps=GP[:rec], kinetic=KE[:rec] if energy else None, potential=PE[:rec] if energy else None,
+        tangential_impulses=PTS[:rec] if PTS is not None else None,
     )
     return traj, error
 
@@ -235,8 +243,14 @@ def _error(code, scene, k, t, q, v, h, fail, cs, user_status, acc):
         g = scene.gaps(qm) if scene.nrows else np.zeros(0)
         rows = [scene.row_names[i] for i in np.flatnonzero(g <= scene.activation_tol)]
         names = ["main", "fallback"]
+        if cs.ints[9]:  # friction: Lemke's method and the full law's six residuals, no fallback
+            mu = [float(cs.friction[i]) for i in np.flatnonzero(g <= scene.activation_tol)]
+            residuals = {"lemke": dict(zip(FRICTION_RESIDUALS, fail[0].tolist()))}
+            return SolverError(f"contact solve with friction failed {where}, active rows {rows}, mu = {mu} "
+                               f"(inf: Lemke's method found no solution): {residuals}",
+                               step=k, t=t, rows=rows, residuals=residuals)
         residuals = {names[i]: dict(zip(("primal", "dual", "complementarity", "stationarity"),
-                                        fail[i].tolist())) for i in range(2)}
+                                        fail[i, :4].tolist())) for i in range(2)}
         return SolverError(f"contact solve failed {where}, active rows {rows}: {residuals}",
                            step=k, t=t, rows=rows, residuals=residuals)
     if code == lay.NOT_SPD:

@@ -33,6 +33,7 @@ from moreau.compiled.layout import (  # the loop's layout
     SOLVER_FAILED,
     USER_FAILED,
 )
+from moreau.compiled.friction import _friction_solve
 from moreau.compiled.layout import part as _part
 from moreau.contact.lcp import kkt_residuals_kernel, solve_one_step
 from moreau.core import kernels as _k
@@ -104,7 +105,7 @@ def _free_acceleration(n, const_mass, Minv, L, f, out):
 
 @_part
 def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, v_new, P, active,
-                     GA_all, cnt, acc, fail, ws, lw, last_imp, rs):
+                     GA_all, cnt, acc, fail, ws, lw, last_imp, rs, fr):
     """v⁺ with the contacts closed at qm (gaps ``gm``); returns 1 (contact), 0 (free) or
     −1 (failed: the solve, or a user callable; the status is in ``cnt[C_FAILKIND]``).
     ``P`` (m,) and ``active`` (m,) are set for the step.
@@ -118,7 +119,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     2 g(q_m) − g(q_k) + h²/2 G M⁻¹ f <= 0). Newton's law is :func:`moreau.core.kernels.impact_law`.
     ``rs`` (m, 6) holds per row the gap at q_k, the gap the projection left it at, the
     pinned and bounced flags, and a bounced row's h/2 − s and (2 s − h) a_n (columns
-    ``R_GAP`` ... ``R_SHIFT``)."""
+    ``R_GAP`` ... ``R_SHIFT``). ``fr``: the friction arrays (:mod:`moreau.compiled.friction`)."""
     ints, _, _, bkind, boff, brow, bnrows, pool, e, atol = model
     n, m = ints[0], ints[1]
     h = fset[F_H]
@@ -191,7 +192,11 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
             s += M[i, l] * v[l]
         b[i] = s
     PA = lw[4]
-    if not _contact_solve(M, L, b, GA, cA, na, v_new, PA, iset, fset, cnt, acc, fail, ws):
+    solved = 0
+    if ints[9] > 0:  # friction: the tangent rows join (Lemke's method)
+        solved = _friction_solve(n, m, M, L, b, GA_all, GA, cA, active, na, v_new, PA, fset, acc, fail, fr)
+    if solved < 0 or (solved == 0 and not _contact_solve(M, L, b, GA, cA, na, v_new, PA, iset, fset, cnt, acc,
+                                                          fail, ws)):
         cnt[C_FAILKIND] = SOLVER_FAILED
         return -1
     j = 0

@@ -245,3 +245,22 @@ def painleve_rows(L: np.ndarray, GA: np.ndarray, TA: np.ndarray, muA: np.ndarray
         if float(GA[j] @ x) - muA[j] * s * float(TA[j] @ x) <= 0.0:
             out.append(int(j))
     return np.array(out, dtype=np.int64)
+
+
+@njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]  # numba's internal flag
+def friction_solve_checked(M, L, b, G, c, mu, fidx, k, kf, P, v, tol, res, ws):
+    """:func:`solve_friction_step` and its law check (:func:`friction_residuals_kernel`,
+    into ``res`` (6,)) in one call, as the compiled loop makes it: a function of its own
+    (not inlined), so the loop's compile grows by a call, and Lemke's method is compiled
+    once. Returns ``OK`` when solved with every residual at most ``tol``, ``RAY`` or
+    ``FAILED`` otherwise (``res`` infinite when there is no answer to check)."""
+    status = solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, ws)
+    if status != OK:
+        for i in range(6):
+            res[i] = np.inf
+        return status
+    friction_residuals_kernel(M, L, b, G, c, mu, fidx, v, P, k, kf, res, ws)
+    worst = 0.0
+    for i in range(6):
+        worst = max(worst, res[i])
+    return OK if worst <= tol else 1

@@ -68,6 +68,12 @@ class Barrier(ABC):
         is built."""
         raise NotImplementedError(f"{type(self).__name__} has no tangent rows")
 
+    def tangent_kernel(self):
+        """``(kind, params)`` of the compiled kernel whose Jacobian is :meth:`tangent_jacobian`
+        (the barrier kernels' layout, gaps unused), or None (friction on this barrier then
+        runs on the Python path)."""
+        return None
+
     def row_names(self, prefix: str) -> list[str]:
         """Labels of the rows, e.g. ``["floor"]`` or ``["corner[0]", ...]``."""
         if self.nrows == 1:
@@ -148,6 +154,11 @@ class LinearBarrier(Barrier):
 
     def kernel(self):
         return _k.BAR_LINEAR, (self._p,)
+
+    def tangent_kernel(self):
+        if self.T is None:
+            return None
+        return _k.BAR_LINEAR, (_k.flat(self.T, np.zeros(self.nrows)),)
 
     def gap_scale(self):
         return np.abs(self.b) + np.abs(self.A).sum(axis=1)

@@ -9,7 +9,7 @@ import moreau as mo
 
 from .scenes import G, block, disk
 
-BACKENDS = ["python"]
+BACKENDS = ["python", "compiled"]
 
 
 @pytest.mark.parametrize("backend", BACKENDS)

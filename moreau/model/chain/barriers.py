@@ -121,6 +121,9 @@ class PointLineBarrier(Barrier):
     def kernel(self):
         return _k.BAR_TRIG, (self._p,)
 
+    def tangent_kernel(self):
+        return _k.BAR_TRIG, (self._pt,)
+
     def gap_scale(self):
         return np.abs(self._g0) + np.abs(self._A).sum(axis=1) + np.abs(self._B).sum(axis=1)
 

@@ -1,0 +1,90 @@
+"""Coulomb friction in the compiled step: the tangent rows of the active contacts join
+the step's problem, solved by Lemke's method with the law check
+(:func:`moreau.contact.friction.friction_solve_checked`) — the twin of the Python path's
+friction solve (``OneStepIntegrator._solve_friction``). Compiled into the loop only as a
+branch taken by scenes with friction (``ints[9] > 0``)."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from moreau.compiled.layout import A_WORK_T, A_WORST, F_TOL
+from moreau.compiled.layout import part as _part
+from moreau.contact.friction import friction_solve_checked, friction_workspace
+
+__all__ = ["friction_work", "friction_parts"]
+
+
+@njit(cache=True, nogil=True)
+def friction_work(n, m, mf, mu, tangent_row):
+    """The friction arrays of the loop's workspace: ``(fidx, muA, PT, PT_acc, res, ws, mu,
+    tangent_row)`` — per active row its index among the normal rows and its mu, the
+    step's tangential impulses per row and their sum since the last record, the law
+    residuals, Lemke's work arrays, and per row its mu and tangent row."""
+    mm = max(m, 1)
+    return (np.zeros(mm, dtype=np.int64), np.zeros(mm), np.zeros(m), np.zeros(m), np.zeros(6),
+            friction_workspace(n, m, mf), mu, tangent_row)
+
+
+@_part
+def _friction_solve(n, m, M, L, b, G, GA, cA, active, na, v_new, PA, fset, acc, fail, fr):
+    """The step's contact problem with friction: the tangent rows of the active rows with
+    mu > 0 stacked under the normal rows ``GA`` (na rows), solved and checked. Returns 1
+    (solved; ``PA`` = [P_N; P_T], ``fr``'s PT per row), 0 (no active row has friction: the
+    caller solves the frictionless problem) or −1 (no answer passed the law check; the
+    residuals in ``fail[0]``)."""
+    fidx, muA, PT, _, res, fws, mu, trow = fr
+    kf = 0
+    j = 0
+    for r in range(m):
+        PT[r] = 0.0
+        if active[r]:
+            muA[j] = mu[r]
+            if mu[r] > 0.0:
+                t = trow[r]
+                for i in range(n):
+                    GA[na + kf, i] = G[t, i]
+                fidx[kf] = j
+                kf += 1
+            j += 1
+    if kf == 0:
+        return 0
+    st = friction_solve_checked(M, L, b, GA, cA, muA, fidx, np.int64(na), np.int64(kf), PA, v_new, fset[F_TOL],
+                                res, fws)
+    if st != 0:
+        for i in range(6):
+            fail[0, i] = res[i]
+        return -1
+    worst = 0.0
+    for i in range(6):
+        worst = max(worst, res[i])
+    if worst > acc[A_WORST]:
+        acc[A_WORST] = worst
+    f = 0
+    j = 0
+    for r in range(m):
+        if active[r]:
+            if f < kf and fidx[f] == j:
+                PT[r] = PA[na + f]
+                f += 1
+            j += 1
+    return 1
+
+
+@_part
+def _friction_records(n, m, v, v_new, G, active, fr, acc):
+    """The step's tangential impulses into their sum since the last record, and their
+    work ½ P_Tᵀ (U_T⁻ + U_T⁺) into the ledger."""
+    _, _, PT, PT_acc, _, _, _, trow = fr
+    for r in range(m):
+        if active[r] and PT[r] != 0.0:
+            PT_acc[r] += PT[r]
+            t = trow[r]
+            u = 0.0
+            for i in range(n):
+                u += G[t, i] * (v[i] + v_new[i])
+            acc[A_WORK_T] += 0.5 * PT[r] * u
+
+
+friction_parts = (_friction_solve, _friction_records)
