@@ -7,25 +7,46 @@ stacked ``G = [G_N; G_T]`` the post-step velocities are ``U = W P + w`` and the 
 
     0 <= P_N ⟂ U_N >= 0,    |P_T| <= mu P_N,    U_T ≠ 0  ⇒  P_T = −mu P_N sign(U_T).
 
-The friction cone splits into two complementarity pairs per frictional contact (Glocker
-& Pfeiffer; Acary & Brogliato 2008, §13.4): with ``σ_R = mu P_N + P_T`` and the negative
-part ``U_T⁻`` of the slip velocity,
+The law is an LCP in one of two classical forms, tried in this order:
 
-    0 <= σ_R ⟂ U_T + U_T⁻ >= 0,    0 <= U_T⁻ ⟂ 2 mu P_N − σ_R >= 0,
+*Glocker & Pfeiffer* (Pfeiffer & Glocker 1996; Acary & Brogliato 2008, §13.4): with
+``σ_R = mu P_N + P_T`` and the negative part U_T⁻ of the slip velocity,
+``0 <= σ_R ⟂ U_T + U_T⁻ >= 0`` and ``0 <= U_T⁻ ⟂ 2 mu P_N − σ_R >= 0``, so that
+``z = (P_N, σ_R, U_T⁻)`` solves an LCP of size k + 2 kf:
 
-so ``z = (P_N, σ_R, U_T⁻)`` solves an LCP of size k + 2 kf whose matrix is neither
-symmetric nor positive definite:
+    [ W_NN − W_NT μ   W_NT   0 ]          [ w_N ]
+    [ W_TN − W_TT μ   W_TT   D ]  z   +   [ w_T ]
+    [ 2 D μ           −D     0 ]          [  0  ]
 
-    [ W_NN − W_NT μ   W_NT   0  ]          [ w_N ]
-    [ W_TN − W_TT μ   W_TT   D  ]  z   +   [ w_T ]
-    [ 2 D μ           −D     0  ]          [  0  ]
+*Stewart & Trinkle* (1996) / *Anitescu & Potra* (1997): ``P_T = β⁺ − β⁻`` with
+``β± >= 0`` and the slip speed λ >= 0, ``0 <= β± ⟂ λ ± U_T >= 0``,
+``0 <= λ ⟂ mu P_N − β⁺ − β⁻ >= 0``, an LCP of size k + 3 kf in ``z = (P_N, β⁺, β⁻, λ)``:
 
-(μ the kf x k matrix with ``μ[f, fidx[f]] = mu_fidx[f]``: each contact's own coefficient
-multiplies its own normal impulse — with one mu for all contacts a mix-up of contacts
-here would be invisible). The third block row and column are scaled by
-``D = diag(W_TT)`` so that every row is a velocity and every unknown an impulse (the
-solution does not change). :func:`lcp_lemke` solves it; a secondary ray is returned as
-the status ``RAY``, never as an answer. :func:`friction_residuals_kernel` checks the
+    [ W_NN    W_NT   −W_NT   0 ]          [  w_N ]
+    [ W_TN    W_TT   −W_TT   D ]  z   +   [  w_T ]
+    [ −W_TN  −W_TT    W_TT   D ]          [ −w_T ]
+    [ D μ     −D      −D     0 ]          [   0  ]
+
+whose matrix is copositive (a PSD Delassus block, a skew-symmetric λ coupling, a
+non-negative μ block), for which Lemke's method finds a solution when one exists in exact
+arithmetic (Anitescu & Potra, Nonlinear Dynamics 14, 231–247, 1997).
+
+μ is the kf x k matrix with ``μ[f, fidx[f]] = mu_fidx[f]``: each contact's own
+coefficient multiplies its own normal impulse (with one mu for all contacts a mix-up of
+contacts here would be invisible). The velocity unknowns (U_T⁻, λ) and their rows are
+scaled by ``D = diag(W_TT)`` so that every row is a velocity and every unknown an impulse
+(the solution does not change).
+
+Redundant rows (two corners of one rigid body on one wall have identical tangent rows;
+a 3-link chain on a floor at three points has 6 rows on 3 coordinates) make the Delassus
+block singular, and the tableau then holds round-off where exact zeros belong. Measured on
+such problems, either form can end on a ray that is round-off, not the problem's, and
+which one does changes with the last bit of W; so :func:`solve_friction_step` tries the
+Glocker form, then the Anitescu–Potra form, each with Lemke's pivot tolerance 1e-9, 1e-7
+and 1e-11 (column entries below that fraction of the column's largest are not pivots),
+and takes the first answer that passes Lemke's own check (a regularized diagonal was
+tried and measured worse). Only when every attempt fails is the status ``RAY`` (no
+solution found) returned, never an answer. :func:`friction_residuals_kernel` checks the
 answer against the full law, as the KKT check does for the frictionless problem.
 """
 
@@ -34,13 +55,17 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from moreau.contact.active_set import _jit
+from moreau.contact.active_set import _inline, _jit
 from moreau.contact.kkt import kkt_residuals_rows
 from moreau.contact.lemke import OK, lcp_lemke
 from moreau.core.kernels import cho_solve, sym_product
 
 __all__ = ["friction_workspace", "solve_friction_step", "friction_residuals_kernel", "friction_one_step",
            "friction_residuals", "painleve_rows", "FRICTION_RESIDUALS"]
+
+#: the pivot tolerances Lemke's method tries in turn on a friction problem (see
+#: :func:`solve_friction_step`)
+PIVOT_TOLERANCES = (1e-9, 1e-7, 1e-11)
 
 #: the names of the six residuals of :func:`friction_residuals_kernel`, in order
 FRICTION_RESIDUALS = ("primal", "dual", "complementarity", "stationarity", "cone", "slip")
@@ -50,10 +75,59 @@ FRICTION_RESIDUALS = ("primal", "dual", "complementarity", "stationarity", "cone
 def friction_workspace(n, m, mf):
     """Work arrays for up to m normal and mf tangential rows on n coordinates."""
     r = max(m + mf, 1)
-    p = max(m + 2 * mf, 1)
+    p = max(m + 3 * mf, 1)
     return (np.empty((r, n)), np.empty(n), np.empty((r, r)), np.empty(r), np.zeros((p, p)), np.empty(p),
             np.empty(p), np.empty((p, 2 * p + 2)), np.empty(p, dtype=np.int64), np.empty(p), np.empty(n),
             np.empty(r), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(6))
+
+
+@_inline
+def _assemble(W, w, mu, fidx, k, kf, form, A, qv):
+    """The friction LCP ``(A, qv)`` of the module docstring from the Delassus matrix W and
+    free velocities w of the stacked rows: ``form`` 0 the Glocker–Pfeiffer form in
+    ``(P_N, σ_R, U_T⁻)`` (size k + 2 kf), 1 the Anitescu–Potra form in ``(P_N, β⁺, β⁻, λ)``
+    (size k + 3 kf); returns the size. The velocity-unknowns (U_T⁻, λ) are scaled by
+    ``D = diag(W_TT)`` to impulses, their rows to velocities."""
+    R = k + kf
+    p = R + kf if form == 0 else R + 2 * kf
+    for i in range(p):
+        for j in range(p):
+            A[i, j] = 0.0
+    if form == 0:
+        for i in range(R):  # U = W P + w with P_T = σ_R − μ P_N
+            for j in range(k):
+                A[i, j] = W[i, j]
+            for f in range(kf):
+                j = fidx[f]
+                A[i, j] -= mu[j] * W[i, k + f]
+                A[i, k + f] = W[i, k + f]
+            qv[i] = w[i]
+        for f in range(kf):
+            d = max(W[k + f, k + f], 1e-300)
+            A[k + f, R + f] = d  # + U_T⁻
+            A[R + f, fidx[f]] = 2.0 * mu[fidx[f]] * d  # the left edge: 2 μ P_N − σ_R >= 0
+            A[R + f, k + f] = -d
+            qv[R + f] = 0.0
+        return p
+    # P_N at 0, β⁺ at k, β⁻ at R, λ at R + kf: the Delassus matrix of [G_N; G_T; −G_T]
+    for a in range(R + kf):
+        ia = a if a < R else a - kf
+        sa = -1.0 if a >= R else 1.0
+        for bb in range(R + kf):
+            ib = bb if bb < R else bb - kf
+            sb = -1.0 if bb >= R else 1.0
+            A[a, bb] = sa * sb * W[ia, ib]
+        qv[a] = sa * w[ia]
+    for f in range(kf):
+        d = max(W[k + f, k + f], 1e-300)
+        lam = R + kf + f
+        A[k + f, lam] = d
+        A[R + f, lam] = d
+        A[lam, fidx[f]] = d * mu[fidx[f]]
+        A[lam, k + f] = -d
+        A[lam, R + f] = -d
+        qv[lam] = 0.0
+    return p
 
 
 @_jit
@@ -68,7 +142,6 @@ def solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, ws):
     """
     n = M.shape[0]
     R = k + kf
-    p = k + 2 * kf
     MinvGt, vfree, W, w, A, qv, z, T, basis, xb, row = ws[0], ws[1], ws[2], ws[3], ws[4], ws[5], ws[6], ws[7], \
         ws[8], ws[9], ws[10]
     for j in range(R):
@@ -84,31 +157,24 @@ def solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, ws):
         for j in range(n):
             t += G[i, j] * vfree[j]
         w[i] = t
-    for i in range(p):
-        for j in range(p):
-            A[i, j] = 0.0
-    for i in range(R):  # the normal and the σ_R rows: U = W P + w with P_T = σ_R − μ P_N
-        for j in range(k):
-            A[i, j] = W[i, j]
-        for f in range(kf):
-            j = fidx[f]
-            A[i, j] -= mu[j] * W[i, k + f]
-            A[i, k + f] = W[i, k + f]
-        qv[i] = w[i]
-    for f in range(kf):
-        i = k + f
-        d = max(W[i, i], 1e-300)
-        A[i, R + f] = d  # + U_T⁻ (scaled to an impulse)
-        A[R + f, fidx[f]] = 2.0 * mu[fidx[f]] * d  # the left edge: 2 μ P_N − σ_R >= 0
-        A[R + f, i] = -d
-        qv[R + f] = 0.0
-    status = lcp_lemke(A, qv, z, p, T, basis, xb)
+    # Lemke on the Glocker–Pfeiffer form, then on the Anitescu–Potra form, each with the
+    # pivot tolerances in turn (module docstring): the first answer that passes Lemke's
+    # own check is taken; only when every attempt fails is there no answer
+    status = OK
+    for form in range(2):
+        p = _assemble(W, w, mu, fidx, k, kf, form, A, qv)
+        for piv in PIVOT_TOLERANCES:
+            status = lcp_lemke(A, qv, z, p, T, basis, xb, piv)
+            if status == OK:
+                break
+        if status == OK:
+            break
     if status != OK:
         return status
     for j in range(k):
         P[j] = z[j]
-    for f in range(kf):
-        P[k + f] = z[k + f] - mu[fidx[f]] * z[fidx[f]]
+    for f in range(kf):  # Glocker: P_T = σ_R − μ P_N; Anitescu–Potra: P_T = β⁺ − β⁻
+        P[k + f] = z[k + f] - (mu[fidx[f]] * z[fidx[f]] if form == 0 else z[R + f])
     for i in range(n):
         t = vfree[i]
         for j in range(R):

@@ -15,13 +15,16 @@ Degenerate problems (ties in the ratio test, frequent in contact problems: a sti
 contact with zero slip, a contact that closes with zero normal velocity) are handled by
 the lexicographic ratio test on the rows of ``B⁻¹`` (the columns of the w variables in the
 tableau), which excludes cycling. The basic solution is refined once against the original
-data with the tableau's ``B⁻¹``.
+data with the tableau's ``B⁻¹`` and checked (z >= 0, w >= 0, z ⟂ w to 1e-9 of their
+scales): an answer that fails its own check is ``FAILED``, not returned.
 
 Plain loops on small dense arrays: compiled once, called from the compiled time loop and
 from the Python path alike.
 """
 
 from __future__ import annotations
+
+import math
 
 from moreau.contact.active_set import _inline, _jit
 
@@ -66,7 +69,7 @@ def _lex_less(T, k, i, ci, r, cr):
 
 
 @_jit
-def lcp_lemke(A, q, z, k, T, basis, xb):
+def lcp_lemke(A, q, z, k, T, basis, xb, piv=1e-9):
     """Solve ``w = A z + q, 0 <= z ⟂ w >= 0`` on the leading k x k block by Lemke's method.
 
     Parameters
@@ -84,6 +87,10 @@ def lcp_lemke(A, q, z, k, T, basis, xb):
         Work, then the final basis: variable j < k is w_j, k <= j < 2k is z_{j−k}.
     xb : ndarray, shape (>= k,)
         Work.
+    piv : float
+        A column entry is a pivot candidate when above ``piv`` times the column's
+        largest magnitude (smaller entries are round-off of zeros in a degenerate or
+        singular tableau: pivoting on them ends on a spurious ray).
 
     Returns
     -------
@@ -129,7 +136,7 @@ def lcp_lemke(A, q, z, k, T, basis, xb):
         best = 0.0
         for i in range(k):
             ci = T[i, entering]
-            if ci <= 1e-12 * cmax:
+            if ci <= piv * cmax:
                 continue
             ri = T[i, rhs]
             th = 0.0 if abs(ri) <= 1e-14 * rscale else ri / ci  # round-off of a zero is zero
@@ -144,27 +151,54 @@ def lcp_lemke(A, q, z, k, T, basis, xb):
             break
     if status != OK:
         return status
-    # the basic solution, refined once against the original data: x_B += B⁻¹ (q − B x_B)
+    # the basic solution, refined against the original data: x_B += B⁻¹ (q − B x_B)
+    # with the tableau's B⁻¹ (Gauss–Jordan accumulates round-off), while the residual halves
     for i in range(k):
         xb[i] = T[i, rhs]
-    for i in range(k):  # residual of w − A z = q on row i
-        t = q[i]
+    best = math.inf
+    for _ in range(4):
+        rn = 0.0
+        for i in range(k):  # residual of w − A z = q on row i, into z (free until the end)
+            t = q[i]
+            for a in range(k):
+                var = basis[a]
+                if var < k:
+                    if var == i:
+                        t -= xb[a]
+                else:
+                    t += A[i, var - k] * xb[a]
+            z[i] = t
+            rn = max(rn, abs(t))
+        if not rn < 0.5 * best:
+            break
+        best = rn
         for a in range(k):
-            var = basis[a]
-            if var < k:
-                if var == i:
-                    t -= xb[a]
-            else:
-                t += A[i, var - k] * xb[a]
-        z[i] = t  # z is free until the end: the residual
-    for a in range(k):
-        t = xb[a]
-        for i in range(k):
-            t += T[a, i] * z[i]
-        xb[a] = max(t, 0.0)
+            t = 0.0
+            for i in range(k):
+                t += T[a, i] * z[i]
+            T[a, rhs] = t  # the correction (the rhs column is not needed any more)
+        for a in range(k):
+            xb[a] = max(xb[a] + T[a, rhs], 0.0)
     for i in range(k):
         z[i] = 0.0
     for a in range(k):
         if basis[a] >= k:
             z[basis[a] - k] = xb[a]
+    # the answer's own check: z >= 0, w = A z + q >= 0, z ⟂ w, to 1e-9 of their scales
+    # (pivots through a nearly singular tableau can end with z0 out of the basis and an
+    # answer that is round-off; that is a failure, not a solution)
+    zs = 0.0
+    ws = 0.0
+    for i in range(k):
+        zs = max(zs, abs(z[i]))
+        t = abs(q[i])
+        for j in range(k):
+            t += abs(A[i, j] * z[j])
+        ws = max(ws, t)
+    for i in range(k):
+        t = q[i]
+        for j in range(k):
+            t += A[i, j] * z[j]
+        if t < -1e-9 * ws or z[i] * t > 1e-9 * zs * ws:
+            return FAILED
     return OK
