@@ -144,7 +144,8 @@ def register_piston(subparsers: Any) -> None:
                                       "analyzed cycles), settled_speed_rpm (rev/min, energy-balance "
                                       "estimate of the speed the engine settles at), side_change_angles_deg "
                                       "(crank angle, °), energy_lost_per_cycle_J "
-                                      "(J), max_slap_impulse_Ns (N s), max_penetration_over_clearance "
+                                      "(J, at impacts), friction_loss_per_cycle_J (J, skirt friction, "
+                                      "with --mu), max_slap_impulse_Ns (N s), max_penetration_over_clearance "
                                       "(dimensionless), wall_time_s (s), us_per_step (µs). The trajectories "
                                       "(.npz) are in the model's non-dimensional units; traj.units names them and "
                                       "gives the scales to SI.")
@@ -152,6 +153,9 @@ def register_piston(subparsers: Any) -> None:
                     help="restitution in [0, 1] (dimensionless)")
     pi.add_argument("--D", type=float_in(80.0, 100.0, lo_open=True), default=None, metavar="MM",
                     help="cylinder diameter (mm), > 80 (the piston's); paper: 80.04 and 80.2")
+    pi.add_argument("--mu", type=float_in(0.0, None), default=0.0, metavar="MU",
+                    help="Coulomb friction of the skirt at the cylinder wall (dimensionless, >= 0; default 0, "
+                         "the paper's frictionless wall)")
     _engine_run_args(pi, cycles=3, h=1e-4)
     pi.add_argument("--workers", type=positive_int, default=None,
                     help="parallel processes (default: one per case, up to the cores)")
@@ -172,7 +176,7 @@ def run_piston(args: argparse.Namespace) -> int:
     else:
         pairs = [(0.0 if args.e is None else args.e, 0.08004 if args.D is None else args.D / 1e3)]
     cases = [Case(e=e, D=D, h=args.h, cycles=args.cycles, transient=args.transient, solver=args.solver,
-                  backend=args.backend,
+                  backend=args.backend, mu=args.mu,
                   drift_control=not args.no_drift_control, record_every=args.record_every)
              for e, D in pairs]
     output_dir(args.out)

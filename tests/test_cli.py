@@ -47,9 +47,9 @@ def test_piston_command_writes_figure_summary_trajectory(tmp_path):
     assert rc == 0
     assert (out / "piston_e0_D80.04mm.png").stat().st_size > 20_000
     summary = (out / "summary.csv").read_text().splitlines()
-    assert summary[0].startswith("e,D_mm,h,status,cycles,mean_speed_rpm,settled_speed_rpm,"
+    assert summary[0].startswith("e,D_mm,mu,h,status,cycles,mean_speed_rpm,settled_speed_rpm,"
                                   "side_changes_per_cycle")
-    assert summary[1].startswith("0.0,80.04,0.001,completed,1,")
+    assert summary[1].startswith("0.0,80.04,0.0,0.001,completed,1,")
     traj = mo.load(out / "piston_e0_D80.04mm.npz")
     assert traj.extra["case"]["e"] == 0.0 and traj.completed
 

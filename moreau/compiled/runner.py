@@ -163,7 +163,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
         try:
             traj, error = _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE, IMP,
                                     q, v, P_acc, act_acc, pen, cnt, acc, fail, cs, t0, h, stride, solver,
-                                    fallback, energy, wall, PTS if mf else None, work[3][3])
+                                    fallback, energy, wall, PTS if mf else None, work[3][3], tol)
             break
         except KeyboardInterrupt as exc:
             if interrupt is None:
@@ -182,7 +182,8 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
 
 
 def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE, IMP, q, v, P_acc, act_acc,
-              pen, cnt, acc, fail, cs, t0, h, stride, solver, fallback, energy, wall, PTS=None, PT_acc=None):
+              pen, cnt, acc, fail, cs, t0, h, stride, solver, fallback, energy, wall, PTS=None, PT_acc=None,
+              tol=float("nan")):
     """The Trajectory (and the error to raise, if any) from the loop's buffers (``PTS``:
     the tangential impulses of a scene with friction, else None)."""
     m = scene.nrows
@@ -191,7 +192,7 @@ def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE,
     t_now = t0 + k * h
     if code != lay.DONE and status == "completed":
         status = "failed"
-        error = _error(code, scene, k, t_now, q, v, h, fail, cs, int(cnt[lay.C_USER]), acc)
+        error = _error(code, scene, k, t_now, q, v, h, fail, cs, int(cnt[lay.C_USER]), acc, tol)
         message = str(error)
     rec = int(cnt[lay.C_REC])
     if status != "completed" and T[rec - 1] != t_now and rec < n_rec + 1:
@@ -231,7 +232,7 @@ def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE,
     return traj, error
 
 
-def _error(code, scene, k, t, q, v, h, fail, cs, user_status, acc):
+def _error(code, scene, k, t, q, v, h, fail, cs, user_status, acc, tol=float("nan")):
     where = f"at step {k} (t = {t:.9g})"
     if code == lay.ENERGY_GROWTH:
         return SimulationError(energy_growth_message(scene, t, q, v, float(acc[lay.A_DU]), float(acc[lay.A_KEMAX]), h),
@@ -246,9 +247,11 @@ def _error(code, scene, k, t, q, v, h, fail, cs, user_status, acc):
         if cs.ints[9]:  # friction: Lemke's method and the full law's six residuals, no fallback
             mu = [float(cs.friction[i]) for i in np.flatnonzero(g <= scene.activation_tol)]
             residuals = {"lemke": dict(zip(FRICTION_RESIDUALS, fail[0].tolist()))}
-            return SolverError(f"contact solve with friction failed {where}, active rows {rows}, mu = {mu} "
-                               f"(inf: Lemke's method found no solution): {residuals}",
-                               step=k, t=t, rows=rows, residuals=residuals)
+            why = ("Lemke's method and the enumeration of contact states found no solution"
+                   if not np.isfinite(fail[0]).all() else
+                   f"no answer passed the law check (tol = {tol:g}); the best one's residuals")
+            return SolverError(f"contact solve with friction failed {where}, active rows {rows}, mu = {mu}: "
+                               f"{why}: {residuals}", step=k, t=t, rows=rows, residuals=residuals)
         residuals = {names[i]: dict(zip(("primal", "dual", "complementarity", "stationarity"),
                                         fail[i, :4].tolist())) for i in range(2)}
         return SolverError(f"contact solve failed {where}, active rows {rows}: {residuals}",

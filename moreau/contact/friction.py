@@ -45,19 +45,24 @@ which one does changes with the last bit of W; so :func:`solve_friction_step` tr
 Glocker form, then the Anitescu–Potra form, each with Lemke's pivot tolerance 1e-9, 1e-7
 and 1e-11 (column entries below that fraction of the column's largest are not pivots),
 and takes the first answer that passes Lemke's own check (a regularized diagonal was
-tried and measured worse). Only when every attempt fails is the status ``RAY`` (no
-solution found) returned, never an answer. :func:`friction_residuals_kernel` checks the
+tried and measured worse); when every attempt fails and at most five contacts are
+active, the enumeration of contact states (:mod:`moreau.contact.friction_states`)
+searches exactly. Only when that finds nothing too is the status ``RAY`` (no solution
+found) returned, never an answer. :func:`friction_residuals_kernel` checks the
 answer against the full law, as the KKT check does for the frictionless problem.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from numba import njit
 
 from moreau.contact.active_set import _inline, _jit
 from moreau.contact.kkt import kkt_residuals_rows
-from moreau.contact.lemke import OK, lcp_lemke
+from moreau.contact.friction_states import enumerate_states
+from moreau.contact.lemke import OK, RAY, lcp_lemke
 from moreau.core.kernels import cho_solve, sym_product
 
 __all__ = ["friction_workspace", "solve_friction_step", "friction_residuals_kernel", "friction_one_step",
@@ -66,6 +71,9 @@ __all__ = ["friction_workspace", "solve_friction_step", "friction_residuals_kern
 #: the pivot tolerances Lemke's method tries in turn on a friction problem (see
 #: :func:`solve_friction_step`)
 PIVOT_TOLERANCES = (1e-9, 1e-7, 1e-11)
+
+#: an answer with every law residual at most this is taken without trying another
+GOOD = 1e-9
 
 #: the names of the six residuals of :func:`friction_residuals_kernel`, in order
 FRICTION_RESIDUALS = ("primal", "dual", "complementarity", "stationarity", "cone", "slip")
@@ -78,7 +86,8 @@ def friction_workspace(n, m, mf):
     p = max(m + 3 * mf, 1)
     return (np.empty((r, n)), np.empty(n), np.empty((r, r)), np.empty(r), np.zeros((p, p)), np.empty(p),
             np.empty(p), np.empty((p, 2 * p + 2)), np.empty(p, dtype=np.int64), np.empty(p), np.empty(n),
-            np.empty(r), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(6))
+            np.empty(r), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(6),
+            np.empty(6), np.empty(r), np.empty(n))
 
 
 @_inline
@@ -137,8 +146,9 @@ def solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, ws):
 
     ``L`` = chol(M); ``c`` (>= k) the normal rows' lower bounds; ``mu`` (>= k) their
     friction coefficients; ``fidx`` (>= kf) the normal row of each tangential row;
-    ``ws`` from :func:`friction_workspace`. Returns the status of :func:`lcp_lemke`
-    (``OK``, ``RAY``: no solution found, ``FAILED``).
+    ``ws`` from :func:`friction_workspace`. Returns ``OK`` (an answer, its six law
+    residuals in ``ws[18]``: the caller decides whether they are small enough) or ``RAY``
+    (no attempt found one).
     """
     n = M.shape[0]
     R = k + kf
@@ -158,29 +168,60 @@ def solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, ws):
             t += G[i, j] * vfree[j]
         w[i] = t
     # Lemke on the Glocker–Pfeiffer form, then on the Anitescu–Potra form, each with the
-    # pivot tolerances in turn (module docstring): the first answer that passes Lemke's
-    # own check is taken; only when every attempt fails is there no answer
-    status = OK
+    # pivot tolerances in turn, then (few contacts) the enumeration of states: every
+    # answer is checked against the full law, the first with residuals below GOOD is
+    # taken, else the best one (the caller's check decides whether it is good enough)
+    res, rb, Pb, vb = ws[17], ws[18], ws[19], ws[20]
+    best = math.inf
     for form in range(2):
         p = _assemble(W, w, mu, fidx, k, kf, form, A, qv)
         for piv in PIVOT_TOLERANCES:
-            status = lcp_lemke(A, qv, z, p, T, basis, xb, piv)
-            if status == OK:
+            if lcp_lemke(A, qv, z, p, T, basis, xb, piv) != OK:
+                continue
+            for j in range(k):
+                P[j] = z[j]
+            for f in range(kf):  # Glocker: P_T = σ_R − μ P_N; Anitescu–Potra: P_T = β⁺ − β⁻
+                P[k + f] = z[k + f] - (mu[fidx[f]] * z[fidx[f]] if form == 0 else z[R + f])
+            best = _keep_best(M, L, b, G, c, mu, fidx, k, kf, P, v, vfree, MinvGt, res, rb, Pb, vb, best, ws)
+            if best <= GOOD:
                 break
-        if status == OK:
+        if best <= GOOD:
             break
-    if status != OK:
-        return status
-    for j in range(k):
-        P[j] = z[j]
-    for f in range(kf):  # Glocker: P_T = σ_R − μ P_N; Anitescu–Potra: P_T = β⁺ − β⁻
-        P[k + f] = z[k + f] - (mu[fidx[f]] * z[fidx[f]] if form == 0 else z[R + f])
+    if best > GOOD and enumerate_states(W, w, mu, fidx, k, kf, P, A, qv, z, basis):
+        best = _keep_best(M, L, b, G, c, mu, fidx, k, kf, P, v, vfree, MinvGt, res, rb, Pb, vb, best, ws)
+    if best == math.inf:
+        return RAY
+    for j in range(R):
+        P[j] = Pb[j]
+    for i in range(n):
+        v[i] = vb[i]
+    return OK
+
+
+@_inline
+def _keep_best(M, L, b, G, c, mu, fidx, k, kf, P, v, vfree, MinvGt, res, rb, Pb, vb, best, ws):
+    """v = v_free + M⁻¹ Gᵀ P for a candidate P, its law residuals; kept (in Pb, vb, rb)
+    when better than ``best``; returns the best worst residual so far."""
+    n = M.shape[0]
+    R = k + kf
     for i in range(n):
         t = vfree[i]
         for j in range(R):
             t += MinvGt[j, i] * P[j]
         v[i] = t
-    return OK
+    friction_residuals_kernel(M, L, b, G, c, mu, fidx, v, P, k, kf, res, ws)
+    worst = 0.0
+    for i in range(6):
+        worst = max(worst, res[i])
+    if not worst < best:  # also NaN
+        return best
+    for j in range(R):
+        Pb[j] = P[j]
+    for i in range(n):
+        vb[i] = v[i]
+    for i in range(6):
+        rb[i] = res[i]
+    return worst
 
 
 @_jit
@@ -321,12 +362,8 @@ def friction_solve_checked(M, L, b, G, c, mu, fidx, k, kf, P, v, tol, res, ws):
     once. Returns ``OK`` when solved with every residual at most ``tol``, ``RAY`` or
     ``FAILED`` otherwise (``res`` infinite when there is no answer to check)."""
     status = solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, ws)
-    if status != OK:
-        for i in range(6):
-            res[i] = np.inf
-        return status
-    friction_residuals_kernel(M, L, b, G, c, mu, fidx, v, P, k, kf, res, ws)
     worst = 0.0
     for i in range(6):
+        res[i] = ws[18][i] if status == OK else np.inf
         worst = max(worst, res[i])
-    return OK if worst <= tol else 1
+    return OK if worst <= tol else (status if status != OK else 1)

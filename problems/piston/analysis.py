@@ -29,7 +29,7 @@ from .params import PistonParameters, groups
 
 __all__ = [
     "RIGHT_ROWS", "LEFT_ROWS", "crank_angle", "pin_position", "lateral_position", "tilt",
-    "contact_side", "side_changes", "cycle_index", "CycleFigures", "cycle_figures",
+    "contact_side", "side_changes", "cycle_index", "CycleFigures", "cycle_figures", "friction_loss_per_record",
     "mean_speed_rpm", "settled_speed_rpm", "steady_speed_rpm", "max_penetration_ratio", "SlidingPhase",
     "sliding_phases",
 ]
@@ -107,6 +107,10 @@ class CycleFigures:
         Impacts (logged) in the cycle, all four corners.
     energy_lost : float
         Kinetic energy dissipated at the impacts (J).
+    friction_loss : float
+        Energy dissipated by skirt friction (J): ``−Σ P_T ½ (U_T + U_T')`` over the
+        records of the cycle (impulses summed since the previous record, slip velocities
+        at the two records); 0 without friction.
     max_impulse : float
         Largest impulse of a single impact (N s).
     mean_rpm : float
@@ -121,6 +125,7 @@ class CycleFigures:
     impacts: int
     energy_lost: float
     max_impulse: float
+    friction_loss: float
     mean_rpm: float
     max_penetration: float
 
@@ -135,6 +140,7 @@ def cycle_figures(traj: mo.Trajectory, params: PistonParameters) -> list[CycleFi
     impulse_unit = M11 * omega / l1  # → N s
     imp = traj.impacts
     imp_phi = np.interp(imp.t, traj.t, phi1) if len(imp) else np.zeros(0)
+    loss = friction_loss_per_record(traj)
     out = []
     for k in range(int(cyc.min()) if cyc.size else 0, int(cyc.max()) if cyc.size else 0):
         # complete cycles only: the records must cover [4πk, 4π(k+1)]
@@ -153,10 +159,24 @@ def cycle_figures(traj: mo.Trajectory, params: PistonParameters) -> list[CycleFi
             impacts=int(in_cycle.sum()),
             energy_lost=float(imp.energy_lost[in_cycle].sum() * energy_unit),
             max_impulse=float(imp.impulse[in_cycle].max() * impulse_unit) if in_cycle.any() else 0.0,
+            friction_loss=float(loss[sel].sum() * energy_unit),
             mean_rpm=float(mean_speed * params.rpm),
             max_penetration=float(max(0.0, -g.min()) / (params.clearance / l1)) if g.size else 0.0,
         ))
     return out
+
+
+def friction_loss_per_record(traj: mo.Trajectory) -> np.ndarray:
+    """The energy friction dissipated between each record and the one before it (the
+    trajectory's units; zeros without friction): ``−Σ_r P_T,r ½ (U_T,r(before) + U_T,r(now))``,
+    the tangential impulses summed since the previous record times the mean of the slip
+    velocities at the two records (exact for a constant slip between records; the sum
+    over a run is checked against the exact ledger ``traj.work["friction"]`` in the tests)."""
+    if traj.tangential_impulses is None or traj.slip_velocity is None:
+        return np.zeros(len(traj))
+    u = traj.slip_velocity
+    mean = np.vstack([u[:1], 0.5 * (u[1:] + u[:-1])])
+    return -(traj.tangential_impulses * mean).sum(axis=1)
 
 
 def _analysed_window(traj: mo.Trajectory, skip_cycles: int) -> tuple[int, int, float, float]:

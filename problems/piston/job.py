@@ -59,6 +59,8 @@ class Case:
         the wall at h = 1e-4 (e = 0).
     record_every : int, optional
         Keep every k-th step (default: about one record per 0.1° of crank angle).
+    mu : float
+        Skirt friction at the cylinder wall (0: the paper's frictionless model).
     """
 
     e: float
@@ -70,10 +72,11 @@ class Case:
     backend: str = "auto"
     drift_control: bool = True
     record_every: int | None = None
+    mu: float = 0.0
 
     @property
     def label(self) -> str:
-        return f"e{self.e:g}_D{1e3 * self.D:.2f}mm"
+        return f"e{self.e:g}_D{1e3 * self.D:.2f}mm" + (f"_mu{self.mu:g}" if self.mu else "")
 
 
 PAPER_CASES = ((0.0, 0.08004), (0.9, 0.08004), (0.9, 0.0802))
@@ -98,7 +101,7 @@ def run_case(case: Case, out: str, progress: bool | dict = False) -> dict:
     a returned trajectory with ``status == "interrupted"``, or a ``KeyboardInterrupt``
     carrying it as ``exc.trajectory`` (which may be None).
     """
-    params = PistonParameters(e=case.e, D=case.D)
+    params = PistonParameters(e=case.e, D=case.D, mu=case.mu)
     stem = os.path.join(out, f"piston_{case.label}")
     record_every = case.record_every or max(1, int(round(2e-3 / case.h)))  # ~0.1° of crank angle per record
     wall0 = time.perf_counter()
@@ -137,8 +140,10 @@ def run_case(case: Case, out: str, progress: bool | dict = False) -> dict:
 
         last = figs[-1]
         fig = plot_cycle(traj, params, last.cycle,
-                         title=f"e = {case.e:g}, D = {1e3 * case.D:.2f} mm: cycle {last.cycle}, "
-                               f"{last.side_changes} side changes, {last.impacts} impacts")
+                         title=f"e = {case.e:g}, D = {1e3 * case.D:.2f} mm"
+                               + (f", mu = {case.mu:g}" if case.mu else "") + f": cycle {last.cycle}, "
+                               f"{last.side_changes} side changes, {last.impacts} impacts"
+                               + (f", friction {last.friction_loss:.3g} J" if case.mu else ""))
         try:
             _save_figure(fig, stem + ".png")
         except OSError as exc:
@@ -167,10 +172,11 @@ def summary_row(case: Case, status: str, wall: float = float("nan")) -> dict:
     first step): its parameters and status, NaN figures."""
     nan = float("nan")
     return {
-        "e": case.e, "D_mm": round(1e3 * case.D, 4), "h": case.h, "status": status, "cycles": 0,
+        "e": case.e, "D_mm": round(1e3 * case.D, 4), "mu": case.mu, "h": case.h, "status": status, "cycles": 0,
         "mean_speed_rpm": nan, "settled_speed_rpm": nan,
         "side_changes_per_cycle": "", "side_change_angles_deg": "", "impacts_per_cycle": nan,
-        "max_penetration_over_clearance": nan, "energy_lost_per_cycle_J": nan, "max_slap_impulse_Ns": nan,
+        "max_penetration_over_clearance": nan, "energy_lost_per_cycle_J": nan, "friction_loss_per_cycle_J": nan,
+        "max_slap_impulse_Ns": nan,
         "drift_control": case.drift_control, "fallbacks": 0, "wall_time_s": round(wall, 2), "us_per_step": nan,
         "warnings": "",
     }
@@ -183,6 +189,7 @@ def _figures_row(case: Case, params: PistonParameters, traj: mo.Trajectory, stat
     row = {
         "e": case.e,
         "D_mm": round(1e3 * case.D, 4),
+        "mu": case.mu,
         "h": case.h,
         "status": status,
         "cycles": len(figs),
@@ -195,6 +202,7 @@ def _figures_row(case: Case, params: PistonParameters, traj: mo.Trajectory, stat
         "impacts_per_cycle": float(np.mean([c.impacts for c in figs])) if figs else float("nan"),
         "max_penetration_over_clearance": max_penetration_ratio(traj, params),
         "energy_lost_per_cycle_J": float(np.mean([c.energy_lost for c in figs])) if figs else float("nan"),
+        "friction_loss_per_cycle_J": float(np.mean([c.friction_loss for c in figs])) if figs else float("nan"),
         "max_slap_impulse_Ns": max((c.max_impulse for c in figs), default=float("nan")),
         "drift_control": case.drift_control,
         "fallbacks": traj.stats.fallbacks,

@@ -141,6 +141,7 @@ def piston_model(
     effects: Iterable[str] = EFFECTS,
     e: float | Sequence[float] | None = None,
     pressure: FourierPressure | None = None,
+    mu: float | None = None,
 ) -> PistonModel:
     """Build the engine scene.
 
@@ -156,8 +157,13 @@ def piston_model(
     pressure : FourierPressure, optional
         Gauge pressure curve (default: the synthetic curve calibrated for 2000 rpm with
         the brake moment ``params.M0``).
+    mu : float, optional
+        Coulomb friction of the skirt at the cylinder wall (overrides ``params.mu``; 0,
+        the default, is the paper's frictionless wall: the scene then has no tangent rows).
     """
     p = PistonParameters() if params is None else params
+    if mu is not None:
+        p = p.with_(mu=mu)
     effects = tuple(effects)
     unknown = [x for x in effects if x not in EFFECTS]
     if unknown:
@@ -201,6 +207,8 @@ def piston_model(
         PointLineRow(2, (bottom, -half_d), (-half_D, 0.0), (1.0, 0.0), name=CORNERS[3]),
     ]
     law = p.e if e is None else e
+    if p.mu > 0.0:  # skirt friction: the corners slide along the wall (tangents from the wall's direction)
+        law = mo.NewtonImpactFriction(law.e if isinstance(law, mo.NewtonImpact) else law, p.mu)
     contact = mo.Contact(PointLineBarrier(chain, rows), law, name="cylinder")
     scene = mo.Scene(chain, fx, [contact], name="piston", units=scene_units(p, u))
     return PistonModel(params=p, pressure=pressure, chain=chain, units=u, scene=scene, effects=effects)

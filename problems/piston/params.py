@@ -77,6 +77,9 @@ class PistonParameters:
         Gravitational acceleration (m/s²).
     e : float
         Restitution at the four corners.
+    mu : float
+        Coulomb friction coefficient of the skirt at the cylinder wall (0: the paper's
+        frictionless wall).
     """
 
     m1: float = 10.0
@@ -102,6 +105,7 @@ class PistonParameters:
     rpm: float = 2000.0
     g: float = 9.81
     e: float = 0.0
+    mu: float = 0.0
 
     def __post_init__(self) -> None:
         for name, value in asdict(self).items():
@@ -110,7 +114,7 @@ class PistonParameters:
         for name in ("m1", "m2", "m3", "J1", "J2", "J3", "l1", "l2", "d", "s", "D", "rpm"):
             if getattr(self, name) <= 0:
                 raise ValueError(f"piston parameter {name} must be positive, got {getattr(self, name)!r}")
-        for name in ("c1", "c21", "c31", "M0", "p_max", "g", "h"):
+        for name in ("c1", "c21", "c31", "M0", "p_max", "g", "h", "mu"):
             if getattr(self, name) < 0:
                 raise ValueError(f"piston parameter {name} must be non-negative, got {getattr(self, name)!r}")
         if not 0.0 <= self.e <= 1.0:
