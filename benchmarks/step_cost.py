@@ -8,8 +8,10 @@ measured side by side):
    ``CombinedProjection`` accepting 1e-4 of the clearance) and with an exact one
    (``tol=0``: a projection on 80 % of the steps), e = 0.9 without and with the engine's,
    e = 0 with ``PositionProjection``;
+   and the piston with skirt friction (mu = 0.05, Lemke's method);
 2. pendulum chains of N = 3, 6, 12, 24 links with a floor row per link, swinging free
-   and lying on the floor (N rows in contact every step);
+   and lying on the floor (N rows in contact every step), and N = 3, 24 lying on a rough
+   floor (mu = 0.5: N normal and N tangential rows every step);
 3. the compile time of the loop (a fresh numba cache, in a new process) and the time a
    new process takes to load it from the cache;
 4. (full mode) the contact backends of the Python path: OSQP updated against OSQP
@@ -56,14 +58,15 @@ def piston_table(quick: bool) -> list[tuple]:
     cycle_steps = int(round(CYCLE / H))
     py_steps = 3_000 if quick else 30_000
     cases = (
-        (0.0, "engine drift control", lambda m: m.drift_control()),
-        (0.0, "CombinedProjection(tol=0)", lambda m: mo.CombinedProjection()),
-        (0.9, "", lambda m: None),
-        (0.9, "engine drift control", lambda m: m.drift_control()),
-        (0.0, "PositionProjection", lambda m: mo.PositionProjection()),
+        (0.0, "engine drift control", lambda m: m.drift_control(), 0.0),
+        (0.0, "CombinedProjection(tol=0)", lambda m: mo.CombinedProjection(), 0.0),
+        (0.9, "", lambda m: None, 0.0),
+        (0.9, "engine drift control", lambda m: m.drift_control(), 0.0),
+        (0.0, "PositionProjection", lambda m: mo.PositionProjection(), 0.0),
+        (0.0, "engine drift control, mu = 0.05", lambda m: m.drift_control(), 0.05),
     )
-    for e, label, make in cases:
-        model = piston_model(PistonParameters(e=e))
+    for e, label, make, mu in cases:
+        model = piston_model(PistonParameters(e=e, mu=mu))
         q0, v0 = model.initial_state()
         dc = make(model)
         lim = model.params.clearance / model.params.l1  # as PistonModel.simulate: the clearance
@@ -75,13 +78,15 @@ def piston_table(quick: bool) -> list[tuple]:
     return rows
 
 
-def chain_scene(N: int, on_floor: bool):
+def chain_scene(N: int, on_floor: bool, mu: float = 0.0):
     """N equal rods hanging from the origin; a floor row under each link's tip, at y = 0
-    (the chain laid on it, horizontal) or far below (free swinging)."""
+    (the chain laid on it, horizontal) or far below (free swinging); ``mu`` > 0: a rough
+    floor (Coulomb friction)."""
     chain = PendulumChain([Link.rod(m=1.0 / N, l=1.0 / N) for _ in range(N)])
     y_floor = 0.0 if on_floor else -10.0
     rows = [PointLineRow(i, (1.0 / N, 0.0), line_point=(0.0, y_floor), normal=(0.0, 1.0)) for i in range(N)]
-    scene = mo.Scene(chain, [ChainGravity(chain)], [mo.Contact(PointLineBarrier(chain, rows), 0.0, name="floor")],
+    law = mo.NewtonImpactFriction(0.0, mu) if mu > 0 else 0.0
+    scene = mo.Scene(chain, [ChainGravity(chain)], [mo.Contact(PointLineBarrier(chain, rows), law, name="floor")],
                      name=f"chain{N}")
     q0 = np.full(N, np.pi / 2) if on_floor else np.linspace(0.3, 1.2, N)
     return scene, q0, np.zeros(N)
@@ -97,6 +102,13 @@ def chain_table(quick: bool) -> list[tuple]:
             py_steps = max(200, (1_000 if quick else 5_000) // N)
             py = us_per_step(scene, q0, v0, py_steps, h=1e-3, backend="python", solver="osqp")
             rows.append((f"chain N = {N:2d}, {'on the floor' if on_floor else 'free'}", steps, comp, py_steps, py))
+    for N in (3, 24):  # on a rough floor: N normal and N tangential rows every step (Lemke)
+        scene, q0, v0 = chain_scene(N, True, mu=0.5)
+        steps = (20_000 if quick else 100_000) // N
+        comp = us_per_step(scene, q0, v0, steps, h=1e-3, backend="compiled")
+        py_steps = max(100, (500 if quick else 2_500) // N)
+        py = us_per_step(scene, q0, v0, py_steps, h=1e-3, backend="python", solver="exact")
+        rows.append((f"chain N = {N:2d}, on a rough floor (mu 0.5)", steps, comp, py_steps, py))
     return rows
 
 
@@ -148,8 +160,14 @@ def main(argv=None) -> None:
     us_per_step(*chain_scene(3, True), 10, h=1e-3, backend="compiled")  # load (or compile) first
     print("\nµs per step, compiled loop vs Python path (ratio = python / compiled; piston compiled: best of 3)")
     print(f"{'case':40s} {'steps':>8s} {'compiled':>9s} {'steps':>7s} {'python':>9s} {'ratio':>7s}")
-    for name, cs, comp, ps, py in piston_table(args.quick) + chain_table(args.quick):
+    table = piston_table(args.quick) + chain_table(args.quick)
+    for name, cs, comp, ps, py in table:
         print(f"{name:40s} {cs:8d} {comp:9.3f} {ps:7d} {py:9.1f} {py / comp:7.0f}")
+    cost = {name: comp for name, _, comp, _, _ in table}
+    piston = cost["piston e = 0 + engine drift control, mu = 0.05"] / cost["piston e = 0 + engine drift control"]
+    chain = cost["chain N = 24, on a rough floor (mu 0.5)"] / cost["chain N = 24, on the floor"]
+    print(f"\nfriction: the piston at mu = 0.05 costs {piston:.2f}x its frictionless step; "
+          f"the 24-link chain on a rough floor {chain:.1f}x on a smooth one")
     imp, load = startup_times(fresh=False)
     print(f"\nnew process: import moreau {imp:.2f} s; first piston run, loop loaded from the cache {load:.2f} s")
     if not args.quick:

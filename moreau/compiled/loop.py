@@ -19,6 +19,7 @@ from numba import njit
 from moreau.compiled import evaluate as ev
 from moreau.compiled.drift import _project
 from moreau.compiled.energy import _energy_check, _kinetic_energy
+from moreau.compiled.friction import _friction_records, friction_work
 from moreau.compiled.layout import (  # the loop's layout
     A_WORK_B,
     A_WORK_C,
@@ -60,7 +61,6 @@ from moreau.compiled.layout import (  # the loop's layout
     S_THETA,
     USER_FAILED,
 )
-from moreau.compiled.friction import _friction_records, friction_work
 from moreau.compiled.layout import part as _part
 from moreau.compiled.step import _user_failed, _velocity_update
 from moreau.contact.lcp import workspace

@@ -10,6 +10,7 @@ import math
 import numpy as np
 
 from moreau.compiled import evaluate as ev
+from moreau.compiled.friction import _friction_solve
 from moreau.compiled.layout import (  # the loop's layout
     A_WORST,
     C_FAILKIND,
@@ -33,7 +34,6 @@ from moreau.compiled.layout import (  # the loop's layout
     SOLVER_FAILED,
     USER_FAILED,
 )
-from moreau.compiled.friction import _friction_solve
 from moreau.compiled.layout import part as _part
 from moreau.contact.lcp import kkt_residuals_kernel, solve_one_step
 from moreau.core import kernels as _k

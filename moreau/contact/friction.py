@@ -60,8 +60,8 @@ import numpy as np
 from numba import njit
 
 from moreau.contact.active_set import _inline, _jit
-from moreau.contact.kkt import kkt_residuals_rows
 from moreau.contact.friction_states import enumerate_states
+from moreau.contact.kkt import kkt_residuals_rows
 from moreau.contact.lemke import OK, RAY, lcp_lemke
 from moreau.core.kernels import cho_solve, sym_product
 

@@ -151,6 +151,14 @@ def lcp_lemke(A, q, z, k, T, basis, xb, piv=1e-9):
             break
     if status != OK:
         return status
+    return _refined_and_checked(A, q, z, k, T, basis, xb)
+
+
+@_inline
+def _refined_and_checked(A, q, z, k, T, basis, xb):
+    """The basic solution of Lemke's final tableau into z, refined and checked; returns
+    ``OK`` or ``FAILED`` (see :func:`lcp_lemke`)."""
+    rhs = 2 * k + 1
     # the basic solution, refined against the original data: x_B += B⁻¹ (q − B x_B)
     # with the tableau's B⁻¹ (Gauss–Jordan accumulates round-off), while the residual halves
     for i in range(k):

@@ -4,6 +4,8 @@ every step, on the QP in mass-normalized units; its active set is then made exac
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from moreau.contact.base import ContactSolver, SolveFailed
@@ -166,8 +168,8 @@ class _BoxQP:
 
     def __init__(self, eps: float, max_iter: int) -> None:
         self.eps, self.max_iter = eps, max_iter
-        self._W = None
-        self._s = None
+        self._W: np.ndarray | None = None
+        self._s: Any = None
 
     def __call__(self, W, w, lower, upper):
         import osqp

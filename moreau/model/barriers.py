@@ -197,7 +197,7 @@ class FunctionBarrier(Barrier):
         if tangent_jacobian is not None:
             if not callable(tangent_jacobian):
                 raise ValueError(f"FunctionBarrier: tangent_jacobian must be a callable, got {tangent_jacobian!r}")
-            self.tangent_jacobian = tangent_jacobian  # type: ignore[method-assign]
+            self.tangent_jacobian = tangent_jacobian  # type: ignore[method-assign,assignment]
             self.has_tangents = True
         if isinstance(nrows, bool) or not isinstance(nrows, (int, np.integer)) or nrows < 1:
             raise ValueError(f"FunctionBarrier: nrows must be a positive integer, got {nrows!r}")

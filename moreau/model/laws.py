@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -75,7 +76,7 @@ class NewtonImpactFriction:
         return out[0], out[1]
 
 
-def _coefficients(x, what: str, upper: float | None) -> float | tuple[float, ...]:
+def _coefficients(x: Any, what: str, upper: float | None) -> float | tuple[float, ...]:
     """A law's coefficient(s) checked: numbers (not bools, not strings), finite, >= 0 and
     <= ``upper``; a scalar stays a float, a sequence becomes a tuple."""
     scalar = np.ndim(x) == 0

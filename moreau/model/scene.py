@@ -227,8 +227,9 @@ class Scene:
         n = self.ndof
         parts = [(c.barrier.tangent_jacobian if np.any(c.friction > 0.0) else None, c.barrier.nrows)
                  for c in self.contacts]
-        if len(parts) == 1 and parts[0][0] is not None:
-            return parts[0][0]
+        only = parts[0][0]
+        if len(parts) == 1 and only is not None:
+            return cast(GapFn, only)
 
         def tangent_jacobian(q: np.ndarray) -> np.ndarray:
             return np.vstack([np.asarray(t(q), dtype=float) if t is not None else np.zeros((m, n))

@@ -39,13 +39,15 @@ def trajectory_to_xarray(traj: Trajectory) -> xarray.Dataset:
     Dimensions ``time`` (the records), ``dof`` (coordinates 0..n-1) and ``row`` (the
     contact rows, labelled by their names). Variables: ``q``, ``v`` (time, dof);
     ``gaps``, ``impulses``, ``active`` (time, row); ``energy``, ``kinetic_energy``,
-    ``potential_energy`` (time) when computed; ``max_penetration`` (row) when known; the
+    ``potential_energy`` (time) when computed; with friction ``tangential_impulses``,
+    ``slip_velocity`` and ``sticking`` (time, row); ``max_penetration`` (row) when known; the
     coordinates ``q_unit``, ``v_unit`` (dof) and ``row_unit`` (row) name the unit of each
     entry. Each variable's ``attrs["units"]`` is its unit (entries joined by ``", "`` when
     they differ). ``Dataset.attrs``: ``scene`` (name), ``scene_json`` (the scene's
     parameters), ``solver``, ``fallback``, ``backend``, ``version``, ``status``,
-    ``message``, ``h``, ``record_every``, ``n_impacts``, ``description`` and ``units``
-    (the whole units dict as JSON: netCDF attributes hold no dicts).
+    ``message``, ``h``, ``record_every``, ``n_impacts``, ``work_json`` (the energy ledger,
+    friction included), ``description`` and ``units`` (the whole units dict as JSON:
+    netCDF attributes hold no dicts).
 
     Raises
     ------
@@ -73,6 +75,15 @@ def trajectory_to_xarray(traj: Trajectory) -> xarray.Dataset:
         "active": (("time", "row"), traj.active,
                    {"long_name": "row closed in a step since the previous record"}),
     }
+    if traj.tangential_impulses is not None:  # friction
+        data["tangential_impulses"] = (("time", "row"), traj.tangential_impulses, {
+            "units": uniform(u["impulses"]), "long_name": "friction impulses summed since the previous record"})
+    if traj.slip_velocity is not None:
+        data["slip_velocity"] = (("time", "row"), traj.slip_velocity,
+                                 {"long_name": "tangential velocity T(q) v at the record"})
+    if traj.sticking is not None:
+        data["sticking"] = (("time", "row"), traj.sticking,
+                            {"long_name": "closed with |P_T| < mu P_N since the previous record"})
     for name in ("energy", "kinetic_energy", "potential_energy"):
         value = getattr(traj, name)
         if value is not None:
@@ -86,6 +97,7 @@ def trajectory_to_xarray(traj: Trajectory) -> xarray.Dataset:
         "solver": traj.stats.solver, "fallback": traj.stats.fallback, "backend": traj.stats.backend,
         "version": traj.version, "status": traj.status, "message": traj.message,
         "h": float(traj.h), "record_every": int(traj.record_every), "n_impacts": len(traj.impacts),
+        "work_json": json.dumps(traj.work),
         "description": u["description"], "units": json.dumps(u),
     }
     dataset: xarray.Dataset = xr.Dataset(data, coords=coords, attrs=attrs)

@@ -81,3 +81,18 @@ def test_frictionless_scenes_build_no_tangent_rows():
         b = mo.simulate(zero_mu, (0.0, 1.0), [0.0, 0.5], [1.0, 0.0], 1e-3, backend=backend)
         assert np.array_equal(a.q, b.q) and np.array_equal(a.impulses, b.impulses)
         assert b.tangential_impulses is None and "friction" not in b.work
+
+
+def test_friction_is_kept_by_save_load_and_to_xarray(tmp_path):
+    """Tangential impulses, slip velocities, sticking and the friction work survive
+    save/load and appear in to_xarray()."""
+    pytest.importorskip("xarray")
+    traj = mo.simulate(disk(0.2, 0.1), (0.0, 0.3), [0.0, 0.1, 0.0], [3.0, 0.0, 0.0], 1e-3)
+    back = mo.load(traj.save(tmp_path / "disk"))
+    for a in ("tangential_impulses", "slip_velocity", "sticking"):
+        assert np.array_equal(getattr(back, a), getattr(traj, a)), a
+    assert back.work == traj.work and back.work["friction"] < 0
+    ds = traj.to_xarray()
+    assert np.array_equal(ds["tangential_impulses"].values, traj.tangential_impulses)
+    assert np.array_equal(ds["sticking"].values, traj.sticking)
+    assert '"friction"' in ds.attrs["work_json"]
