@@ -1,30 +1,32 @@
 """Coulomb friction in the compiled step: the tangent rows of the active contacts join
 the step's problem, solved by Lemke's method with the law check
-(:func:`moreau.contact.friction.friction_solve_checked`) — the twin of the Python path's
+(:func:`moreau.contact.friction.solve_friction_step`) — the twin of the Python path's
 friction solve (``OneStepIntegrator._solve_friction``). Compiled into the loop only as a
-branch taken by scenes with friction (``ints[9] > 0``)."""
+branch taken by scenes with friction (``ints[9] > 0``); the solve itself is a call (its
+code is compiled once, not into the loop; the two parts here are inlined: as calls of
+their own, passing the friction arrays' tuple, they compiled 5 s slower)."""
 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from moreau.compiled.layout import A_WORK_T, A_WORST, F_TOL
 from moreau.compiled.layout import part as _part
-from moreau.contact.friction import friction_solve_checked, friction_workspace
+from moreau.contact.friction import friction_workspace, solve_friction_step
 
 __all__ = ["friction_work", "friction_parts"]
 
 
-@njit(cache=True, nogil=True)
-def friction_work(n, m, mf, mu, tangent_row):
+def friction_work(n: int, m: int, mf: int, mu: np.ndarray, tangent_row: np.ndarray) -> tuple:
     """The friction arrays of the loop's workspace: ``(fidx, muA, PT, PT_acc, res, ws, mu,
     tangent_row)`` — per active row its index among the normal rows and its mu, the
     step's tangential impulses per row and their sum since the last record, the law
-    residuals, Lemke's work arrays, and per row its mu and tangent row."""
+    residuals, Lemke's work arrays, and per row its mu and tangent row (numpy: allocating
+    compiles nothing)."""
     mm = max(m, 1)
     return (np.zeros(mm, dtype=np.int64), np.zeros(mm), np.zeros(m), np.zeros(m), np.zeros(6),
-            friction_workspace(n, m, mf), mu, tangent_row)
+            friction_workspace(n, m, mf), np.ascontiguousarray(mu, dtype=np.float64),
+            np.ascontiguousarray(tangent_row, dtype=np.int64))
 
 
 @_part
@@ -50,8 +52,8 @@ def _friction_solve(n, m, M, L, b, G, GA, cA, active, na, v_new, PA, fset, acc, 
             j += 1
     if kf == 0:
         return 0
-    st = friction_solve_checked(M, L, b, GA, cA, muA, fidx, np.int64(na), np.int64(kf), PA, v_new, fset[F_TOL],
-                                res, fws)
+    st = solve_friction_step(M, L, b, GA, cA, muA, fidx, np.int64(na), np.int64(kf), PA, v_new, fset[F_TOL], res,
+                             fws)
     if st != 0:
         for i in range(6):
             fail[0, i] = res[i]

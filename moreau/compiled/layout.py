@@ -42,3 +42,4 @@ N_ACCUMULATORS = 9
 # entry points are built for what only the loop calls.
 part = njit(cache=True, nogil=True, _nrt=False, inline="always",  # type: ignore[call-overload]
             no_cpython_wrapper=True, no_cfunc_wrapper=True)
+

@@ -66,14 +66,12 @@ from moreau.compiled.step import _user_failed, _velocity_update
 from moreau.contact.lcp import workspace
 from moreau.core import kernels as _k
 
-_jit = njit(cache=True, nogil=True)
 
-
-@_jit
-def loop_workspace(n, m, mf, mu, tangent_row):
+def loop_workspace(n: int, m: int, mf: int, mu: np.ndarray, tangent_row: np.ndarray) -> tuple:
     """The work arrays of :func:`run_chunk` for n coordinates, m rows and mf tangent rows
     (friction; mu (m,) and tangent_row (m,) from the lowered scene), allocated once per
-    run, outside the loop: the loop itself allocates nothing."""
+    run, outside the loop: the loop itself allocates nothing. Plain numpy: allocating
+    compiles nothing."""
     mm = max(m, 1)
     ma = max(m + mf, 1)  # the Jacobian's rows: contacts, then tangents
     own = (np.empty((n, n)), np.empty((n, n)), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n),

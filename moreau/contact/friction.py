@@ -62,7 +62,7 @@ from numba import njit
 from moreau.contact.active_set import _inline, _jit
 from moreau.contact.friction_states import enumerate_states
 from moreau.contact.kkt import kkt_residuals_rows
-from moreau.contact.lemke import OK, RAY, lcp_lemke
+from moreau.contact.lemke import FAILED, OK, RAY, lcp_lemke
 from moreau.core.kernels import cho_solve, sym_product
 
 __all__ = ["friction_workspace", "solve_friction_step", "friction_residuals_kernel", "friction_one_step",
@@ -79,9 +79,9 @@ GOOD = 1e-9
 FRICTION_RESIDUALS = ("primal", "dual", "complementarity", "stationarity", "cone", "slip")
 
 
-@njit(cache=True, nogil=True)
-def friction_workspace(n, m, mf):
-    """Work arrays for up to m normal and mf tangential rows on n coordinates."""
+def friction_workspace(n: int, m: int, mf: int) -> tuple:
+    """Work arrays for up to m normal and mf tangential rows on n coordinates (numpy:
+    allocating compiles nothing)."""
     r = max(m + mf, 1)
     p = max(m + 3 * mf, 1)
     return (np.empty((r, n)), np.empty(n), np.empty((r, r)), np.empty(r), np.zeros((p, p)), np.empty(p),
@@ -139,16 +139,18 @@ def _assemble(W, w, mu, fidx, k, kf, form, A, qv):
     return p
 
 
-@_jit
-def solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, ws):
+@njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]  # a call: compiled once, not re-optimized inline
+def solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, tol, res, ws):
     """v and ``P = [P_N (k); P_T (kf)]`` of the one-step problem with friction (module
-    docstring) on the first k normal rows of G and the kf tangential rows after them.
+    docstring) on the first k normal rows of G and the kf tangential rows after them, and
+    the six residuals of the full law (:func:`friction_residuals_kernel`) into ``res``.
 
     ``L`` = chol(M); ``c`` (>= k) the normal rows' lower bounds; ``mu`` (>= k) their
     friction coefficients; ``fidx`` (>= kf) the normal row of each tangential row;
-    ``ws`` from :func:`friction_workspace`. Returns ``OK`` (an answer, its six law
-    residuals in ``ws[18]``: the caller decides whether they are small enough) or ``RAY``
-    (no attempt found one).
+    ``ws`` from :func:`friction_workspace`. Returns ``OK`` (every residual at most
+    ``tol``), ``FAILED`` (the best answer found misses ``tol``; it is in P, v) or ``RAY``
+    (no attempt found one; ``res`` infinite). The compiled loop's friction solve and the
+    Python path's (``tol = inf``: the integrator checks) are this one compiled function.
     """
     n = M.shape[0]
     R = k + kf
@@ -171,7 +173,7 @@ def solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, ws):
     # pivot tolerances in turn, then (few contacts) the enumeration of states: every
     # answer is checked against the full law, the first with residuals below GOOD is
     # taken, else the best one (the caller's check decides whether it is good enough)
-    res, rb, Pb, vb = ws[17], ws[18], ws[19], ws[20]
+    cand, rb, Pb, vb = ws[17], ws[18], ws[19], ws[20]
     best = math.inf
     for form in range(2):
         p = _assemble(W, w, mu, fidx, k, kf, form, A, qv)
@@ -182,23 +184,27 @@ def solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, ws):
                 P[j] = z[j]
             for f in range(kf):  # Glocker: P_T = σ_R − μ P_N; Anitescu–Potra: P_T = β⁺ − β⁻
                 P[k + f] = z[k + f] - (mu[fidx[f]] * z[fidx[f]] if form == 0 else z[R + f])
-            best = _keep_best(M, L, b, G, c, mu, fidx, k, kf, P, v, vfree, MinvGt, res, rb, Pb, vb, best, ws)
+            best = _keep_best(M, L, b, G, c, mu, fidx, k, kf, P, v, vfree, MinvGt, cand, rb, Pb, vb, best, ws)
             if best <= GOOD:
                 break
         if best <= GOOD:
             break
     if best > GOOD and enumerate_states(W, w, mu, fidx, k, kf, P, A, qv, z, basis):
-        best = _keep_best(M, L, b, G, c, mu, fidx, k, kf, P, v, vfree, MinvGt, res, rb, Pb, vb, best, ws)
+        best = _keep_best(M, L, b, G, c, mu, fidx, k, kf, P, v, vfree, MinvGt, cand, rb, Pb, vb, best, ws)
     if best == math.inf:
+        for i in range(6):
+            res[i] = math.inf
         return RAY
     for j in range(R):
         P[j] = Pb[j]
     for i in range(n):
         v[i] = vb[i]
-    return OK
+    for i in range(6):
+        res[i] = rb[i]
+    return OK if best <= tol else FAILED
 
 
-@_inline
+@njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]  # a call, not inlined: two call sites
 def _keep_best(M, L, b, G, c, mu, fidx, k, kf, P, v, vfree, MinvGt, res, rb, Pb, vb, best, ws):
     """v = v_free + M⁻¹ Gᵀ P for a candidate P, its law residuals; kept (in Pb, vb, rb)
     when better than ``best``; returns the best worst residual so far."""
@@ -297,9 +303,10 @@ def friction_one_step(M: np.ndarray, b: np.ndarray, GA: np.ndarray, cA: np.ndarr
     kf = fidx.shape[0]
     P = np.zeros(k + kf)
     v = np.empty(n)
-    status = solve_friction_step(M, np.ascontiguousarray(L, dtype=float), np.ascontiguousarray(b, dtype=float), G,
-                                 np.ascontiguousarray(cA, dtype=float), np.ascontiguousarray(muA, dtype=float),
-                                 fidx, k, kf, P, v, friction_workspace(n, k, kf))
+    # the compiled loop's entry point, with no tolerance: one compiled function serves both paths
+    status = solve_friction_step(M, np.ascontiguousarray(L, dtype=float), np.ascontiguousarray(b, dtype=float),
+                                 G, np.ascontiguousarray(cA, dtype=float), np.ascontiguousarray(muA, dtype=float),
+                                 fidx, k, kf, P, v, np.inf, np.empty(6), friction_workspace(n, k, kf))
     PT = np.zeros(k)
     PT[fidx] = P[k:]
     return int(status), v, P[:k].copy(), PT
@@ -352,18 +359,3 @@ def painleve_rows(L: np.ndarray, GA: np.ndarray, TA: np.ndarray, muA: np.ndarray
         if float(GA[j] @ x) - muA[j] * s * float(TA[j] @ x) <= 0.0:
             out.append(int(j))
     return np.array(out, dtype=np.int64)
-
-
-@njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]  # numba's internal flag
-def friction_solve_checked(M, L, b, G, c, mu, fidx, k, kf, P, v, tol, res, ws):
-    """:func:`solve_friction_step` and its law check (:func:`friction_residuals_kernel`,
-    into ``res`` (6,)) in one call, as the compiled loop makes it: a function of its own
-    (not inlined), so the loop's compile grows by a call, and Lemke's method is compiled
-    once. Returns ``OK`` when solved with every residual at most ``tol``, ``RAY`` or
-    ``FAILED`` otherwise (``res`` infinite when there is no answer to check)."""
-    status = solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, ws)
-    worst = 0.0
-    for i in range(6):
-        res[i] = ws[18][i] if status == OK else np.inf
-        worst = max(worst, res[i])
-    return OK if worst <= tol else (status if status != OK else 1)

@@ -13,7 +13,9 @@ independent of this code.
 
 from __future__ import annotations
 
-from moreau.contact.active_set import _inline, _jit
+from numba import njit
+
+from moreau.contact.active_set import _inline
 
 __all__ = ["enumerate_states", "MAX_STATES_CONTACTS"]
 
@@ -50,7 +52,7 @@ def _gauss(A, rhs, x, n, piv):
     return True
 
 
-@_jit
+@njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]  # a call: compiled once, not re-optimized inline
 def enumerate_states(W, w, mu, fidx, k, kf, P, A, rhs, U, tcol):
     """Impulses ``P = [P_N (k); P_T (kf)]`` satisfying the friction law for ``U = W P + w``
     (rows and ``fidx`` as in :func:`moreau.contact.friction.solve_friction_step`); returns

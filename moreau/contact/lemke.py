@@ -26,7 +26,9 @@ from __future__ import annotations
 
 import math
 
-from moreau.contact.active_set import _inline, _jit
+from numba import njit
+
+from moreau.contact.active_set import _inline
 
 __all__ = ["lcp_lemke", "lemke_workspace_shape", "OK", "FAILED", "RAY"]
 
@@ -68,7 +70,7 @@ def _lex_less(T, k, i, ci, r, cr):
     return i < r
 
 
-@_jit
+@njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]  # a call: compiled once, not re-optimized inline
 def lcp_lemke(A, q, z, k, T, basis, xb, piv=1e-9):
     """Solve ``w = A z + q, 0 <= z ⟂ w >= 0`` on the leading k x k block by Lemke's method.
 
