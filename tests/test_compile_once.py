@@ -23,6 +23,7 @@ _PROBE = textwrap.dedent("""
 """)
 
 
+@pytest.mark.slow  # a full compile of the loop into its own cache (~50 s on 2 cores)
 def test_two_processes_started_together_on_an_empty_cache_compile_once(tmp_path):
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), PYTHONPATH=os.getcwd())
     procs = [subprocess.Popen([sys.executable, "-c", _PROBE], env=env, stdout=subprocess.PIPE,

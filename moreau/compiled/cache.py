@@ -25,7 +25,7 @@ log = logging.getLogger(__name__)
 
 
 #: what the first compile of the loop takes on a 2-core machine (benchmarks/compile_cost.py), s
-COMPILE_SECONDS = 30
+COMPILE_SECONDS = 50
 _ready = threading.Event()
 _ready_lock = threading.Lock()
 
