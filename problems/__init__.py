@@ -4,5 +4,7 @@
 * :mod:`moreau.problems.pendulum_wall` — a pendulum whose bob hits a vertical wall;
 * :mod:`moreau.problems.chain_walls` — a triple pendulum chain falling against three walls;
 * :mod:`moreau.problems.piston` — the piston – connecting rod – crankshaft engine of
-  Awrejcewicz & Kudra.
+  Awrejcewicz & Kudra;
+* :mod:`moreau.problems.woodpecker` — the woodpecker toy of Pfeiffer & Glocker (friction
+  and impacts).
 """
