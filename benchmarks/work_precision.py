@@ -25,6 +25,15 @@ Problems and their references (the *primary* error, plotted against wall time, f
     A triple pendulum chain falling against three walls (e = 0.8, 0.5, 0.9) over 1.5 s,
     5 impacts, against the compiled midpoint run at h = 1e-6 (:class:`ChainWallsProblem`):
     the angles in L∞ on a 0.01 s grid, and the final state.
+``block``
+    A block sliding to rest on a floor with Coulomb friction (mu = 0.3, v0 = 2 m/s) over
+    1 s, against its analytic motion (:class:`BlockProblem`): the position in L∞ and the
+    stop position v0²/(2 mu g).
+``woodpecker``
+    The woodpecker toy (:mod:`moreau.problems.woodpecker`, friction and impacts) from
+    Glocker's state on its limit cycle over three periods, against the compiled midpoint
+    run at h = 1e-6 (:class:`WoodpeckerProblem`): the instants and velocities of the
+    returns through φ_S = −0.2788.
 ``piston-e0``, ``piston-e0.9``
     The engine of :mod:`moreau.problems.piston` over 2 cycles from its standard start, against a
     run at a much smaller step (h = 3e-5; midpoint, exact solver; drift control for
@@ -73,6 +82,7 @@ for _p in (_ROOT, _HERE):  # `python benchmarks/work_precision.py` from anywhere
 
 # the study's parts, re-exported here: `work_precision.Config`, `.run_study`, ... as before
 from wp_configs import SOLVERS, Config, Run, SolverSpec, configs  # noqa: E402
+from wp_friction import BlockProblem, WoodpeckerProblem  # noqa: E402
 from wp_problems import (  # noqa: E402
     BallProblem,
     ChainWallsProblem,
@@ -104,7 +114,8 @@ from wp_study import (  # noqa: E402
 
 __all__ = [
     "SolverSpec", "Config", "Run", "Problem", "BallProblem", "PendulumWallProblem",
-    "SmoothPendulumProblem", "PistonProblem", "ChainWallsProblem", "SOLVERS", "impact_times", "configs",
+    "SmoothPendulumProblem", "PistonProblem", "ChainWallsProblem", "BlockProblem", "WoodpeckerProblem", "SOLVERS",
+    "impact_times", "configs",
     "make_problems", "run_study", "fit_orders", "drift_cost", "osqp_comparison",
     "format_table", "format_orders", "format_drift", "format_osqp", "cheapest", "format_cheapest", "write_csv",
     "plot", "main",
@@ -117,7 +128,8 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=None, help="directory for work_precision.csv/.png (default: docs/ for the "
                                                 "full run, nothing for --quick)")
     ap.add_argument("--problems", default=None,
-                    help="comma-separated subset: ball,pendulum,pendulum-smooth,chain,piston-e0,piston-e0.9")
+                    help="comma-separated subset: ball,pendulum,pendulum-smooth,chain,block,woodpecker,"
+                         "piston-e0,piston-e0.9")
     args = ap.parse_args(argv)
 
     def log(msg):

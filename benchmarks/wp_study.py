@@ -9,6 +9,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 from wp_configs import SOLVERS, Config, Run, configs
+from wp_friction import BlockProblem, WoodpeckerProblem
 from wp_problems import (
     BallProblem,
     ChainWallsProblem,
@@ -45,6 +46,8 @@ def make_problems(quick: bool = False) -> list[Problem]:
             BallProblem(lad, small),
             PendulumWallProblem(lad, small, t_end=6.0),
             SmoothPendulumProblem([0.02, 0.01, 0.005, 0.0025, 0.00125], configs(solvers=("enum",), drifts=(False,))),
+            BlockProblem(lad, configs(solvers=("osqp", "enum"), drifts=(False,))),  # OSQP: Tresca, 5 s a run
+            WoodpeckerProblem([1e-3, 5e-4, 2e-4], configs(solvers=("exact", "enum"), drifts=(False,)), h_ref=2e-5),
             PistonProblem(plad, pist, e=0.0, h_ref=5e-4),
             PistonProblem(plad, pist, e=0.9, h_ref=5e-4),
         ]
@@ -78,6 +81,8 @@ def make_problems(quick: bool = False) -> list[Problem]:
         ChainWallsProblem(chain_ladder, compiled),
         SmoothPendulumProblem([0.04, 0.02, 0.01, 0.005, 0.0025, 0.00125, 4e-4],
                               configs(solvers=("exact",), drifts=(False,))),
+        both(BlockProblem),
+        both(WoodpeckerProblem),
         *pistons,
     ]
 

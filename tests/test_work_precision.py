@@ -147,7 +147,8 @@ def test_quick_benchmark_runs_and_prints_the_table():
                          cwd=ROOT)
     assert out.returncode == 0, out.stderr[-3000:]
     text = out.stdout
-    for what in ("== ball", "== pendulum", "== pendulum-smooth", "== piston-e0 ", "== piston-e0.9",
+    for what in ("== ball", "== pendulum", "== pendulum-smooth", "== block", "== woodpecker", "== piston-e0 ",
+                 "== piston-e0.9",
                  "observed order", "drift control on the piston", "OSQP tolerances"):
         assert what in text, what
     assert "mid/enum/none" in text and "theta/enum/none" in text
