@@ -105,10 +105,10 @@ def step_for_clearance(D_mm: float, h: float = 3e-4, margin: float = 0.5, d_mm: 
 
 
 def _run(e: float, D_mm: float, total_cycles: float, h: float, solver: str,
-         drift_control: bool, backend: str = "auto") -> tuple[mo.Trajectory, PistonParameters]:
+         drift_control: bool, backend: str = "auto", mu: float = 0.0) -> tuple[mo.Trajectory, PistonParameters]:
     """Simulate the engine; a Ctrl-C re-raises KeyboardInterrupt (so a sweep records
     nothing for the point), a failed run raises its SolverError / SimulationError."""
-    params = PistonParameters(e=float(e), D=float(D_mm) / 1e3)
+    params = PistonParameters(e=float(e), D=float(D_mm) / 1e3, mu=float(mu))
     model = piston_model(params)
     traj = model.simulate(total_cycles, h, solver=solver, backend=backend, record_every=record_every_for(h),
                           progress=False, energy=False,
@@ -143,7 +143,7 @@ def _angles(angle_deg) -> np.ndarray:
 
 def piston_point(e: float, D_mm: float = 80.04, cycles: int = 5, transient: int = 1, h: float = 3e-4,
                  solver: str = "exact", drift_control: bool = True, backend: str = "auto",
-                 section_deg: float | Sequence[float] | None = None) -> dict:
+                 section_deg: float | Sequence[float] | None = None, mu: float = 0.0) -> dict:
     """Run the engine for ``transient + cycles`` cycles and return per-cycle figures of
     the ``cycles`` analyzed ones.
 
@@ -171,6 +171,8 @@ def piston_point(e: float, D_mm: float = 80.04, cycles: int = 5, transient: int 
         [0, 720)), as :func:`bifurcation_samples` does, from the same run.
     backend : str
         ``"auto"`` (compiled when possible), ``"compiled"`` or ``"python"``.
+    mu : float
+        Skirt friction at the cylinder wall (0: the paper's frictionless model).
 
     Returns
     -------
@@ -189,7 +191,8 @@ def piston_point(e: float, D_mm: float = 80.04, cycles: int = 5, transient: int 
         ``max_penetration_ratio`` (largest penetration over every step of the run, the
         transient included, / (D − d): the figure ``moreau piston`` reports, not the
         recorded states'),
-        ``max_impulse_Ns`` (largest single impact), ``fallbacks`` (contact solves
+        ``max_impulse_Ns`` (largest single impact), ``friction_loss_J`` (per cycle) and
+        its mean (energy dissipated by skirt friction, J; 0 without), ``fallbacks`` (contact solves
         the main backend failed) and ``wall_time_s`` (the only non-reproducible value);
         with ``section_deg``, also ``cycle``, ``angle_deg``, ``x_O3``, ``phi3_mrad``
         (see :func:`bifurcation_samples`).
@@ -206,7 +209,7 @@ def piston_point(e: float, D_mm: float = 80.04, cycles: int = 5, transient: int 
         raise ValueError(f"need cycles >= 1 and transient >= 0, got cycles={cycles}, transient={transient}")
     angles = None if section_deg is None else _angles(section_deg)
     wall0 = time.perf_counter()
-    traj, params = _run(e, D_mm, transient + cycles, h, solver, drift_control, backend)
+    traj, params = _run(e, D_mm, transient + cycles, h, solver, drift_control, backend, mu)
     figs = [c for c in cycle_figures(traj, params) if c.cycle >= transient]
     if len(figs) != cycles:
         raise RuntimeError(f"expected {cycles} analyzed cycles, the run holds {len(figs)}")
@@ -242,6 +245,8 @@ def piston_point(e: float, D_mm: float = 80.04, cycles: int = 5, transient: int 
         "settled_speed_rpm": settled_speed_rpm(traj, params, transient),  # the scene _run built
         "max_penetration_ratio": max_penetration_ratio(traj, params),  # every step, not the records
         "max_impulse_Ns": max(c.max_impulse for c in figs),
+        "friction_loss_J_mean": mean([c.friction_loss for c in figs]),
+        "friction_loss_J": [c.friction_loss for c in figs],
         "side_changes": [c.side_changes for c in figs],
         "impacts": [c.impacts for c in figs],
         "slaps": slaps,
