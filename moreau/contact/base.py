@@ -54,8 +54,8 @@ class ContactSolver(ABC):
         rows, ``mu`` (m,) the friction coefficients (tangent rows are used where mu > 0).
         Return ``(v, P_N[rows], P_T[rows])`` (P_T zero where mu = 0).
 
-        Raises :class:`SolveFailed` when the backend has no friction solve (this default)
-        or found no answer."""
+        Raises :class:`~moreau.contact.solvers.SolveFailed` when the backend has no
+        friction solve (this default) or found no answer."""
         raise SolveFailed(f"solver {self.name!r} does not solve problems with friction")
 
     def describe(self) -> dict:

@@ -3,7 +3,7 @@
 Rows of one step (all at the midpoint): k normal rows ``U_N = G_N v`` with lower bounds
 c (Newton's law), then kf tangential rows ``U_T = G_T v``, one per normal row j with
 ``mu_j > 0`` (``fidx[f] = j``). With ``W = G M⁻¹ Gᵀ`` and ``w = G v_free − [c; 0]`` for the
-stacked ``G = [G_N; G_T]`` the post-step velocities are ``U = W P + w`` and the law is
+stacked ``G = [G_N; G_T]`` the post-step velocities are ``U = W P + w`` and the law is::
 
     0 <= P_N ⟂ U_N >= 0,    |P_T| <= mu P_N,    U_T ≠ 0  ⇒  P_T = −mu P_N sign(U_T).
 

@@ -45,7 +45,7 @@ def friction_enumerate(W: np.ndarray, w: np.ndarray, mu: np.ndarray, fidx: np.nd
     Raises
     ------
     ValueError
-        For more than :data:`MAX_CONTACTS` normal rows.
+        For more than ``MAX_CONTACTS`` normal rows.
     """
     k, kf = len(mu), len(fidx)
     R = k + kf

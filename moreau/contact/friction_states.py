@@ -6,7 +6,7 @@ side (``P_T = ∓ mu P_N``); each combination, fewest closed contacts first, fix
 linear system for the impulses ``P = [P_N; P_T]`` with ``U = W P + w``, whose answer is
 taken when it satisfies the whole law. Exact where Lemke's pivoting fails on the round-off
 of a singular tableau (:mod:`moreau.contact.friction`), for a handful of contacts only
-(:data:`MAX_STATES_CONTACTS`: 4⁵ = 1024 systems at most). The same search as the Python
+(``MAX_STATES_CONTACTS``: 4⁵ = 1024 systems at most). The same search as the Python
 test oracle :func:`moreau.contact.friction_enum.friction_enumerate`, which stays
 independent of this code.
 """
@@ -57,7 +57,7 @@ def enumerate_states(W, w, mu, fidx, k, kf, P, A, rhs, U, tcol):
     """Impulses ``P = [P_N (k); P_T (kf)]`` satisfying the friction law for ``U = W P + w``
     (rows and ``fidx`` as in :func:`moreau.contact.friction.solve_friction_step`); returns
     True when found. ``A`` (>= R, >= R), ``rhs``, ``U`` (>= R) and ``tcol`` (>= k, int) are
-    work arrays (R = k + kf); at most :data:`MAX_STATES_CONTACTS` contacts."""
+    work arrays (R = k + kf); at most ``MAX_STATES_CONTACTS`` contacts."""
     R = k + kf
     if k > MAX_STATES_CONTACTS:
         return False

@@ -14,7 +14,7 @@ __all__ = ["kkt_residuals_kernel", "kkt_residuals_rows"]
 @_jit
 def kkt_residuals_kernel(M, L, b, G, c, v, P, k, out, Gv, GtP, r, d, x, y):
     """Scaled KKT residuals of ``(v, P)`` for the one-step QP on the first k rows of G
-    (all unilateral): :func:`kkt_residuals_rows` with ``kn = k``."""
+    (all unilateral): :func:`~moreau.contact.kkt.kkt_residuals_rows` with ``kn = k``."""
     kkt_residuals_rows(M, L, b, G, c, v, P, k, k, out, Gv, GtP, r, d, x, y)
 
 

@@ -9,7 +9,7 @@ z0 at the most negative q_i, and pivots: the complement of the variable that lef
 enters, the ratio test picks the row that leaves. It ends either with z0 leaving (a
 solution) or on a column without a positive entry — a *secondary ray*: no solution was
 found, which for the matrices of friction problems can mean that none exists. That is a
-status (:data:`RAY`), never an answer.
+status (``RAY``), never an answer.
 
 Degenerate problems (ties in the ratio test, frequent in contact problems: a sticking
 contact with zero slip, a contact that closes with zero normal velocity) are handled by
@@ -97,7 +97,7 @@ def lcp_lemke(A, q, z, k, T, basis, xb, piv=1e-9):
     Returns
     -------
     int
-        :data:`OK`, :data:`RAY` (secondary ray: no solution found) or :data:`FAILED`
+        ``OK``, ``RAY`` (secondary ray: no solution found) or ``FAILED``
         (pivot limit, 50 (k + 1) pivots, reached: cycling by round-off).
     """
     qmin = 0.0
