@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from moreau.compiled.layout import A_WORK_T, A_WORST, F_TOL
+from moreau.compiled.layout import A_WORK_T, A_WORST, C_K, C_PAINLEVE, C_PAINLEVE_ROW, C_PAINLEVE_STEP, F_TOL
 from moreau.compiled.layout import part as _part
 from moreau.contact.friction import friction_workspace, solve_friction_step
 
@@ -30,12 +30,13 @@ def friction_work(n: int, m: int, mf: int, mu: np.ndarray, tangent_row: np.ndarr
 
 
 @_part
-def _friction_solve(n, m, M, L, b, G, GA, cA, active, na, v_new, PA, fset, acc, fail, fr):
+def _friction_solve(n, m, M, L, b, G, GA, cA, active, na, v_new, PA, fset, acc, fail, fr, cnt):
     """The step's contact problem with friction: the tangent rows of the active rows with
     mu > 0 stacked under the normal rows ``GA`` (na rows), solved and checked. Returns 1
     (solved; ``PA`` = [P_N; P_T], ``fr``'s PT per row), 0 (no active row has friction: the
     caller solves the frictionless problem) or −1 (no answer passed the law check; the
-    residuals in ``fail[0]``)."""
+    residuals in ``fail[0]``). A sliding contact in Painlevé's region (as
+    :func:`moreau.contact.friction.painleve_rows` finds them) is counted in ``cnt``."""
     fidx, muA, PT, _, res, fws, mu, trow = fr
     kf = 0
     j = 0
@@ -63,14 +64,30 @@ def _friction_solve(n, m, M, L, b, G, GA, cA, active, na, v_new, PA, fset, acc, 
         worst = max(worst, res[i])
     if worst > acc[A_WORST]:
         acc[A_WORST] = worst
+    W = fws[2]  # the step's Delassus matrix: normal rows, then tangent rows
+    painleve = -1
     f = 0
     j = 0
     for r in range(m):
         if active[r]:
             if f < kf and fidx[f] == j:
-                PT[r] = PA[na + f]
+                pt = PA[na + f]
+                PT[r] = pt
+                pn = PA[j]
+                ut = 0.0
+                for i in range(n):
+                    ut += GA[na + f, i] * v_new[i]
+                if abs(pt) >= (1.0 - 1e-9) * mu[r] * pn and not (pn == 0.0 and ut == 0.0):
+                    s = (-1.0 if pt > 0.0 else 1.0) if pn > 0.0 else (1.0 if ut > 0.0 else -1.0)
+                    if W[j, j] - mu[r] * s * W[j, na + f] <= 0.0 and painleve < 0:
+                        painleve = r
                 f += 1
             j += 1
+    if painleve >= 0:
+        cnt[C_PAINLEVE] += 1
+        if cnt[C_PAINLEVE_STEP] == 0:
+            cnt[C_PAINLEVE_STEP] = cnt[C_K] + 1
+            cnt[C_PAINLEVE_ROW] = painleve
     return 1
 
 

@@ -23,8 +23,11 @@ F_H, F_T0, F_TOL, F_DRIFT_TOL, F_PE0, F_EWARN, F_ESTOP = range(7)
 # (C_USER: the status of a user callable that failed, see moreau.compiled.usercalls.decode)
 # (C_EWARN: the step at which the energy check first warned, 0 = never; C_ELEVEL: the
 # bound the last check found passed, 0 none, 1 warn, 2 stop)
+# (C_PAINLEVE: steps with a sliding contact in Painlevé's region; C_PAINLEVE_STEP: the first
+# one's step index + 1, 0 = never; C_PAINLEVE_ROW: its first such row)
 C_REC, C_NIMP, C_SOLVES, C_FALLBACKS, C_CONTACT, C_PROJ, C_K, C_FAILKIND, C_USER, C_EWARN, C_ELEVEL = range(11)
-N_COUNTERS = 11
+C_PAINLEVE, C_PAINLEVE_STEP, C_PAINLEVE_ROW = 11, 12, 13
+N_COUNTERS = 14
 # accumulators (float array)
 # (the energy check: kinetic energy at the start, the largest so far, the unaccounted energy
 # at the warning and at the last check, the work of the bias terms)

@@ -20,7 +20,7 @@ from moreau.compiled import layout as lay
 from moreau.compiled import loop as lp
 from moreau.compiled.lowering import CompiledScene, lower
 from moreau.compiled.usercalls import decode
-from moreau.contact.friction import FRICTION_RESIDUALS
+from moreau.contact.friction import FRICTION_RESIDUALS, painleve_message
 from moreau.core.errors import SimulationError, SolverError, attach_trajectory
 from moreau.model.stability import ENERGY_CHECK_EVERY, energy_growth_message
 from moreau.results.assemble import assemble
@@ -171,6 +171,11 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
                 message = "interrupted by the user while the result was assembled"
     if cnt[lay.C_EWARN] > 0:
         _energy_warning(scene, traj, int(cnt[lay.C_EWARN]), float(acc[lay.A_DU_WARN]), float(acc[lay.A_KEMAX]), h)
+    if cnt[lay.C_PAINLEVE_STEP] > 0:  # as the Python path: one warning, kept in traj.warnings
+        k0, row = int(cnt[lay.C_PAINLEVE_STEP]) - 1, int(cnt[lay.C_PAINLEVE_ROW])
+        msg = painleve_message(t0 + k0 * h, k0, [scene.row_names[row]], [float(scene.friction[row])])
+        traj.warnings.append(msg)
+        warnings.warn(msg, RuntimeWarning, stacklevel=3)
     if interrupt is not None:
         log.warning("%s; %d records computed so far are attached to the KeyboardInterrupt", traj.message, len(traj))
         attach_trajectory(interrupt, traj)

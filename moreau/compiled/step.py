@@ -194,7 +194,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     PA = lw[4]
     solved = 0
     if ints[9] > 0:  # friction: the tangent rows join (Lemke's method)
-        solved = _friction_solve(n, m, M, L, b, GA_all, GA, cA, active, na, v_new, PA, fset, acc, fail, fr)
+        solved = _friction_solve(n, m, M, L, b, GA_all, GA, cA, active, na, v_new, PA, fset, acc, fail, fr, cnt)
     if solved < 0 or (solved == 0 and not _contact_solve(M, L, b, GA, cA, na, v_new, PA, iset, fset, cnt, acc,
                                                           fail, ws)):
         cnt[C_FAILKIND] = SOLVER_FAILED

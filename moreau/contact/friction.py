@@ -66,7 +66,7 @@ from moreau.contact.lemke import FAILED, OK, RAY, lcp_lemke
 from moreau.core.kernels import cho_solve, sym_product
 
 __all__ = ["friction_workspace", "solve_friction_step", "friction_residuals_kernel", "friction_one_step",
-           "friction_residuals", "painleve_rows", "FRICTION_RESIDUALS"]
+           "friction_residuals", "painleve_rows", "painleve_message", "FRICTION_RESIDUALS"]
 
 #: the pivot tolerances Lemke's method tries in turn on a friction problem (see
 #: :func:`solve_friction_step`)
@@ -359,3 +359,10 @@ def painleve_rows(L: np.ndarray, GA: np.ndarray, TA: np.ndarray, muA: np.ndarray
         if float(GA[j] @ x) - muA[j] * s * float(TA[j] @ x) <= 0.0:
             out.append(int(j))
     return np.array(out, dtype=np.int64)
+
+
+def painleve_message(t: float, step: int, rows: list[str], mu: list[float]) -> str:
+    """The warning of a run that met Painlevé's region (both paths say the same)."""
+    return (f"Painlevé's paradox: at t = {t:.9g} (step {step}) the sliding contact(s) {rows} (mu = {mu}) have a "
+            "non-positive effective normal inverse mass: the one-step problem can have several solutions "
+            "(lift-off, sliding, a tangential impact) or none, and the motion from here on depends on the step size")

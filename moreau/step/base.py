@@ -9,7 +9,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from moreau.contact.friction import FRICTION_RESIDUALS, friction_residuals, painleve_rows
+from moreau.contact.friction import FRICTION_RESIDUALS, friction_residuals, painleve_message, painleve_rows
 from moreau.contact.problem import kkt_residuals
 from moreau.contact.solvers import ContactSolver, SolveFailed, make_solver
 from moreau.core.errors import SolverError
@@ -254,11 +254,7 @@ class OneStepIntegrator(ABC):
             self.n_painleve += 1
             if self.painleve is None:
                 names = [self.scene.row_names[rows[j]] for j in bad]
-                self.painleve = (
-                    f"Painlevé's paradox: at t = {self.t:.9g} (step {self.k}) the sliding contact(s) {names} "
-                    f"(mu = {muA[bad].tolist()}) have a non-positive effective normal inverse mass: the one-step "
-                    "problem can have several solutions (lift-off, sliding, a tangential impact) or none, and "
-                    "the motion from here on depends on the step size")
+                self.painleve = painleve_message(self.t, self.k, names, muA[bad].tolist())
 
     def _mass_at(self, q, v) -> tuple[np.ndarray, np.ndarray]:
         """``(M(q), L)`` with L its Cholesky factor, factorized once as the compiled step

@@ -75,3 +75,25 @@ def test_painleve_region_is_flagged():
         PT = -np.sign(slip) * MU * PN
         got = painleve_rows(Lc, bar.jacobian(q), bar.tangent_jacobian(q), np.array([MU]), PN, PT, np.array([slip]))
         assert got.tolist() == expected, (phi_deg, slip)
+
+
+@pytest.mark.parametrize("backend", ["compiled", "python"])
+def test_a_run_in_painleves_region_says_so(backend):
+    """The rod frozen at 50° (its rows linearized there, so that the scene compiles: the
+    effective inverse mass under sliding to the left is 1 + 3 cos²φ − 3 mu sinφ cosφ =
+    −0.31), its end sliding left at 10 m/s and approaching the floor at 1 mm/s while a
+    lift of twice its weight makes the free step leave the floor. The step's problem has
+    the lift-off solution and a sliding one with a large impulse; whichever Lemke returns
+    passes the law check, and the run says where it met Painlevé's region: one
+    RuntimeWarning naming the contact, kept in traj.warnings, on both paths."""
+    phi = np.radians(50.0)
+    c, s = np.cos(phi), np.sin(phi)
+    end = mo.LinearBarrier([[0.0, 1.0, -L * c]], [-L * s + L * c * phi], tangent=[[1.0, 0.0, L * s]])
+    scene = mo.Scene(mo.FunctionSystem(np.diag([1.0, 1.0, (2 * L) ** 2 / 12])), [mo.ConstantForce([0.0, GRAV, 0.0])],
+                     [mo.Contact(end, mo.NewtonImpactFriction(0.0, MU), name="end")])
+    q0, v0 = [L * c, L * s, phi], [-10.0, -1e-3, 0.0]
+    with pytest.warns(RuntimeWarning, match="Painlevé's paradox: at t = 0 ") as caught:
+        traj = mo.simulate(scene, (0.0, 0.005), q0, v0, 1e-3, backend=backend, solver="exact")
+    assert traj.completed and traj.stats.backend == backend
+    said = [str(x.message) for x in caught if "Painlevé" in str(x.message)]
+    assert len(said) == 1 and said[0] in traj.warnings and "'end'" in said[0]
