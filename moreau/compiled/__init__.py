@@ -1,7 +1,6 @@
 """The compiled path: the scene lowered to arrays (:mod:`~moreau.compiled.lowering`), its
 evaluation (:mod:`~moreau.compiled.evaluate`), user callables behind one C signature
-(:mod:`~moreau.compiled.usercalls`) and the friction solve behind another
-(:mod:`~moreau.compiled.friction_call`), the time loop (:mod:`~moreau.compiled.loop`, the twin
+(:mod:`~moreau.compiled.usercalls`), the time loop (:mod:`~moreau.compiled.loop`, the twin
 of :mod:`moreau.step`), the compile cache (:mod:`~moreau.compiled.cache`) and the driver
 that runs the loop chunk by chunk (:mod:`~moreau.compiled.runner`).
 

@@ -1,36 +1,32 @@
 """Coulomb friction in the compiled step: the tangent rows of the active contacts join
 the step's problem, solved by Lemke's method with the law check
 (:func:`moreau.contact.friction.solve_friction_step`) — the twin of the Python path's
-friction solve (``OneStepIntegrator._solve_friction``). A branch of the loop taken by
-scenes with friction (``ints[9] > 0``); the solve itself is called through an address
-(:mod:`moreau.compiled.friction_call`), so the loop's compile does not include it and a
-machine that runs no friction never compiles it. The two parts here are inlined: as calls
-of their own, passing the friction arrays' tuple, they compiled 5 s slower."""
+friction solve (``OneStepIntegrator._solve_friction``). Compiled into the loop only as a
+branch taken by scenes with friction (``ints[9] > 0``); the solve itself is a call (its
+code is compiled once, not into the loop; the two parts here are inlined: as calls of
+their own, passing the friction arrays' tuple, they compiled 5 s slower)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from moreau.compiled.friction_call import call_friction, friction_address, work_buffers
 from moreau.compiled.layout import A_WORK_T, A_WORST, C_K, C_PAINLEVE, C_PAINLEVE_ROW, C_PAINLEVE_STEP, F_TOL
 from moreau.compiled.layout import part as _part
+from moreau.contact.friction import friction_workspace, solve_friction_step
 
 __all__ = ["friction_work", "friction_parts"]
 
 
 def friction_work(n: int, m: int, mf: int, mu: np.ndarray, tangent_row: np.ndarray) -> tuple:
-    """The friction arrays of the loop's workspace: ``(fidx, muA, PT, PT_acc, res, fbuf,
-    ibuf, mu, tangent_row, meta)`` — per active row its index among the normal rows and
-    its mu, the step's tangential impulses per row and their sum since the last record,
-    the law residuals, the solve's work buffers (:mod:`moreau.compiled.friction_call`),
-    per row its mu and tangent row, and ``meta = [address, r, p]``: the address of the
-    compiled friction solve (0 without friction: then nothing of it is compiled) and the
-    buffers' row counts. Plain numpy: allocating compiles nothing."""
+    """The friction arrays of the loop's workspace: ``(fidx, muA, PT, PT_acc, res, ws, mu,
+    tangent_row)`` — per active row its index among the normal rows and its mu, the
+    step's tangential impulses per row and their sum since the last record, the law
+    residuals, Lemke's work arrays, and per row its mu and tangent row (numpy: allocating
+    compiles nothing)."""
     mm = max(m, 1)
-    fbuf, ibuf, r, p = work_buffers(n, m, mf)
-    meta = np.array([friction_address() if mf > 0 else 0, r, p], dtype=np.int64)
-    return (np.zeros(mm, dtype=np.int64), np.zeros(mm), np.zeros(m), np.zeros(m), np.zeros(6), fbuf, ibuf,
-            np.ascontiguousarray(mu, dtype=np.float64), np.ascontiguousarray(tangent_row, dtype=np.int64), meta)
+    return (np.zeros(mm, dtype=np.int64), np.zeros(mm), np.zeros(m), np.zeros(m), np.zeros(6),
+            friction_workspace(n, m, mf), np.ascontiguousarray(mu, dtype=np.float64),
+            np.ascontiguousarray(tangent_row, dtype=np.int64))
 
 
 @_part
@@ -41,7 +37,7 @@ def _friction_solve(n, m, M, L, b, G, GA, cA, active, na, v_new, PA, fset, acc, 
     caller solves the frictionless problem) or −1 (no answer passed the law check; the
     residuals in ``fail[0]``). A sliding contact in Painlevé's region (as
     :func:`moreau.contact.friction.painleve_rows` finds them) is counted in ``cnt``."""
-    fidx, muA, PT, _, res, fbuf, ibuf, mu, trow, meta = fr
+    fidx, muA, PT, _, res, fws, mu, trow = fr
     kf = 0
     j = 0
     for r in range(m):
@@ -57,9 +53,8 @@ def _friction_solve(n, m, M, L, b, G, GA, cA, active, na, v_new, PA, fset, acc, 
             j += 1
     if kf == 0:
         return 0
-    nr = meta[1]  # the work buffer's rows
-    st = call_friction(meta[0], M, L, b, GA, cA, muA, fidx, np.int64(n), np.int64(na), np.int64(kf), PA, v_new,
-                       fset[F_TOL], res, fbuf, ibuf, nr, meta[2])
+    st = solve_friction_step(M, L, b, GA, cA, muA, fidx, np.int64(na), np.int64(kf), PA, v_new, fset[F_TOL], res,
+                             fws)
     if st != 0:
         for i in range(6):
             fail[0, i] = res[i]
@@ -69,23 +64,23 @@ def _friction_solve(n, m, M, L, b, G, GA, cA, active, na, v_new, PA, fset, acc, 
         worst = max(worst, res[i])
     if worst > acc[A_WORST]:
         acc[A_WORST] = worst
-    w0 = nr * n + n  # the step's Delassus matrix W (nr x nr) in the work buffer: normal rows, then tangent rows
+    W = fws[2]  # the step's Delassus matrix: normal rows, then tangent rows
     painleve = -1
     f = 0
     j = 0
-    for row in range(m):
-        if active[row]:
+    for r in range(m):
+        if active[r]:
             if f < kf and fidx[f] == j:
                 pt = PA[na + f]
-                PT[row] = pt
+                PT[r] = pt
                 pn = PA[j]
                 ut = 0.0
                 for i in range(n):
                     ut += GA[na + f, i] * v_new[i]
-                if abs(pt) >= (1.0 - 1e-9) * mu[row] * pn and not (pn == 0.0 and ut == 0.0):
+                if abs(pt) >= (1.0 - 1e-9) * mu[r] * pn and not (pn == 0.0 and ut == 0.0):
                     s = (-1.0 if pt > 0.0 else 1.0) if pn > 0.0 else (1.0 if ut > 0.0 else -1.0)
-                    if fbuf[w0 + j * nr + j] - mu[row] * s * fbuf[w0 + j * nr + na + f] <= 0.0 and painleve < 0:
-                        painleve = row
+                    if W[j, j] - mu[r] * s * W[j, na + f] <= 0.0 and painleve < 0:
+                        painleve = r
                 f += 1
             j += 1
     if painleve >= 0:
@@ -100,7 +95,7 @@ def _friction_solve(n, m, M, L, b, G, GA, cA, active, na, v_new, PA, fset, acc, 
 def _friction_records(n, m, v, v_new, G, active, fr, acc):
     """The step's tangential impulses into their sum since the last record, and their
     work ½ P_Tᵀ (U_T⁻ + U_T⁺) into the ledger."""
-    _, _, PT, PT_acc, _, _, _, _, trow, _ = fr
+    _, _, PT, PT_acc, _, _, _, trow = fr
     for r in range(m):
         if active[r] and PT[r] != 0.0:
             PT_acc[r] += PT[r]
