@@ -47,7 +47,8 @@ class _CompiledLCPSolver(ContactSolver):
         status, v, PN, PT = friction_one_step(M, b, np.ascontiguousarray(G[rows]), c[rows],
                                               np.ascontiguousarray(T[rows]), mu[rows])
         if status != 0:
-            what = "ended on a secondary ray (no solution found)" if status == 2 else "reached its pivot limit"
+            what = ("and the enumeration of contact states found no solution" if status == 2 else
+                    "found no answer that passes its own checks")
             raise SolveFailed(f"Lemke's method {what} for {rows.shape[0]} active rows, mu = {mu[rows].tolist()}")
         return v, PN, PT
 

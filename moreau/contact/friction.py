@@ -63,7 +63,7 @@ from moreau.contact.active_set import _inline, _jit
 from moreau.contact.friction_states import enumerate_states
 from moreau.contact.kkt import kkt_residuals_rows
 from moreau.contact.lemke import FAILED, OK, RAY, lcp_lemke
-from moreau.core.kernels import cho_solve, sym_product
+from moreau.core.kernels import cho_solve, cho_solve_rows, sym_product
 
 __all__ = ["friction_workspace", "solve_friction_step", "friction_residuals_kernel", "friction_one_step",
            "friction_residuals", "painleve_rows", "painleve_message", "FRICTION_RESIDUALS"]
@@ -156,12 +156,7 @@ def solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, tol, res, ws):
     R = k + kf
     MinvGt, vfree, W, w, A, qv, z, T, basis, xb, row = ws[0], ws[1], ws[2], ws[3], ws[4], ws[5], ws[6], ws[7], \
         ws[8], ws[9], ws[10]
-    for j in range(R):
-        for i in range(n):
-            row[i] = G[j, i]
-        cho_solve(L, row, row, n)
-        for i in range(n):
-            MinvGt[j, i] = row[i]
+    cho_solve_rows(L, G, MinvGt, R, n, row)
     cho_solve(L, b, vfree, n)
     sym_product(G, MinvGt, W, R, n)
     for i in range(R):

@@ -9,7 +9,7 @@ import numpy as np
 from numba import njit
 
 from moreau.contact.active_set import OK, _inline, _jit, _solve_active, lcp_dual_active_set, lcp_enumerate
-from moreau.core.kernels import cho_solve, sym_product
+from moreau.core.kernels import cho_solve, cho_solve_rows, sym_product
 
 __all__ = ["solve_one_step", "workspace"]
 
@@ -33,13 +33,7 @@ def solve_one_step(M, L, b, G, c, P, v, k, method, tol, ws):
     from :func:`workspace`."""
     n = M.shape[0]
     MinvGt = ws[0]  # row j: M⁻¹ G_jᵀ
-    row = ws[13]
-    for j in range(k):
-        for i in range(n):
-            row[i] = G[j, i]
-        cho_solve(L, row, row, n)
-        for i in range(n):
-            MinvGt[j, i] = row[i]
+    cho_solve_rows(L, G, MinvGt, k, n, ws[13])
     vfree = ws[1]
     cho_solve(L, b, vfree, n)
     W = ws[2]

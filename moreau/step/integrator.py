@@ -114,7 +114,9 @@ class MoreauJeanMidpoint(OneStepIntegrator):
                 else:
                     c = -self._e * U
                 b = M @ v + h * f
-                T = self.tangent_at(qm, v) if scene.has_friction else None
+                # tangent rows only when an active row has friction (else the frictionless
+                # solve, as the compiled step does)
+                T = self.tangent_at(qm, v) if scene.has_friction and (self._mu[rows] > 0.0).any() else None
                 v_new, PA = self._solve_contact(M, b, G, c, rows, L=L, T=T)
                 P = np.zeros(scene.nrows)
                 P[rows] = PA
@@ -123,6 +125,9 @@ class MoreauJeanMidpoint(OneStepIntegrator):
                     self.PT = np.zeros(scene.nrows)
                     self.PT[rows] = self._PT_active
                     self._T = T
+                elif self._T is not None:  # a contact step without friction after one with it
+                    self.PT = np.zeros(scene.nrows)
+                    self._T = None
                 self._last = (M, G, v, v_new, P)
                 return v_new, True
         if self._Minv is not None:  # a constant mass matrix

@@ -6,7 +6,7 @@ import math
 
 from moreau.core.kernels.jit import jit as _jit
 
-__all__ = ["cholesky", "lt_solve", "cho_solve", "sym_product", "symmetry_defect"]
+__all__ = ["cholesky", "lt_solve", "cho_solve", "cho_solve_rows", "sym_product", "symmetry_defect"]
 
 
 # -- dense linear algebra for small SPD systems (leading k x k blocks, no views) -----------
@@ -51,6 +51,17 @@ def cho_solve(L, b, out, k):
             t -= L[i, l] * out[l]
         out[i] = t / L[i, i]
     lt_solve(L, out, k)
+
+
+@_jit
+def cho_solve_rows(L, G, out, k, n, row):
+    """out[j] = M⁻¹ G[j] for the first k rows of G (M = L Lᵀ, n x n); ``row`` (n,) is work."""
+    for j in range(k):
+        for i in range(n):
+            row[i] = G[j, i]
+        cho_solve(L, row, row, n)
+        for i in range(n):
+            out[j, i] = row[i]
 
 
 @_jit
