@@ -44,6 +44,7 @@ from .model.forces import (
     LinearDamping,
     LinearSpring,
 )
+from .model.constraints import Bilateral
 from .model.laws import NewtonImpact, NewtonImpactFriction
 from .model.scene import Contact, Scene
 from .model.system import FunctionSystem, MechanicalSystem
@@ -65,7 +66,7 @@ __all__ = [
     "NewtonImpactFriction",
     "OneStepProblem", "Residuals",
     "ImpactLog", "SolverStats", "Trajectory", "load",
-    "Contact", "Scene",
+    "Contact", "Scene", "Bilateral",
     "simulate", "ensure_compiled",
     "ContactSolver", "EnumerationSolver", "ExactSolver", "OSQPSolver", "QpsolversSolver", "make_solver",
     "FunctionSystem", "MechanicalSystem",

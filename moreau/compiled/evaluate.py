@@ -78,23 +78,25 @@ def force(ints, ekind, eoff, pool, user, t, q, c, s, v, f, fb):
 
 @_internal
 def gaps(ints, bkind, boff, brow, bnrows, pool, user, q, c, s, g):
-    """g(q) into ``g`` (m,); ``c, s`` = cos q, sin q."""
-    for ic in range(ints[6]):
+    """g(q) into ``g`` (m, then the bilateral rows at m + mf ...); ``c, s`` = cos q, sin q."""
+    for ic in range(bkind.shape[0]):
+        if ints[6] <= ic < ints[11]:  # tangent rows: no gaps
+            continue
         kind = bkind[ic]
         if kind == _k.BAR_LINEAR:
             _k.gaps_linear(pool, boff[ic], bnrows[ic], q, g, brow[ic])
         elif kind == _k.BAR_TRIG:
             _k.gaps_trig(pool, boff[ic], bnrows[ic], c, s, g, brow[ic])
     if user[U_GAPS] != 0:
-        st = call_user(user[U_GAPS], 0.0, q, q, g, ints[0], ints[1])
+        st = call_user(user[U_GAPS], 0.0, q, q, g, ints[0], g.shape[0])
         return 0 if st == 0 else st * 8 + U_GAPS
     return 0
 
 
 @_internal
 def jacobian(ints, bkind, boff, brow, bnrows, pool, user, q, c, s, G):
-    """G(q) into ``G`` (m + mf, n): the contacts' rows, then the tangent rows of friction
-    (the barriers after the first ``ints[6]``); ``c, s`` = cos q, sin q."""
+    """G(q) into ``G`` (m + mf + me, n): the contacts' rows, then the tangent rows of
+    friction, then the bilateral rows; ``c, s`` = cos q, sin q."""
     for ic in range(bkind.shape[0]):
         kind = bkind[ic]
         if kind == _k.BAR_LINEAR:
@@ -102,7 +104,7 @@ def jacobian(ints, bkind, boff, brow, bnrows, pool, user, q, c, s, G):
         elif kind == _k.BAR_TRIG:
             _k.jacobian_trig(pool, boff[ic], bnrows[ic], c, s, G, brow[ic])
     if user[U_JACOBIANS] != 0:
-        st = call_user(user[U_JACOBIANS], 0.0, q, q, G, ints[0], ints[1])
+        st = call_user(user[U_JACOBIANS], 0.0, q, q, G, ints[0], G.shape[0])
         return 0 if st == 0 else st * 8 + U_JACOBIANS
     return 0
 

@@ -5,6 +5,8 @@ from numba import njit
 
 # status codes
 DONE, IMPACTS_FULL, SOLVER_FAILED, NONFINITE, NOT_SPD, NONFINITE_GAP, USER_FAILED, ENERGY_GROWTH = range(8)
+# (bilateral rows: inconsistent at a step, or not held by the position projection)
+CONSTRAINTS_INCONSISTENT, CONSTRAINTS_NOT_HELD = 8, 9
 # settings (int array)
 S_THETA, S_DRIFT, S_DRIFT_ITER, S_STRIDE, S_NSTEPS, S_METHOD, S_FALLBACK, S_ENERGY, S_MEMORY, S_LOCATE = range(10)
 # (S_ECHECK: the energy check's interval in steps, 0 = off; see moreau.run.energy)
@@ -27,13 +29,18 @@ F_H, F_T0, F_TOL, F_DRIFT_TOL, F_PE0, F_EWARN, F_ESTOP = range(7)
 # one's step index + 1, 0 = never; C_PAINLEVE_ROW: its first such row)
 C_REC, C_NIMP, C_SOLVES, C_FALLBACKS, C_CONTACT, C_PROJ, C_K, C_FAILKIND, C_USER, C_EWARN, C_ELEVEL = range(11)
 C_PAINLEVE, C_PAINLEVE_STEP, C_PAINLEVE_ROW = 11, 12, 13
-N_COUNTERS = 14
+# (C_EQROW: the bilateral row named by a CONSTRAINTS_* status)
+C_EQROW = 14
+N_COUNTERS = 15
 # accumulators (float array)
 # (the energy check: kinetic energy at the start, the largest so far, the unaccounted energy
 # at the warning and at the last check, the work of the bias terms)
 # (A_WORK_T: the work of the friction impulses)
 A_WORST, A_WORK_F, A_WORK_C, A_KE0, A_KEMAX, A_DU_WARN, A_DU, A_WORK_B, A_WORK_T = range(9)
-N_ACCUMULATORS = 9
+# (A_WORK_E: the work of the bilateral rows' impulses; A_EQRES: the largest |g_E| the
+# position projection left)
+A_WORK_E, A_EQRES = 9, 10
+N_ACCUMULATORS = 11
 
 # The step's parts are inlined into the loop by numba (IR level), as are the evaluation
 # functions (moreau.compiled.evaluate); the kernels and LCP routines they call are inlined by LLVM

@@ -17,6 +17,7 @@ import numpy as np
 from numba import njit
 
 from moreau.compiled import evaluate as ev
+from moreau.compiled.bilateral import _eq_hold, _eq_records, equality_work
 from moreau.compiled.drift import _project
 from moreau.compiled.energy import _energy_check, _kinetic_energy
 from moreau.compiled.friction import _friction_records, friction_work
@@ -67,19 +68,20 @@ from moreau.contact.lcp import workspace
 from moreau.core import kernels as _k
 
 
-def loop_workspace(n: int, m: int, mf: int, mu: np.ndarray, tangent_row: np.ndarray) -> tuple:
-    """The work arrays of :func:`run_chunk` for n coordinates, m rows and mf tangent rows
-    (friction; mu (m,) and tangent_row (m,) from the lowered scene), allocated once per
-    run, outside the loop: the loop itself allocates nothing. Plain numpy: allocating
-    compiles nothing."""
+def loop_workspace(n: int, m: int, mf: int, mu: np.ndarray, tangent_row: np.ndarray, me: int = 0) -> tuple:
+    """The work arrays of :func:`run_chunk` for n coordinates, m rows, mf tangent rows
+    (friction; mu (m,) and tangent_row (m,) from the lowered scene) and me bilateral
+    rows, allocated once per run, outside the loop: the loop itself allocates nothing.
+    Plain numpy: allocating compiles nothing."""
     mm = max(m, 1)
-    ma = max(m + mf, 1)  # the Jacobian's rows: contacts, then tangents
+    mt = m + mf + me  # the rows of the gaps and the Jacobian: contacts, tangents, bilateral
+    ma = max(mt, 1)
     own = (np.empty((n, n)), np.empty((n, n)), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n),
-           np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(m), np.empty(m),
-           np.zeros(m), np.zeros(m, dtype=np.bool_), np.empty((m + mf, n)), np.empty(n), np.empty(n))
+           np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.zeros(mt), np.zeros(mt),
+           np.zeros(m), np.zeros(m, dtype=np.bool_), np.empty((mt, n)), np.empty(n), np.empty(n))
     lw = (np.empty((ma, n)), np.empty(mm), np.empty(n), np.empty(n), np.empty(ma),
           np.empty((ma, n)), np.empty(n), np.zeros(n), np.zeros(mm, dtype=np.bool_))
-    return own, workspace(n, m), lw, friction_work(n, m, mf, mu, tangent_row)
+    return own, workspace(n, m), lw, friction_work(n, m, mf, mu, tangent_row), equality_work(n, me)
 
 
 @_part
@@ -232,7 +234,7 @@ def _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc
 
 @_part
 def _record(model, user, iset, fset, k, q, v, cq, sq, M, P_acc, act_acc, gq, T, Q, V, PS, ACT, GP, KE, PE, cnt,
-            PT_acc, PTS):
+            PT_acc, PTS, PE_acc):
     """Record the state after step k (and the impulses and activity summed since the last
     record, the gaps and, when asked, the energies); returns DONE or USER_FAILED."""
     ints, ekind, eoff, _, _, _, _, pool, _, _ = model
@@ -252,6 +254,11 @@ def _record(model, user, iset, fset, k, q, v, cq, sq, M, P_acc, act_acc, gq, T, 
         for r in range(m):
             PTS[rec, r] = PT_acc[r]
             PT_acc[r] = 0.0
+    m0 = m + ints[9]
+    for j in range(ints[10]):  # bilateral rows: impulses and residuals after the contact rows
+        PS[rec, m + j] = PE_acc[j]
+        GP[rec, m + j] = gq[m0 + j]
+        PE_acc[j] = 0.0
     if iset[S_ENERGY] == 1:
         status, ke = _kinetic_energy(model, user, q, v, cq, sq, M, cnt)
         if status != DONE:
@@ -291,8 +298,9 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
     stride, nsteps = iset[S_STRIDE], iset[S_NSTEPS]
     theta = iset[S_THETA] == 1 and ints[7] == 1
     const_mass = ints[2] == _k.MASS_CONST
-    own, ws, lw, fr = work
+    own, ws, lw, fr, eqw = work
     friction = ints[9] > 0
+    me = ints[10]
     M, L, cm, sm, cq, sq, qm, f, v_new, vbar, q_new, gm, gq, P, active, G, vfree, fb = own
     bias_work = iset[S_ECHECK] > 0 and ints[3] != 0
     if const_mass:
@@ -320,9 +328,11 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
                                  cnt):
                     return USER_FAILED
             code = _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, v_new, P,
-                                    active, G, cnt, acc, fail, ws, lw, last_imp, rs, fr)
+                                    active, G, cnt, acc, fail, ws, lw, last_imp, rs, fr, eqw)
             if code < 0:
                 return cnt[C_FAILKIND]
+        if me > 0:
+            _eq_records(n, m + ints[9], me, v, v_new, G, eqw, acc)
         wf = 0.0  # smooth-force work of the step, h fᵀ (v + v⁺)/2
         for i in range(n):
             wf += f[i] * (v[i] + v_new[i])
@@ -338,8 +348,12 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
             return NONFINITE
         # the energy check: every S_ECHECK steps, and after a step with a logged impact
         echeck = iset[S_ECHECK] > 0 and ((k + 1) % iset[S_ECHECK] == 0 or cnt[C_NIMP] > nimp)
-        if ints[8] and (m > 0 or iset[S_ENERGY] == 1 or echeck):
+        if ints[8] and (m > 0 or me > 0 or iset[S_ENERGY] == 1 or echeck):
             _k.trig(q_new, cq, sq)
+        if me > 0:  # positions held on the bilateral rows (before the contacts' drift control)
+            status = _eq_hold(model, user, q_new, cq, sq, gq, G, L, eqw, cnt, acc)
+            if status != DONE:
+                return status
         if m > 0:
             status = _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc, fail, eligible,
                                ws, lw, rs, in_contact, pen, gmax)
@@ -356,6 +370,6 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
                 return status
         if k % stride == 0 or k == nsteps:
             if _record(model, user, iset, fset, k, q, v, cq, sq, M, P_acc, act_acc, gq, T, Q, V, PS, ACT, GP, KE,
-                       PE, cnt, fr[3], PTS) != DONE:
+                       PE, cnt, fr[3], PTS, eqw[10]) != DONE:
                 return USER_FAILED
     return DONE

@@ -37,20 +37,24 @@ class CompiledScene:
     ----------
     ints : ndarray of int64
         ``[n, m, mass_kind, has_bias, mass_off, n_effects, n_contacts, velocity_dependent,
-        needs_trig, mf]`` (needs_trig: some kernel uses cos q, sin q; mf: the number of
-        tangent rows, 0 without friction).
+        needs_trig, mf, me, first_eq]`` (needs_trig: some kernel uses cos q, sin q; mf: the
+        number of tangent rows, 0 without friction; me: the number of bilateral rows, rows
+        m + mf ... of the gaps and the Jacobian; first_eq: the index of the first
+        constraint's barrier record).
     ekind, eoff : ndarray of int64, shape (n_effects,)
         Kernel code and pool offset of each effect.
-    bkind, boff, brow : ndarray of int64, shape (n_contacts + n_frictional,)
+    bkind, boff, brow : ndarray of int64, shape (n_contacts + n_frictional + n_constraints,)
         Kernel code, pool offset and first row of each contact's barrier, then of the
-        tangent rows of each contact with friction (rows m, m + 1, ... of the Jacobian).
-    bnrows : ndarray of int64, shape (n_contacts + n_frictional,)
+        tangent rows of each contact with friction (rows m, m + 1, ... of the Jacobian),
+        then of each bilateral constraint (rows m + mf, ...).
+    bnrows : ndarray of int64, shape (n_contacts + n_frictional + n_constraints,)
         Rows of each barrier.
     pool : ndarray of float64
         All parameters, flattened.
     restitution : ndarray, shape (m,)
-    activation_tol : ndarray, shape (m,)
-        A row is closed when its gap is at most this (see ``Scene.activation_tol``).
+    activation_tol : ndarray, shape (m + me,)
+        A row is closed when its gap is at most this (see ``Scene.activation_tol``); then
+        per bilateral row the |g| positions are held to (``Scene.constraint_hold_tol``).
     friction : ndarray, shape (m,)
         Friction coefficient per row.
     tangent_row : ndarray of int64, shape (m,)
@@ -197,16 +201,42 @@ def lower(scene: Scene) -> CompiledScene:
         bnrows.append(c.barrier.nrows)
         tmap[first:first + c.barrier.nrows] = scene.nrows + mf + np.arange(c.barrier.nrows)
         mf += c.barrier.nrows
+    # bilateral constraints: their rows after the tangent rows (rows m + mf, ... of the
+    # gaps and the Jacobian), each constraint one more barrier
+    first_eq = len(bkind)
+    me = 0
+    for bc in scene.constraints:
+        spec = bc.geometry.kernel()
+        rows_at = scene.nrows + mf + me
+        if spec is None:
+            raise NotCompilable(
+                f"constraint {bc.name!r} ({type(bc.geometry).__name__}) has no compiled kernel: its gap or "
+                "Jacobian is a plain Python callable; decorate both with @numba.njit to run compiled")
+        kind, params = spec
+        if kind == "user":
+            bkind.append(_k.BAR_USER)
+            boff.append(len(bar_fns))
+            bar_fns.append(tuple(params))
+            bar_rows.append(rows_at)
+            bar_nrows.append(bc.nrows)
+            bar_names.append(bc.name)
+        else:
+            bkind.append(kind)
+            boff.append(pool.add(*params))
+        brow.append(rows_at)
+        bnrows.append(bc.nrows)
+        me += bc.nrows
     i64 = lambda x: np.array(x, dtype=np.int64)  # noqa: E731
     needs_trig = (mass_kind == _k.MASS_CHAIN or any(k in (_k.TRIG, _k.FOURIER_PT) for k in ekind)
                   or any(k == _k.BAR_TRIG for k in bkind))
     ints = i64([n, scene.nrows, mass_kind, int(has_bias), mass_off, len(ekind), len(scene.contacts),
-                int(scene.velocity_dependent), int(needs_trig), mf])
+                int(scene.velocity_dependent), int(needs_trig), mf, me, first_eq])
     return CompiledScene(
         ints=ints, ekind=i64(ekind), eoff=i64(eoff), bkind=i64(bkind), boff=i64(boff),
         brow=i64(brow), bnrows=i64(bnrows), pool=pool.array(),
         restitution=np.ascontiguousarray(scene.restitution, dtype=float),
-        activation_tol=np.ascontiguousarray(scene.activation_tol, dtype=float),
+        activation_tol=np.ascontiguousarray(np.concatenate([scene.activation_tol, scene.constraint_hold_tol]),
+                                            dtype=float),
         friction=np.ascontiguousarray(scene.friction, dtype=float), tangent_row=tmap,
         user=_user(scene, mass_fun, bias_fun, force_fns, force_names, bar_fns, bar_rows, bar_nrows, bar_names),
         user_callables={"mass": [(type(sysm).__name__ + ".mass", mass_fun)],

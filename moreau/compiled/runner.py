@@ -88,9 +88,11 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     T = np.empty(n_rec)
     Q = np.empty((n_rec, n))
     V = np.empty((n_rec, n))
-    PS = np.zeros((n_rec, m))
+    me = scene.nconstraints
+    # the bilateral rows' impulses and residuals are recorded after the contact rows
+    PS = np.zeros((n_rec, m + me))
     ACT = np.zeros((n_rec, m), dtype=np.bool_)
-    GP = np.full((n_rec, m), np.nan)
+    GP = np.full((n_rec, m + me), np.nan)
     KE = np.full(n_rec, np.nan)
     PE = np.full(n_rec, np.nan)
     T[0], Q[0], V[0] = t0, q0, v0
@@ -112,7 +114,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     user = cs.user.addresses
     run = lp.run_chunk
     mf = int(cs.ints[9])
-    work = lp.loop_workspace(n, m, mf, cs.friction, cs.tangent_row)
+    work = lp.loop_workspace(n, m, mf, cs.friction, cs.tangent_row, me)
     PTS = np.zeros((n_rec, m) if mf else (1, m))
 
     status, message, interrupt = "completed", "", None
@@ -121,8 +123,10 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     code = lay.DONE
     try:  # from here on a Ctrl-C (or SIGTERM) keeps what exists: the first call of each
         # kernel in a new process loads its machine code, which takes a moment
+        if me:
+            GP[0, m:] = scene.constraint_gaps(q0)
         if m:
-            GP[0] = scene.gaps(q0)
+            GP[0, :m] = scene.gaps(q0)
             gmax[:] = gmax0
             rs[:, lay.R_GAP] = GP[0]
         acc[lay.A_KE0] = acc[lay.A_KEMAX] = scene.kinetic_energy(q0, v0)
@@ -163,7 +167,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
         try:
             traj, error = _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE, IMP,
                                     q, v, P_acc, act_acc, pen, cnt, acc, fail, cs, t0, h, stride, solver,
-                                    fallback, energy, wall, PTS if mf else None, work[3][3], tol)
+                                    fallback, energy, wall, PTS if mf else None, work[3][3], tol, work[4][10])
             break
         except KeyboardInterrupt as exc:
             if interrupt is None:
@@ -188,26 +192,31 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
 
 def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE, IMP, q, v, P_acc, act_acc,
               pen, cnt, acc, fail, cs, t0, h, stride, solver, fallback, energy, wall, PTS=None, PT_acc=None,
-              tol=float("nan")):
+              tol=float("nan"), PE_acc=None):
     """The Trajectory (and the error to raise, if any) from the loop's buffers (``PTS``:
     the tangential impulses of a scene with friction, else None)."""
     m = scene.nrows
+    me = scene.nconstraints
     error = None
     k = int(cnt[lay.C_K])
     t_now = t0 + k * h
     if code != lay.DONE and status == "completed":
         status = "failed"
-        error = _error(code, scene, k, t_now, q, v, h, fail, cs, int(cnt[lay.C_USER]), acc, tol)
+        error = _error(code, scene, k, t_now, q, v, h, fail, cs, int(cnt[lay.C_USER]), acc, tol,
+                       cnt[lay.C_EQROW:lay.C_EQROW + 1])
         message = str(error)
     rec = int(cnt[lay.C_REC])
     if status != "completed" and T[rec - 1] != t_now and rec < n_rec + 1:
         # keep the last good state even when it falls between two records
         T, Q, V, PS, ACT, GP, KE, PE = (np.concatenate([a[:rec], a[:1]]) for a in (T, Q, V, PS, ACT, GP, KE, PE))
-        T[rec], Q[rec], V[rec], PS[rec], ACT[rec] = t_now, q, v, P_acc, act_acc
+        T[rec], Q[rec], V[rec], PS[rec, :m], ACT[rec] = t_now, q, v, P_acc, act_acc
         if PTS is not None:
             PTS = np.concatenate([PTS[:rec], PT_acc[None, :]])
         if m:
-            GP[rec] = scene.gaps(q)
+            GP[rec, :m] = scene.gaps(q)
+        if me:
+            PS[rec, m:] = PE_acc[:me]
+            GP[rec, m:] = scene.constraint_gaps(q)
         if energy:
             KE[rec], PE[rec] = scene.kinetic_energy(q, v), scene.potential_energy(q)
         rec += 1
@@ -227,17 +236,22 @@ def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE,
         backend="compiled",
     )
     traj = assemble(
-        scene, t=T[:rec], q=Q[:rec], v=V[:rec], impulses=PS[:rec], active=ACT[:rec], onsets=onsets, stats=stats,
+        scene, t=T[:rec], q=Q[:rec], v=V[:rec], impulses=np.ascontiguousarray(PS[:rec, :m]), active=ACT[:rec],
+        onsets=onsets, stats=stats,
         h=h, stride=stride, status=status, message=message, max_penetration=pen.copy(), energy=energy,
         work={"forces": float(acc[lay.A_WORK_F]), "contacts": float(acc[lay.A_WORK_C]),
-              **({"friction": float(acc[lay.A_WORK_T])} if PTS is not None else {})},
-        gaps=GP[:rec], kinetic=KE[:rec] if energy else None, potential=PE[:rec] if energy else None,
+              **({"friction": float(acc[lay.A_WORK_T])} if PTS is not None else {}),
+              **({"constraints": float(acc[lay.A_WORK_E])} if me else {})},
+        gaps=np.ascontiguousarray(GP[:rec, :m]), kinetic=KE[:rec] if energy else None,
+        potential=PE[:rec] if energy else None,
         tangential_impulses=PTS[:rec] if PTS is not None else None,
+        constraint_impulses=np.ascontiguousarray(PS[:rec, m:]) if me else None,
+        constraint_residuals=np.ascontiguousarray(GP[:rec, m:]) if me else None,
     )
     return traj, error
 
 
-def _error(code, scene, k, t, q, v, h, fail, cs, user_status, acc, tol=float("nan")):
+def _error(code, scene, k, t, q, v, h, fail, cs, user_status, acc, tol=float("nan"), cnt_row=None):
     where = f"at step {k} (t = {t:.9g})"
     if code == lay.ENERGY_GROWTH:
         return SimulationError(energy_growth_message(scene, t, q, v, float(acc[lay.A_DU]), float(acc[lay.A_KEMAX]), h),
@@ -261,6 +275,15 @@ def _error(code, scene, k, t, q, v, h, fail, cs, user_status, acc, tol=float("na
                                         fail[i, :4].tolist())) for i in range(2)}
         return SolverError(f"contact solve failed {where}, active rows {rows}: {residuals}",
                            step=k, t=t, rows=rows, residuals=residuals)
+    if code in (lay.CONSTRAINTS_INCONSISTENT, lay.CONSTRAINTS_NOT_HELD):
+        row = scene.constraint_names[int(cnt_row[0])] if cnt_row is not None else "?"
+        if code == lay.CONSTRAINTS_INCONSISTENT:
+            msg = (f"the bilateral constraints are inconsistent {where}: row {row!r} cannot be held together "
+                   "with the others")
+        else:
+            msg = (f"the bilateral constraints could not be held {where}: row {row!r} stayed off g = 0 after the "
+                   "projection steps (a singular configuration, or a step too large for the motion)")
+        return SolverError(msg, step=k, t=t, rows=[row], residuals={})
     if code == lay.NOT_SPD:
         msg = (f"the mass matrix stopped being symmetric positive definite {where}: "
                f"M = {scene.system.mass_matrix(q + 0.5 * h * v).tolist()}")

@@ -10,6 +10,7 @@ import math
 import numpy as np
 
 from moreau.compiled import evaluate as ev
+from moreau.compiled.bilateral import _eq_finish, _eq_prepare
 from moreau.compiled.friction import _friction_solve
 from moreau.compiled.layout import (  # the loop's layout
     A_WORST,
@@ -35,6 +36,7 @@ from moreau.compiled.layout import (  # the loop's layout
     USER_FAILED,
 )
 from moreau.compiled.layout import part as _part
+from moreau.contact.equality import eq_reduce_rows
 from moreau.contact.lcp import kkt_residuals_kernel, solve_one_step
 from moreau.core import kernels as _k
 
@@ -105,7 +107,7 @@ def _free_acceleration(n, const_mass, Minv, L, f, out):
 
 @_part
 def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, v_new, P, active,
-                     GA_all, cnt, acc, fail, ws, lw, last_imp, rs, fr):
+                     GA_all, cnt, acc, fail, ws, lw, last_imp, rs, fr, eqw):
     """v⁺ with the contacts closed at qm (gaps ``gm``); returns 1 (contact), 0 (free) or
     −1 (failed: the solve, or a user callable; the status is in ``cnt[C_FAILKIND]``).
     ``P`` (m,) and ``active`` (m,) are set for the step.
@@ -119,7 +121,10 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     2 g(q_m) − g(q_k) + h²/2 G M⁻¹ f <= 0). Newton's law is :func:`moreau.core.kernels.impact_law`.
     ``rs`` (m, 6) holds per row the gap at q_k, the gap the projection left it at, the
     pinned and bounced flags, and a bounced row's h/2 − s and (2 s − h) a_n (columns
-    ``R_GAP`` ... ``R_SHIFT``). ``fr``: the friction arrays (:mod:`moreau.compiled.friction`)."""
+    ``R_GAP`` ... ``R_SHIFT``). ``fr``: the friction arrays (:mod:`moreau.compiled.friction`);
+    ``eqw``: the bilateral rows' (:mod:`moreau.compiled.bilateral`): with bilateral rows
+    every step solves the reduced problem in their null space (the contact rows, if any,
+    with it), as ``EqualityRows.velocity`` does."""
     ints, _, _, bkind, boff, brow, bnrows, pool, e, atol = model
     n, m = ints[0], ints[1]
     h = fset[F_H]
@@ -145,6 +150,26 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
             rs[r, R_SHIFT] = 0.0
         P[r] = 0.0
     na = _count(active, m)
+    me = ints[10]
+    m0 = m + ints[9]
+    if na == 0 and me > 0:  # no contact row: the bilateral rows alone
+        if not locate:
+            if _user_failed(ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, GA_all), cnt):
+                return -1
+        b = lw[3]
+        for i in range(n):
+            s = h * f[i]
+            for l in range(n):
+                s += M[i, l] * v[l]
+            b[i] = s
+        rank = _eq_prepare(n, m0, me, L, GA_all, v, b, eqw, cnt)
+        if rank < 0:
+            return -1
+        by = eqw[5]
+        for i in range(n):
+            v_new[i] = by[i]
+        _eq_finish(n, m, m0, me, rank, M, L, b, GA_all, P, v_new, eqw)
+        return 0
     if na == 0:
         if not locate:
             _free_acceleration(n, ints[2] == _k.MASS_CONST, Minv, L, f, rhs)
@@ -193,9 +218,17 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
         b[i] = s
     PA = lw[4]
     solved = 0
-    if ints[9] > 0:  # friction: the tangent rows join (Lemke's method)
+    Ms, Ls, bs = M, L, b
+    rank = 0
+    if me > 0:  # bilateral rows: the contact rows solved in their null space (M = I there)
+        rank = _eq_prepare(n, m0, me, L, GA_all, v, b, eqw, cnt)
+        if rank < 0:
+            return -1
+        eq_reduce_rows(L, eqw[0], rank, GA, 0, na, cA, eqw[4], eqw[3])
+        Ms, Ls, bs = eqw[8], eqw[8], eqw[5]
+    elif ints[9] > 0:  # friction: the tangent rows join (Lemke's method)
         solved = _friction_solve(n, m, M, L, b, GA_all, GA, cA, active, na, v_new, PA, fset, acc, fail, fr, cnt)
-    if solved < 0 or (solved == 0 and not _contact_solve(M, L, b, GA, cA, na, v_new, PA, iset, fset, cnt, acc,
+    if solved < 0 or (solved == 0 and not _contact_solve(Ms, Ls, bs, GA, cA, na, v_new, PA, iset, fset, cnt, acc,
                                                           fail, ws)):
         cnt[C_FAILKIND] = SOLVER_FAILED
         return -1
@@ -204,4 +237,6 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
         if active[r]:
             P[r] = PA[j]
             j += 1
+    if me > 0:
+        _eq_finish(n, m, m0, me, rank, M, L, b, GA_all, P, v_new, eqw)
     return 1

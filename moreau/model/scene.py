@@ -16,6 +16,7 @@ from typing import Any, cast
 import numpy as np
 
 from moreau.model.barriers import Barrier
+from moreau.model.constraints import Bilateral
 from moreau.model.forces import Effect
 from moreau.model.laws import NewtonImpact, NewtonImpactFriction
 from moreau.model.system import MechanicalSystem, check_spd
@@ -93,6 +94,9 @@ class Scene:
         Smooth forces; only these are ever evaluated.
     contacts : sequence of Contact
         Unilateral constraints with their impact laws.
+    constraints : sequence of Bilateral
+        Rows g(q) = 0 held both ways (joints, closed loops); see
+        :mod:`moreau.model.constraints`.
     name : str
         Label in results.
     units : dict, optional
@@ -125,6 +129,14 @@ class Scene:
     conservative : bool
         True when every effect has a potential and there are no velocity-dependent
         effects: then :meth:`energy` is the conserved total energy.
+    nconstraints : int
+        Number of bilateral rows k_E (sum over ``constraints``).
+    constraint_names : list of str
+        Label per bilateral row.
+    constraint_gaps, constraint_jacobian : callable or None
+        ``g_E(q)`` (k_E,) and ``G_E(q)`` (k_E, n) of all bilateral rows; None without.
+    constraint_hold_tol : ndarray, shape (k_E,)
+        Per bilateral row, the |g_E| positions are held to after every step.
     """
 
     def __init__(
@@ -134,6 +146,7 @@ class Scene:
         contacts: Sequence[Contact] = (),
         name: str = "scene",
         units: Mapping[str, Any] | None = None,
+        constraints: Sequence[Bilateral] = (),
     ) -> None:
         if not isinstance(system, MechanicalSystem):
             raise ValueError(f"Scene: system must be a MechanicalSystem, got {system!r}")
@@ -151,6 +164,19 @@ class Scene:
                 )
         if len(set(names)) != len(names):
             raise ValueError(f"Scene: contact names must be unique, got {names}")
+        self.constraints = _as_tuple(constraints, Bilateral, "constraints")
+        cnames = [c.name for c in self.constraints]
+        if len(set(cnames)) != len(cnames):
+            raise ValueError(f"Scene: constraint names must be unique, got {cnames}")
+        for c in self.constraints:
+            if c.geometry.ndof is not None and c.geometry.ndof != self.ndof:
+                raise ValueError(f"Scene: constraint {c.name!r} expects {c.geometry.ndof} coordinates, "
+                                 f"the system has {self.ndof}")
+        self.nconstraints = sum(c.nrows for c in self.constraints)
+        self.constraint_names = [r for c in self.constraints for r in c.row_names()]
+        self.constraint_hold_tol = (np.concatenate([c.hold_tol() for c in self.constraints])
+                                    if self.constraints else np.zeros(0))
+        self.constraint_gaps, self.constraint_jacobian = _stacked([c.geometry for c in self.constraints])
 
         self.nrows = sum(c.barrier.nrows for c in self.contacts)
         self.units = complete_units(units, self.ndof, self.nrows)
@@ -161,6 +187,12 @@ class Scene:
             np.concatenate([c.friction for c in self.contacts]) if self.contacts else np.zeros(0)
         )
         self.has_friction = bool(np.any(self.friction > 0.0))
+        if self.has_friction and self.constraints:
+            raise ValueError(
+                "Scene: friction together with bilateral constraints is not supported yet: the tangent rows "
+                "of the reduced problem need a velocity offset the friction solve does not take (contacts with "
+                "NewtonImpactFriction: " + ", ".join(c.name for c in self.contacts if np.any(c.friction > 0.0))
+                + "; constraints: " + ", ".join(c.name for c in self.constraints) + ")")
         self.row_contact = np.concatenate(
             [np.full(c.barrier.nrows, i) for i, c in enumerate(self.contacts)]
         ).astype(int) if self.contacts else np.zeros(0, dtype=int)
@@ -283,6 +315,51 @@ class Scene:
                 if T.shape != (b.nrows, n) or not np.all(np.isfinite(T)):
                     raise ValueError(f"tangent rows of contact {c.name!r}{where} have shape {T.shape}, "
                                      f"expected ({b.nrows}, {n}), or are not finite: {T.tolist()}")
+        for bc in self.constraints:
+            geo = bc.geometry
+            g = np.asarray(geo.gap(q), dtype=float)
+            if g.shape != (geo.nrows,) or not np.all(np.isfinite(g)):
+                raise ValueError(f"gap of constraint {bc.name!r}{where} has shape {g.shape}, expected "
+                                 f"({geo.nrows},), or is not finite: {g.tolist()}")
+            G = np.asarray(geo.jacobian(q), dtype=float)
+            if G.shape != (geo.nrows, n) or not np.all(np.isfinite(G)):
+                raise ValueError(f"Jacobian of constraint {bc.name!r}{where} has shape {G.shape}, expected "
+                                 f"({geo.nrows}, {n}), or is not finite: {G.tolist()}")
+
+    def check_constraints(self, q: np.ndarray, v: np.ndarray, tol: float = 1e-8, where: str = "") -> None:
+        """Refuse a state off the constraints: ``|g_E(q)|`` above ``tol`` (times max(1,
+        the row's gap scale)), or a velocity that breaks them, ``|G_E v|`` above ``tol``
+        times the velocity scale ``max(1e-300, |G_E||v|)``; ``ValueError`` naming the rows
+        and values (:meth:`constrained_velocity` gives a consistent v)."""
+        if not self.nconstraints:
+            return
+        g = np.asarray(self.constraint_gaps(q), dtype=float)
+        lim = tol * np.maximum(1.0, self.constraint_hold_tol / 1e-12)
+        bad = np.flatnonzero(~(np.abs(g) <= lim))
+        if bad.size:
+            rows = {self.constraint_names[i]: float(g[i]) for i in bad}
+            raise ValueError(f"the constraints are not satisfied{where}: g(q0) = {rows} (|g| must be at most "
+                             f"{tol:g} in the gap's unit; the rows are held at 0)")
+        G = np.asarray(self.constraint_jacobian(q), dtype=float)
+        u = G @ v
+        scale = np.abs(G) @ np.abs(v)
+        bad = np.flatnonzero(~(np.abs(u) <= tol * np.maximum(scale, 1e-300)))
+        if bad.size:
+            rows = {self.constraint_names[i]: float(u[i]) for i in bad}
+            raise ValueError(f"the velocity breaks the constraints{where}: G v0 = {rows} (must be 0; "
+                             "scene.constrained_velocity(q0, v0) projects v0 onto them)")
+
+    def constrained_velocity(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """The velocity closest to v in the metric of M(q) with ``G_E(q) v = 0`` (the
+        same projection the step uses); v itself without constraints."""
+        v = np.asarray(v, dtype=float)
+        if not self.nconstraints:
+            return v.copy()
+        M = np.asarray(self.system.mass_matrix(q), dtype=float)
+        G = np.asarray(self.constraint_jacobian(q), dtype=float)
+        MinvGt = np.linalg.solve(M, G.T)
+        lam = np.linalg.lstsq(G @ MinvGt, G @ v, rcond=1e-12)[0]
+        return v - MinvGt @ lam
 
     def describe(self) -> dict[str, Any]:
         """The scene's parameters as JSON-serializable data (saved with results)."""
@@ -296,12 +373,26 @@ class Scene:
                 for c in self.contacts
             ],
             "units": self.units,
+            **({"constraints": [c.describe() for c in self.constraints]} if self.constraints else {}),
         }
 
     def __repr__(self) -> str:
         eff = ", ".join(e.name for e in self.effects) or "none"
         con = ", ".join(c.name for c in self.contacts) or "none"
-        return f"Scene({self.name!r}, ndof={self.ndof}, effects=[{eff}], contacts=[{con}])"
+        bil = f", constraints=[{', '.join(c.name for c in self.constraints)}]" if self.constraints else ""
+        return f"Scene({self.name!r}, ndof={self.ndof}, effects=[{eff}], contacts=[{con}]{bil})"
+
+
+def _stacked(bars: list[Barrier]) -> tuple[GapFn | None, GapFn | None]:
+    """``(g(q), G(q))`` of several barriers stacked (None, None for none)."""
+    if not bars:
+        return None, None
+    if len(bars) == 1:
+        return bars[0].gap, bars[0].jacobian
+    gaps = [b.gap for b in bars]
+    jacs = [b.jacobian for b in bars]
+    return (lambda q: np.concatenate([np.asarray(g(q), dtype=float) for g in gaps])), (
+        lambda q: np.vstack([np.asarray(j(q), dtype=float) for j in jacs]))
 
 
 def _as_tuple(items: Any, kind: type, what: str) -> tuple[Any, ...]:

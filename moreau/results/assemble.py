@@ -22,13 +22,15 @@ def assemble(scene: Any, *, t: np.ndarray, q: np.ndarray, v: np.ndarray, impulse
              message: str, work: dict[str, float], max_penetration: np.ndarray, energy: bool,
              gaps: np.ndarray | None = None, kinetic: np.ndarray | None = None,
              potential: np.ndarray | None = None, tangential_impulses: np.ndarray | None = None,
-             slip: np.ndarray | None = None) -> Trajectory:
+             slip: np.ndarray | None = None, constraint_impulses: np.ndarray | None = None,
+             constraint_residuals: np.ndarray | None = None) -> Trajectory:
     """The Trajectory of a run from its records (arrays of N records, time-major).
 
     ``gaps``, ``kinetic`` and ``potential`` are what the loop computed at the records (the
     compiled loop does); the ones not given (the Python loop) are evaluated here on the
     recorded states. With friction (``tangential_impulses`` given) the slip velocities
-    ``T(q) v`` at the records likewise. A model function failing in that evaluation leaves NaN and a warning:
+    ``T(q) v`` at the records likewise, and with bilateral constraints their residuals
+    ``g_E(q)``. A model function failing in that evaluation leaves NaN and a warning:
     the trajectory is kept (the failure may be why the run stopped).
     """
     m = scene.nrows
@@ -41,6 +43,10 @@ def assemble(scene: Any, *, t: np.ndarray, q: np.ndarray, v: np.ndarray, impulse
         potential = _per_record(lambda i: scene.potential_energy(q[i]), N, (N,), "potential energy")
     if tangential_impulses is not None and slip is None:  # the slip velocities T(q) v at the records
         slip = _per_record(lambda i: scene.tangent_jacobian(q[i]) @ v[i], N, (N, m), "slip velocities")
+    me = getattr(scene, "nconstraints", 0)
+    if me and constraint_residuals is None:
+        constraint_residuals = _per_record(lambda i: scene.constraint_gaps(q[i]), N, (N, me),
+                                           "constraint residuals")
     sticking = None
     if tangential_impulses is not None:  # strictly inside the cone: Coulomb's law holds the slip at 0
         bound = (1.0 - 1e-9) * np.asarray(scene.friction) * impulses
@@ -52,6 +58,9 @@ def assemble(scene: Any, *, t: np.ndarray, q: np.ndarray, v: np.ndarray, impulse
         kinetic_energy=kinetic if energy else None, potential_energy=potential if energy else None,
         status=status, message=message, version=__version__, max_penetration=max_penetration, work=work,
         tangential_impulses=tangential_impulses, slip_velocity=slip, sticking=sticking,
+        constraint_impulses=constraint_impulses if me else None,
+        constraint_residuals=constraint_residuals if me else None,
+        constraint_names=list(getattr(scene, "constraint_names", [])),
     )
 
 

@@ -99,6 +99,15 @@ class Trajectory:
         record and its friction impulse stayed strictly inside the cone,
         ``|P_T| < mu P_N`` (Coulomb's law then holds the slip at zero); a sliding row
         is on the cone's edge. None without friction.
+    constraint_impulses : ndarray, shape (N, k_E) or None
+        With bilateral constraints (``Scene(constraints=...)``): the impulses of their
+        rows summed since the previous record (either sign; zero on a redundant row), in
+        the impulse unit; None without constraints.
+    constraint_residuals : ndarray, shape (N, k_E) or None
+        With bilateral constraints: ``g_E(q)`` at the records (held at 0 to about 1e-12
+        of the rows' scale by the projection after every step).
+    constraint_names : list of str
+        Names of the k_E bilateral rows (empty without).
     """
 
     t: np.ndarray
@@ -127,6 +136,9 @@ class Trajectory:
     tangential_impulses: np.ndarray | None = None
     slip_velocity: np.ndarray | None = None
     sticking: np.ndarray | None = None
+    constraint_impulses: np.ndarray | None = None
+    constraint_residuals: np.ndarray | None = None
+    constraint_names: list[str] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         ndof = self.q.shape[1] if self.q.ndim == 2 else 0
@@ -206,13 +218,14 @@ class Trajectory:
             "work": self.work,
             "warnings": self.warnings,
             "units": self.units,
+            "constraint_names": self.constraint_names,
         }
         arrays: dict[str, Any] = {
             "t": self.t, "q": self.q, "v": self.v, "gaps": self.gaps,
             "impulses": self.impulses, "active": self.active,
         }
         for name in ("energy", "kinetic_energy", "potential_energy", "max_penetration", "tangential_impulses",
-                     "slip_velocity", "sticking"):
+                     "slip_velocity", "sticking", "constraint_impulses", "constraint_residuals"):
             if getattr(self, name) is not None:
                 arrays[name] = getattr(self, name)
         for name in _impact_arrays():
@@ -286,7 +299,9 @@ class Trajectory:
                 max_penetration=data.get("max_penetration"), work=meta.get("work", {}),
                 warnings=list(meta.get("warnings", [])), units=meta.get("units", {}),
                 tangential_impulses=data.get("tangential_impulses"), slip_velocity=data.get("slip_velocity"),
-                sticking=data.get("sticking"),
+                sticking=data.get("sticking"), constraint_impulses=data.get("constraint_impulses"),
+                constraint_residuals=data.get("constraint_residuals"),
+                constraint_names=list(meta.get("constraint_names", [])),
             )
         except (KeyError, TypeError) as exc:
             raise ValueError(f"trajectory file {path!r} is incomplete: missing {exc}") from None
@@ -294,7 +309,8 @@ class Trajectory:
             raise ValueError(f"trajectory file {path!r}: {exc}") from None
         N = traj.t.shape[0]
         for name in ("q", "v", "gaps", "impulses", "active", "energy", "kinetic_energy", "potential_energy",
-                     "tangential_impulses", "slip_velocity", "sticking"):
+                     "tangential_impulses", "slip_velocity", "sticking", "constraint_impulses",
+                     "constraint_residuals"):
             a = getattr(traj, name)
             if a is not None and a.shape[0] != N:
                 raise ValueError(f"trajectory file {path!r} is inconsistent: {name} has "

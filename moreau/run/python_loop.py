@@ -40,6 +40,10 @@ def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, s
     ACT = np.zeros((n_rec, m), dtype=bool)
     friction = scene.has_friction
     PTS = np.zeros((n_rec, m) if friction else (0, m))  # tangential impulses per record
+    me = scene.nconstraints
+    PES = np.zeros((n_rec, me))  # the bilateral rows' impulses per record
+    PE_acc = np.zeros(me)
+    eq = integ._eq
     T[0], Q[0], V[0] = t0, integ.q, integ.v
     rec = 1
     impacts: list[ImpactRow] = []
@@ -64,6 +68,8 @@ def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, s
         step, gaps_at = integ.step, integ.gaps_at
         for k in range(1, n_steps + 1):
             contact = step()
+            if eq is not None:
+                PE_acc += eq.PE
             if has_contacts:
                 if contact:
                     P = integ.P
@@ -86,6 +92,9 @@ def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, s
                 n_impacts = len(impacts)
             if k % stride == 0 or k == n_steps:
                 T[rec], Q[rec], V[rec] = integ.t, integ.q, integ.v
+                if me:
+                    PES[rec] = PE_acc
+                    PE_acc[:] = 0.0
                 if has_contacts:
                     PS[rec] = P_acc
                     ACT[rec] = act_acc
@@ -122,6 +131,7 @@ def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, s
     if status != "completed" and T[rec - 1] != integ.t:
         # keep the last good state even when it falls between two records
         T[rec], Q[rec], V[rec] = integ.t, integ.q, integ.v
+        PES[rec] = PE_acc
         if has_contacts:
             PS[rec], ACT[rec] = P_acc, act_acc
             if friction:
@@ -136,8 +146,10 @@ def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, s
     traj = assemble(scene, t=T[:rec], q=Q[:rec], v=V[:rec], impulses=PS[:rec], active=ACT[:rec],
                     onsets=ImpactLog.from_rows(impacts), stats=stats, h=h, stride=stride, status=status,
                     message=message, work={"forces": integ.work_forces, "contacts": integ.work_contacts,
-                                           **({"friction": integ.work_friction} if friction else {})},
-                    max_penetration=pen, energy=energy, tangential_impulses=PTS[:rec] if friction else None)
+                                           **({"friction": integ.work_friction} if friction else {}),
+                                           **({"constraints": integ.work_constraints} if me else {})},
+                    max_penetration=pen, energy=energy, tangential_impulses=PTS[:rec] if friction else None,
+                    constraint_impulses=PES[:rec] if me else None)
     for said in (check.warned, integ.painleve):
         if said is not None:
             traj.warnings.append(said)

@@ -133,9 +133,17 @@ class OneStepIntegrator(ABC):
         self._impacts_only = bool(getattr(self.drift_control, "impacts_only", False))
         self._memory = int(getattr(self.drift_control, "memory", 0))
         self._locate = bool(getattr(self.drift_control, "locate_impacts", False))
-        self.solver.setup(n, m, self._M if self._constant_mass else None)
+        # with bilateral rows the solvers see the reduced problem (moreau.contact.equality),
+        # whose mass matrix is the identity
+        from moreau.step.bilateral import EqualityRows
+
+        self._eq = EqualityRows(scene) if scene.nconstraints else None
+        setup_mass = np.eye(n) if self._eq is not None else self._M if self._constant_mass else None
+        self.solver.setup(n, m, setup_mass)
         if self.fallback is not None:
-            self.fallback.setup(n, m, self._M if self._constant_mass else None)
+            self.fallback.setup(n, m, setup_mass)
+        #: the work of the bilateral rows' impulses (0 up to round-off: ideal joints)
+        self.work_constraints = 0.0
         self.t0 = t0
         self.t, self.q, self.v, self.k = t0, q0, v0, 0
         self.active = np.zeros(m, dtype=bool)

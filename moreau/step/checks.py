@@ -54,6 +54,7 @@ def check_initial_state(scene: Scene, t0: Any, q0: Any, v0: Any,
     q0 = as_vector(q0, "q0", n)
     v0 = as_vector(v0, "v0", n)
     scene.check_state(t0, q0, v0, where=" at the initial state")
+    scene.check_constraints(q0, v0, where=" at the initial state")
     if m:
         assert scene.gaps is not None  # a scene with rows has gaps
         g0 = np.asarray(scene.gaps(q0), dtype=float)

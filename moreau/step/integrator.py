@@ -117,7 +117,10 @@ class MoreauJeanMidpoint(OneStepIntegrator):
                 # tangent rows only when an active row has friction (else the frictionless
                 # solve, as the compiled step does)
                 T = self.tangent_at(qm, v) if scene.has_friction and (self._mu[rows] > 0.0).any() else None
-                v_new, PA = self._solve_contact(M, b, G, c, rows, L=L, T=T)
+                if self._eq is not None:  # bilateral rows: the same solve in their null space
+                    v_new, PA = self._eq.velocity(self, qm, M, L, b, v, G, c, rows)
+                else:
+                    v_new, PA = self._solve_contact(M, b, G, c, rows, L=L, T=T)
                 P = np.zeros(scene.nrows)
                 P[rows] = PA
                 self.active, self.P = active, P
@@ -130,6 +133,8 @@ class MoreauJeanMidpoint(OneStepIntegrator):
                     self._T = None
                 self._last = (M, G, v, v_new, P)
                 return v_new, True
+        if self._eq is not None:  # bilateral rows: held in every step
+            return self._eq.velocity(self, qm, M, L, M @ v + h * f, v, None, None, None)[0], False
         if self._Minv is not None:  # a constant mass matrix
             return v + h * (self._Minv @ f), False
         return v + h * _solve_with(L, f), False  # the step's one factorization
@@ -164,6 +169,9 @@ class MoreauJeanMidpoint(OneStepIntegrator):
         self.contact_step = contact
         if contact:
             self.last_impulse_step[self.P > 0.0] = self.k
+        if self._eq is not None:  # the bilateral rows: their (zero) work, positions held on them
+            self.work_constraints += self._eq.work(self.v, v_new)
+            q_new = self._eq.hold(self, q_new)
         if self.drift_control is not None and self.scene.nrows:
             q_new = self.drift_control.project(self, q_new)
         self.q = q_new

@@ -1,0 +1,143 @@
+"""Bilateral rows in the compiled step: the velocity update in the null space of the
+equality rows, their impulses and work, and the projection that holds positions on
+g_E(q) = 0 — the twin of :mod:`moreau.step.bilateral`, with the kernels of
+:mod:`moreau.contact.equality`. The parts are inlined into the loop, in branches taken
+only by scenes with constraints (``ints[10] > 0``)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from moreau.compiled import evaluate as ev
+from moreau.compiled.layout import (
+    A_EQRES,
+    A_WORK_E,
+    C_EQROW,
+    C_FAILKIND,
+    C_USER,
+    CONSTRAINTS_INCONSISTENT,
+    CONSTRAINTS_NOT_HELD,
+    DONE,
+    USER_FAILED,
+)
+from moreau.compiled.layout import part as _part
+from moreau.contact.equality import MAX_HOLD_ITERATIONS, eq_basis, eq_free, eq_impulses, eq_particular, eq_velocity
+from moreau.core import kernels as _k
+
+__all__ = ["equality_work", "bilateral_parts"]
+
+
+def equality_work(n: int, me: int) -> tuple:
+    """The bilateral rows' work arrays: ``(Q, R, piv, x, y, by, PE, F, eye, yv, PE_acc, cE)``
+    (numpy: allocating compiles nothing)."""
+    k = max(me, 1)
+    return (np.empty((n, n)), np.empty((n, k)), np.zeros(k, dtype=np.int64), np.empty(n), np.zeros(n),
+            np.empty(n), np.zeros(k), np.empty(n), np.eye(n), np.zeros(n), np.zeros(k), np.zeros(k))
+
+
+@_part
+def _eq_prepare(n, m0, me, L, G, v, b, eqw, cnt):
+    """The basis of the bilateral rows (rows m0 .. m0+me of G at the midpoint), y₁ from
+    ``c_E = −G_E v``, and ``b_y`` of the reduced problem (from ``b`` = M v + h f); returns
+    the rank, or −1 when the rows are inconsistent (the row in ``cnt[C_EQROW]``)."""
+    Q, R, piv, x, y, by, _, _, _, _, _, cE = eqw
+    rank = eq_basis(L, G, m0, me, Q, R, piv, x)
+    for j in range(me):
+        t = 0.0
+        for i in range(n):
+            t -= G[m0 + j, i] * v[i]
+        cE[j] = t
+    bad = eq_particular(R, piv, rank, me, cE, y)
+    if bad >= 0:
+        cnt[C_EQROW] = bad
+        cnt[C_FAILKIND] = CONSTRAINTS_INCONSISTENT
+        return -1
+    eq_free(L, Q, rank, b, y, by, x)
+    return rank
+
+
+@_part
+def _eq_finish(n, m, m0, me, rank, M, L, b, G, P, v_new, eqw):
+    """``v⁺ = L⁻ᵀ Q y`` (y: the reduced problem's answer, in ``v_new``) and the bilateral
+    rows' impulses from ``G_Eᵀ P_E = M v⁺ − b − Gᵀ P`` (the contact rows' P per row)."""
+    Q, R, piv, x, _, _, PE, F, _, yv, _, _ = eqw
+    for i in range(n):
+        yv[i] = v_new[i]
+    eq_velocity(L, Q, yv, v_new)
+    for i in range(n):
+        t = -b[i]
+        for j in range(n):
+            t += M[i, j] * v_new[j]
+        F[i] = t
+    for r in range(m):
+        if P[r] != 0.0:
+            for i in range(n):
+                F[i] -= P[r] * G[r, i]
+    eq_impulses(L, Q, R, piv, rank, me, F, PE, x)
+
+
+@_part
+def _eq_records(n, m0, me, v, v_new, G, eqw, acc):
+    """The step's bilateral impulses into their sum since the last record, and their work
+    ½ P_Eᵀ G_E (v_k + v⁺) (0 up to round-off) into the ledger."""
+    PE, PE_acc = eqw[6], eqw[10]
+    for j in range(me):
+        PE_acc[j] += PE[j]
+        u = 0.0
+        for i in range(n):
+            u += G[m0 + j, i] * (v[i] + v_new[i])
+        acc[A_WORK_E] += 0.5 * PE[j] * u
+
+
+@_part
+def _eq_hold(model, user, q, cq, sq, g, G, L, eqw, cnt, acc):
+    """q moved onto g_E(q) = 0 by Gauss–Newton steps in the metric of the step's M (as
+    ``EqualityRows.hold``); returns DONE, USER_FAILED or CONSTRAINTS_NOT_HELD (the row in
+    ``cnt[C_EQROW]``)."""
+    ints, _, _, bkind, boff, brow, bnrows, pool, _, tol = model
+    n, m = ints[0], ints[1]
+    m0 = m + ints[9]
+    me = ints[10]
+    Q, R, piv, x, y, _, _, F, _, yv, _, cE = eqw
+    worst = 0.0
+    bad = 0
+    for it in range(MAX_HOLD_ITERATIONS + 1):
+        st = ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, g)
+        if st != 0:
+            cnt[C_FAILKIND] = USER_FAILED
+            cnt[C_USER] = st
+            return USER_FAILED
+        worst = 0.0
+        for j in range(me):
+            a = abs(g[m0 + j]) / tol[m + j]
+            if not a <= worst:  # also NaN
+                worst = a
+                bad = j
+        if worst <= 1.0 or it == MAX_HOLD_ITERATIONS:
+            break
+        st = ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, G)
+        if st != 0:
+            cnt[C_FAILKIND] = USER_FAILED
+            cnt[C_USER] = st
+            return USER_FAILED
+        rank = eq_basis(L, G, m0, me, Q, R, piv, x)
+        for j in range(me):
+            cE[j] = -g[m0 + j]
+        eq_particular(R, piv, rank, me, cE, y)  # redundant rows follow
+        for i in range(n):
+            yv[i] = y[i] if i < rank else 0.0
+        eq_velocity(L, Q, yv, F)
+        for i in range(n):
+            q[i] += F[i]
+        if ints[8]:
+            _k.trig(q, cq, sq)
+    if not worst <= 100.0:
+        cnt[C_EQROW] = bad
+        cnt[C_FAILKIND] = CONSTRAINTS_NOT_HELD
+        return CONSTRAINTS_NOT_HELD
+    for j in range(me):
+        acc[A_EQRES] = max(acc[A_EQRES], abs(g[m0 + j]))
+    return DONE
+
+
+bilateral_parts = (_eq_prepare, _eq_finish, _eq_records, _eq_hold)
