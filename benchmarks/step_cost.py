@@ -11,7 +11,8 @@ measured side by side):
    and the piston with skirt friction (mu = 0.05, Lemke's method);
 2. pendulum chains of N = 3, 6, 12, 24 links with a floor row per link, swinging free
    and lying on the floor (N rows in contact every step), and N = 3, 24 lying on a rough
-   floor (mu = 0.5: N normal and N tangential rows every step);
+   floor (mu = 0.5: N normal and N tangential rows every step); the four-bar linkage
+   (``moreau.problems.four_bar``: two bilateral rows every step), free and with a stop;
 3. the compile time of the loop (a fresh numba cache, in a new process) and the time a
    new process takes to load it from the cache;
 4. (full mode) the contact backends of the Python path: OSQP updated against OSQP
@@ -92,6 +93,22 @@ def chain_scene(N: int, on_floor: bool, mu: float = 0.0):
     return scene, q0, np.zeros(N)
 
 
+def four_bar_table(quick: bool) -> list[tuple]:
+    """The four-bar linkage (two bilateral rows closing the loop), free and hitting a stop."""
+    from moreau.problems.four_bar import four_bar
+
+    rows = []
+    for label, kw in (("four-bar (closed loop)", {}), ("four-bar with a stop (e = 0.5)", {"stop": 0.75})):
+        fb = four_bar(**kw)
+        q0, v0 = fb.initial_state()
+        steps = 20_000 if quick else 100_000
+        comp = us_per_step(fb.scene, q0, v0, steps, backend="compiled", repeat=3)
+        py_steps = 1_000 if quick else 5_000
+        py = us_per_step(fb.scene, q0, v0, py_steps, backend="python", solver="exact")
+        rows.append((label, steps, comp, py_steps, py))
+    return rows
+
+
 def chain_table(quick: bool) -> list[tuple]:
     rows = []
     for N in (3, 6, 12, 24):
@@ -160,7 +177,7 @@ def main(argv=None) -> None:
     us_per_step(*chain_scene(3, True), 10, h=1e-3, backend="compiled")  # load (or compile) first
     print("\nµs per step, compiled loop vs Python path (ratio = python / compiled; piston compiled: best of 3)")
     print(f"{'case':40s} {'steps':>8s} {'compiled':>9s} {'steps':>7s} {'python':>9s} {'ratio':>7s}")
-    table = piston_table(args.quick) + chain_table(args.quick)
+    table = piston_table(args.quick) + chain_table(args.quick) + four_bar_table(args.quick)
     for name, cs, comp, ps, py in table:
         print(f"{name:40s} {cs:8d} {comp:9.3f} {ps:7d} {py:9.1f} {py / comp:7.0f}")
     cost = {name: comp for name, _, comp, _, _ in table}

@@ -6,5 +6,7 @@
 * :mod:`moreau.problems.piston` — the piston – connecting rod – crankshaft engine of
   Awrejcewicz & Kudra;
 * :mod:`moreau.problems.woodpecker` — the woodpecker toy of Pfeiffer & Glocker (friction
-  and impacts).
+  and impacts);
+* :mod:`moreau.problems.four_bar` — a four-bar linkage, a closed loop held by bilateral
+  constraints, with an optional stop.
 """

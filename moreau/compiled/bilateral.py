@@ -28,11 +28,13 @@ __all__ = ["equality_work", "bilateral_parts"]
 
 
 def equality_work(n: int, me: int) -> tuple:
-    """The bilateral rows' work arrays: ``(Q, R, piv, x, y, by, PE, F, eye, yv, PE_acc, cE)``
+    """The bilateral rows' work arrays: ``(Q, R, piv, x, y, by, PE, F, eye, yv, PE_acc, cE,
+    rank)``
     (numpy: allocating compiles nothing)."""
     k = max(me, 1)
     return (np.empty((n, n)), np.empty((n, k)), np.zeros(k, dtype=np.int64), np.empty(n), np.zeros(n),
-            np.empty(n), np.zeros(k), np.empty(n), np.eye(n), np.zeros(n), np.zeros(k), np.zeros(k))
+            np.empty(n), np.zeros(k), np.empty(n), np.eye(n), np.zeros(n), np.zeros(k), np.zeros(k),
+            np.zeros(1, dtype=np.int64))
 
 
 @_part
@@ -40,8 +42,9 @@ def _eq_prepare(n, m0, me, L, G, v, b, eqw, cnt):
     """The basis of the bilateral rows (rows m0 .. m0+me of G at the midpoint), y₁ from
     ``c_E = −G_E v``, and ``b_y`` of the reduced problem (from ``b`` = M v + h f); returns
     the rank, or −1 when the rows are inconsistent (the row in ``cnt[C_EQROW]``)."""
-    Q, R, piv, x, y, by, _, _, _, _, _, cE = eqw
+    Q, R, piv, x, y, by, _, _, _, _, _, cE, keep = eqw
     rank = eq_basis(L, G, m0, me, Q, R, piv, x)
+    keep[0] = rank
     for j in range(me):
         t = 0.0
         for i in range(n):
@@ -60,7 +63,7 @@ def _eq_prepare(n, m0, me, L, G, v, b, eqw, cnt):
 def _eq_finish(n, m, m0, me, rank, M, L, b, G, P, v_new, eqw):
     """``v⁺ = L⁻ᵀ Q y`` (y: the reduced problem's answer, in ``v_new``) and the bilateral
     rows' impulses from ``G_Eᵀ P_E = M v⁺ − b − Gᵀ P`` (the contact rows' P per row)."""
-    Q, R, piv, x, _, _, PE, F, _, yv, _, _ = eqw
+    Q, R, piv, x, _, _, PE, F, _, yv, _, _, _ = eqw
     for i in range(n):
         yv[i] = v_new[i]
     eq_velocity(L, Q, yv, v_new)
@@ -92,13 +95,15 @@ def _eq_records(n, m0, me, v, v_new, G, eqw, acc):
 @_part
 def _eq_hold(model, user, q, cq, sq, g, G, L, eqw, cnt, acc):
     """q moved onto g_E(q) = 0 by Gauss–Newton steps in the metric of the step's M (as
-    ``EqualityRows.hold``); returns DONE, USER_FAILED or CONSTRAINTS_NOT_HELD (the row in
+    ``EqualityRows.hold``: the first with the step's basis at q_m, which leaves an error
+    of O(h) times the correction, the next ones with the Jacobian at q); returns DONE, USER_FAILED or CONSTRAINTS_NOT_HELD (the row in
     ``cnt[C_EQROW]``)."""
     ints, _, _, bkind, boff, brow, bnrows, pool, _, tol = model
     n, m = ints[0], ints[1]
     m0 = m + ints[9]
     me = ints[10]
-    Q, R, piv, x, y, _, _, F, _, yv, _, cE = eqw
+    Q, R, piv, x, y, _, _, F, _, yv, _, cE, keep = eqw
+    rank = keep[0]  # the first correction with the step's basis (at q_m), then Newton's
     worst = 0.0
     bad = 0
     for it in range(MAX_HOLD_ITERATIONS + 1):
@@ -115,12 +120,13 @@ def _eq_hold(model, user, q, cq, sq, g, G, L, eqw, cnt, acc):
                 bad = j
         if worst <= 1.0 or it == MAX_HOLD_ITERATIONS:
             break
-        st = ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, G)
-        if st != 0:
-            cnt[C_FAILKIND] = USER_FAILED
-            cnt[C_USER] = st
-            return USER_FAILED
-        rank = eq_basis(L, G, m0, me, Q, R, piv, x)
+        if it > 0:
+            st = ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, G)
+            if st != 0:
+                cnt[C_FAILKIND] = USER_FAILED
+                cnt[C_USER] = st
+                return USER_FAILED
+            rank = eq_basis(L, G, m0, me, Q, R, piv, x)
         for j in range(me):
             cE[j] = -g[m0 + j]
         eq_particular(R, piv, rank, me, cE, y)  # redundant rows follow

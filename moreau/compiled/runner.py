@@ -128,7 +128,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
         if m:
             GP[0, :m] = scene.gaps(q0)
             gmax[:] = gmax0
-            rs[:, lay.R_GAP] = GP[0]
+            rs[:, lay.R_GAP] = GP[0, :m]
         acc[lay.A_KE0] = acc[lay.A_KEMAX] = scene.kinetic_energy(q0, v0)
         if energy:
             KE[0] = acc[lay.A_KE0]

@@ -349,6 +349,22 @@ class Scene:
             raise ValueError(f"the velocity breaks the constraints{where}: G v0 = {rows} (must be 0; "
                              "scene.constrained_velocity(q0, v0) projects v0 onto them)")
 
+    def constraint_rank(self, q: np.ndarray) -> tuple[int, list[str]]:
+        """``(rank, redundant)``: the rank of the bilateral rows at q and the names of the
+        rows found redundant (dependent on the others, in the step's own pivoted QR: they
+        keep v unique and carry zero impulse)."""
+        from moreau.contact.equality import eq_basis
+
+        if not self.nconstraints:
+            return 0, []
+        n, me = self.ndof, self.nconstraints
+        q = np.asarray(q, dtype=float)
+        L = np.linalg.cholesky(np.asarray(self.system.mass_matrix(q), dtype=float))
+        G = np.ascontiguousarray(self.constraint_jacobian(q), dtype=float)
+        piv = np.zeros(me, dtype=np.int64)
+        rank = eq_basis(L, G, 0, me, np.empty((n, n)), np.empty((n, me)), piv, np.empty(n))
+        return int(rank), [self.constraint_names[i] for i in piv[rank:]]
+
     def constrained_velocity(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """The velocity closest to v in the metric of M(q) with ``G_E(q) v = 0`` (the
         same projection the step uses); v itself without constraints."""

@@ -95,16 +95,19 @@ class EqualityRows:
         return 0.5 * float(self.PE @ (self.GE @ (v + v_new)))
 
     def hold(self, integ, q):
-        """q moved onto g_E(q) = 0 (Gauss–Newton steps in the metric of the step's M);
+        """q moved onto g_E(q) = 0 (Gauss–Newton steps in the metric of the step's M, the
+        first with the step's own basis at q_m: its error is O(h) times the correction);
         ``SolverError`` when |g_E| stays above 100 times its tolerance."""
         scene = self.scene
         L = self.L
         g = np.asarray(scene.constraint_gaps(q), dtype=float)
-        for _ in range(MAX_HOLD_ITERATIONS):
+        rank = self.rank  # the first correction with the step's basis (at q_m), then Newton's
+        for it in range(MAX_HOLD_ITERATIONS):
             if np.all(np.abs(g) <= self.hold_tol):
                 break
-            GE = np.ascontiguousarray(scene.constraint_jacobian(q), dtype=float)
-            rank = self._basis(L, GE)
+            if it > 0:
+                GE = np.ascontiguousarray(scene.constraint_jacobian(q), dtype=float)
+                rank = self._basis(L, GE)
             eq_particular(self.R, self.piv, rank, self.me, -g, self.y)  # redundant rows follow
             self.yv[:] = 0.0
             self.yv[:rank] = self.y[:rank]
