@@ -35,6 +35,7 @@ from .contact.solvers import (
 )
 from .core.errors import SimulationError, SolverError
 from .model.barriers import Barrier, FunctionBarrier, LinearBarrier, check_jacobian
+from .model.constraints import Bilateral
 from .model.forces import (
     ConstantForce,
     Effect,
@@ -44,7 +45,6 @@ from .model.forces import (
     LinearDamping,
     LinearSpring,
 )
-from .model.constraints import Bilateral
 from .model.laws import NewtonImpact, NewtonImpactFriction
 from .model.scene import Contact, Scene
 from .model.system import FunctionSystem, MechanicalSystem

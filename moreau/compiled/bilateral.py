@@ -80,6 +80,20 @@ def _eq_finish(n, m, m0, me, rank, M, L, b, G, P, v_new, eqw):
 
 
 @_part
+def _eq_alone(n, m, m0, me, M, L, b, v, G, P, v_new, eqw, cnt):
+    """A step with bilateral rows and no contact row: v⁺ = L⁻ᵀ Q b_y; returns 0, or −1
+    when the rows are inconsistent."""
+    rank = _eq_prepare(n, m0, me, L, G, v, b, eqw, cnt)
+    if rank < 0:
+        return -1
+    by = eqw[5]
+    for i in range(n):
+        v_new[i] = by[i]
+    _eq_finish(n, m, m0, me, rank, M, L, b, G, P, v_new, eqw)
+    return 0
+
+
+@_part
 def _eq_records(n, m0, me, v, v_new, G, eqw, acc):
     """The step's bilateral impulses into their sum since the last record, and their work
     ½ P_Eᵀ G_E (v_k + v⁺) (0 up to round-off) into the ledger."""
@@ -96,8 +110,8 @@ def _eq_records(n, m0, me, v, v_new, G, eqw, acc):
 def _eq_hold(model, user, q, cq, sq, g, G, L, eqw, cnt, acc):
     """q moved onto g_E(q) = 0 by Gauss–Newton steps in the metric of the step's M (as
     ``EqualityRows.hold``: the first with the step's basis at q_m, which leaves an error
-    of O(h) times the correction, the next ones with the Jacobian at q); returns DONE, USER_FAILED or CONSTRAINTS_NOT_HELD (the row in
-    ``cnt[C_EQROW]``)."""
+    of O(h) times the correction, the next ones with the Jacobian at q); returns DONE,
+    USER_FAILED or CONSTRAINTS_NOT_HELD (the row in ``cnt[C_EQROW]``)."""
     ints, _, _, bkind, boff, brow, bnrows, pool, _, tol = model
     n, m = ints[0], ints[1]
     m0 = m + ints[9]
@@ -146,4 +160,4 @@ def _eq_hold(model, user, q, cq, sq, g, G, L, eqw, cnt, acc):
     return DONE
 
 
-bilateral_parts = (_eq_prepare, _eq_finish, _eq_records, _eq_hold)
+bilateral_parts = (_eq_prepare, _eq_finish, _eq_alone, _eq_records, _eq_hold)

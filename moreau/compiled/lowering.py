@@ -201,31 +201,9 @@ def lower(scene: Scene) -> CompiledScene:
         bnrows.append(c.barrier.nrows)
         tmap[first:first + c.barrier.nrows] = scene.nrows + mf + np.arange(c.barrier.nrows)
         mf += c.barrier.nrows
-    # bilateral constraints: their rows after the tangent rows (rows m + mf, ... of the
-    # gaps and the Jacobian), each constraint one more barrier
     first_eq = len(bkind)
-    me = 0
-    for bc in scene.constraints:
-        spec = bc.geometry.kernel()
-        rows_at = scene.nrows + mf + me
-        if spec is None:
-            raise NotCompilable(
-                f"constraint {bc.name!r} ({type(bc.geometry).__name__}) has no compiled kernel: its gap or "
-                "Jacobian is a plain Python callable; decorate both with @numba.njit to run compiled")
-        kind, params = spec
-        if kind == "user":
-            bkind.append(_k.BAR_USER)
-            boff.append(len(bar_fns))
-            bar_fns.append(tuple(params))
-            bar_rows.append(rows_at)
-            bar_nrows.append(bc.nrows)
-            bar_names.append(bc.name)
-        else:
-            bkind.append(kind)
-            boff.append(pool.add(*params))
-        brow.append(rows_at)
-        bnrows.append(bc.nrows)
-        me += bc.nrows
+    me = _lower_constraints(scene, scene.nrows + mf, pool, bkind, boff, brow, bnrows, bar_fns, bar_rows, bar_nrows,
+                            bar_names)
     i64 = lambda x: np.array(x, dtype=np.int64)  # noqa: E731
     needs_trig = (mass_kind == _k.MASS_CHAIN or any(k in (_k.TRIG, _k.FOURIER_PT) for k in ekind)
                   or any(k == _k.BAR_TRIG for k in bkind))
@@ -245,6 +223,36 @@ def lower(scene: Scene) -> CompiledScene:
                         "gaps": [(name, pair[0]) for name, pair in zip(bar_names, bar_fns)],
                         "jacobians": [(name, pair[1]) for name, pair in zip(bar_names, bar_fns)]},
     )
+
+
+def _lower_constraints(scene: Scene, row0: int, pool: _Pool, bkind: list, boff: list, brow: list, bnrows: list,
+                       bar_fns: list, bar_rows: list, bar_nrows: list, bar_names: list) -> int:
+    """Append each bilateral constraint as one more barrier record, its rows from ``row0``
+    (= m + mf: after the contact and the tangent rows of the gaps and the Jacobian);
+    returns the number of bilateral rows."""
+    me = 0
+    for bc in scene.constraints:
+        spec = bc.geometry.kernel()
+        rows_at = row0 + me
+        if spec is None:
+            raise NotCompilable(
+                f"constraint {bc.name!r} ({type(bc.geometry).__name__}) has no compiled kernel: its gap or "
+                "Jacobian is a plain Python callable; decorate both with @numba.njit to run compiled")
+        kind, params = spec
+        if kind == "user":
+            bkind.append(_k.BAR_USER)
+            boff.append(len(bar_fns))
+            bar_fns.append(tuple(params))
+            bar_rows.append(rows_at)
+            bar_nrows.append(bc.nrows)
+            bar_names.append(bc.name)
+        else:
+            bkind.append(kind)
+            boff.append(pool.add(*params))
+        brow.append(rows_at)
+        bnrows.append(bc.nrows)
+        me += bc.nrows
+    return me
 
 
 def _user(scene, mass_fun, bias_fun, force_fns, force_names, bar_fns, bar_rows, bar_nrows, bar_names) -> UserKernels:

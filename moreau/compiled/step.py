@@ -10,7 +10,7 @@ import math
 import numpy as np
 
 from moreau.compiled import evaluate as ev
-from moreau.compiled.bilateral import _eq_finish, _eq_prepare
+from moreau.compiled.bilateral import _eq_alone, _eq_finish, _eq_prepare
 from moreau.compiled.friction import _friction_solve
 from moreau.compiled.layout import (  # the loop's layout
     A_WORST,
@@ -106,6 +106,16 @@ def _free_acceleration(n, const_mass, Minv, L, f, out):
 
 
 @_part
+def _momentum(n, h, M, v, f, b):
+    """b = M v + h f, the right-hand side of the step's velocity update."""
+    for i in range(n):
+        s = h * f[i]
+        for l in range(n):
+            s += M[i, l] * v[l]
+        b[i] = s
+
+
+@_part
 def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, v_new, P, active,
                      GA_all, cnt, acc, fail, ws, lw, last_imp, rs, fr, eqw):
     """v⁺ with the contacts closed at qm (gaps ``gm``); returns 1 (contact), 0 (free) or
@@ -157,19 +167,8 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
             if _user_failed(ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, GA_all), cnt):
                 return -1
         b = lw[3]
-        for i in range(n):
-            s = h * f[i]
-            for l in range(n):
-                s += M[i, l] * v[l]
-            b[i] = s
-        rank = _eq_prepare(n, m0, me, L, GA_all, v, b, eqw, cnt)
-        if rank < 0:
-            return -1
-        by = eqw[5]
-        for i in range(n):
-            v_new[i] = by[i]
-        _eq_finish(n, m, m0, me, rank, M, L, b, GA_all, P, v_new, eqw)
-        return 0
+        _momentum(n, h, M, v, f, b)
+        return _eq_alone(n, m, m0, me, M, L, b, v, GA_all, P, v_new, eqw, cnt)
     if na == 0:
         if not locate:
             _free_acceleration(n, ints[2] == _k.MASS_CONST, Minv, L, f, rhs)
@@ -211,11 +210,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
             cA[j] = c
             j += 1
     b = lw[3]
-    for i in range(n):
-        s = h * f[i]
-        for l in range(n):
-            s += M[i, l] * v[l]
-        b[i] = s
+    _momentum(n, h, M, v, f, b)
     PA = lw[4]
     solved = 0
     Ms, Ls, bs = M, L, b

@@ -34,7 +34,8 @@ import math
 from moreau.core.kernels import lt_solve
 from moreau.core.kernels.jit import jit as _jit
 
-__all__ = ["RANK_TOL", "MAX_HOLD_ITERATIONS", "eq_basis", "eq_particular", "eq_reduce_rows", "eq_free", "eq_velocity", "eq_impulses"]
+__all__ = ["RANK_TOL", "MAX_HOLD_ITERATIONS", "eq_basis", "eq_particular", "eq_reduce_rows", "eq_free",
+           "eq_velocity", "eq_impulses"]
 
 #: a pivot of the QR below this fraction of the first one ends the rank (a redundant row)
 RANK_TOL = 1e-9

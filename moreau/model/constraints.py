@@ -12,12 +12,13 @@ one solve, and positions are projected back onto g(q) = 0 after every step.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from moreau.model.barriers import Barrier
 
-__all__ = ["Bilateral", "HOLD_TOL"]
+__all__ = ["Bilateral", "HOLD_TOL", "check_constraints", "constrained_velocity"]
 
 #: positions are held on the constraint manifold to this, times max(1, the row's gap
 #: scale) (the gap's length unit): |g(q)| <= 1e-10 for rows of unit scale
@@ -65,3 +66,42 @@ class Bilateral:
 
     def describe(self) -> dict:
         return {"name": self.name, "geometry": self.geometry.describe()}
+
+
+def check_constraints(scene: Any, q: np.ndarray, v: np.ndarray, tol: float = 1e-8, where: str = "") -> None:
+    """Refuse a state off the constraints: ``|g_E(q)|`` above ``tol`` (times max(1,
+    the row's gap scale)), or a velocity that breaks them, ``|G_E v|`` above ``tol``
+    times the velocity scale ``max(1e-300, |G_E||v|)``; ``ValueError`` naming the rows
+    and values (:func:`constrained_velocity` gives a consistent v)."""
+    if not scene.nconstraints:
+        return
+    assert scene.constraint_gaps is not None and scene.constraint_jacobian is not None
+    g = np.asarray(scene.constraint_gaps(q), dtype=float)
+    lim = tol * np.maximum(1.0, scene.constraint_hold_tol / 1e-12)
+    bad = np.flatnonzero(~(np.abs(g) <= lim))
+    if bad.size:
+        rows = {scene.constraint_names[i]: float(g[i]) for i in bad}
+        raise ValueError(f"the constraints are not satisfied{where}: g(q0) = {rows} (|g| must be at most "
+                         f"{tol:g} in the gap's unit; the rows are held at 0)")
+    G = np.asarray(scene.constraint_jacobian(q), dtype=float)
+    u = G @ v
+    scale = np.abs(G) @ np.abs(v)
+    bad = np.flatnonzero(~(np.abs(u) <= tol * np.maximum(scale, 1e-300)))
+    if bad.size:
+        rows = {scene.constraint_names[i]: float(u[i]) for i in bad}
+        raise ValueError(f"the velocity breaks the constraints{where}: G v0 = {rows} (must be 0; "
+                         "scene.constrained_velocity(q0, v0) projects v0 onto them)")
+
+
+def constrained_velocity(scene: Any, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """The velocity closest to v in the metric of M(q) with ``G_E(q) v = 0`` (the
+    same projection the step uses); v itself without constraints."""
+    v = np.asarray(v, dtype=float)
+    if not scene.nconstraints or scene.constraint_jacobian is None:
+        return v.copy()
+    M = np.asarray(scene.system.mass_matrix(q), dtype=float)
+    G = np.asarray(scene.constraint_jacobian(q), dtype=float)
+    MinvGt = np.linalg.solve(M, G.T)
+    lam = np.linalg.lstsq(G @ MinvGt, G @ v, rcond=1e-12)[0]
+    out: np.ndarray = v - MinvGt @ lam
+    return out

@@ -16,7 +16,7 @@ from typing import Any, cast
 import numpy as np
 
 from moreau.model.barriers import Barrier
-from moreau.model.constraints import Bilateral
+from moreau.model.constraints import Bilateral, check_constraints, constrained_velocity
 from moreau.model.forces import Effect
 from moreau.model.laws import NewtonImpact, NewtonImpactFriction
 from moreau.model.system import MechanicalSystem, check_spd
@@ -327,55 +327,14 @@ class Scene:
                                  f"({geo.nrows}, {n}), or is not finite: {G.tolist()}")
 
     def check_constraints(self, q: np.ndarray, v: np.ndarray, tol: float = 1e-8, where: str = "") -> None:
-        """Refuse a state off the constraints: ``|g_E(q)|`` above ``tol`` (times max(1,
-        the row's gap scale)), or a velocity that breaks them, ``|G_E v|`` above ``tol``
-        times the velocity scale ``max(1e-300, |G_E||v|)``; ``ValueError`` naming the rows
-        and values (:meth:`constrained_velocity` gives a consistent v)."""
-        if not self.nconstraints:
-            return
-        g = np.asarray(self.constraint_gaps(q), dtype=float)
-        lim = tol * np.maximum(1.0, self.constraint_hold_tol / 1e-12)
-        bad = np.flatnonzero(~(np.abs(g) <= lim))
-        if bad.size:
-            rows = {self.constraint_names[i]: float(g[i]) for i in bad}
-            raise ValueError(f"the constraints are not satisfied{where}: g(q0) = {rows} (|g| must be at most "
-                             f"{tol:g} in the gap's unit; the rows are held at 0)")
-        G = np.asarray(self.constraint_jacobian(q), dtype=float)
-        u = G @ v
-        scale = np.abs(G) @ np.abs(v)
-        bad = np.flatnonzero(~(np.abs(u) <= tol * np.maximum(scale, 1e-300)))
-        if bad.size:
-            rows = {self.constraint_names[i]: float(u[i]) for i in bad}
-            raise ValueError(f"the velocity breaks the constraints{where}: G v0 = {rows} (must be 0; "
-                             "scene.constrained_velocity(q0, v0) projects v0 onto them)")
-
-    def constraint_rank(self, q: np.ndarray) -> tuple[int, list[str]]:
-        """``(rank, redundant)``: the rank of the bilateral rows at q and the names of the
-        rows found redundant (dependent on the others, in the step's own pivoted QR: they
-        keep v unique and carry zero impulse)."""
-        from moreau.contact.equality import eq_basis
-
-        if not self.nconstraints:
-            return 0, []
-        n, me = self.ndof, self.nconstraints
-        q = np.asarray(q, dtype=float)
-        L = np.linalg.cholesky(np.asarray(self.system.mass_matrix(q), dtype=float))
-        G = np.ascontiguousarray(self.constraint_jacobian(q), dtype=float)
-        piv = np.zeros(me, dtype=np.int64)
-        rank = eq_basis(L, G, 0, me, np.empty((n, n)), np.empty((n, me)), piv, np.empty(n))
-        return int(rank), [self.constraint_names[i] for i in piv[rank:]]
+        """Refuse a state off the bilateral constraints (see
+        :func:`moreau.model.constraints.check_constraints`)."""
+        check_constraints(self, q, v, tol, where)
 
     def constrained_velocity(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """The velocity closest to v in the metric of M(q) with ``G_E(q) v = 0`` (the
-        same projection the step uses); v itself without constraints."""
-        v = np.asarray(v, dtype=float)
-        if not self.nconstraints:
-            return v.copy()
-        M = np.asarray(self.system.mass_matrix(q), dtype=float)
-        G = np.asarray(self.constraint_jacobian(q), dtype=float)
-        MinvGt = np.linalg.solve(M, G.T)
-        lam = np.linalg.lstsq(G @ MinvGt, G @ v, rcond=1e-12)[0]
-        return v - MinvGt @ lam
+        """The velocity closest to v in the metric of M(q) with ``G_E(q) v = 0`` (see
+        :func:`moreau.model.constraints.constrained_velocity`)."""
+        return constrained_velocity(self, q, v)
 
     def describe(self) -> dict[str, Any]:
         """The scene's parameters as JSON-serializable data (saved with results)."""

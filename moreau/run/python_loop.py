@@ -33,24 +33,17 @@ def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, s
     energy check of :mod:`moreau.model.stability` every ``ENERGY_CHECK_EVERY`` steps."""
     n, m = scene.ndof, scene.nrows
     t0 = integ.t
-    T = np.empty(n_rec)
-    Q = np.empty((n_rec, n))
-    V = np.empty((n_rec, n))
-    PS = np.zeros((n_rec, m))
-    ACT = np.zeros((n_rec, m), dtype=bool)
+    T, Q, V = np.empty(n_rec), np.empty((n_rec, n)), np.empty((n_rec, n))
+    PS, ACT = np.zeros((n_rec, m)), np.zeros((n_rec, m), dtype=bool)
     friction = scene.has_friction
     PTS = np.zeros((n_rec, m) if friction else (0, m))  # tangential impulses per record
-    me = scene.nconstraints
-    PES = np.zeros((n_rec, me))  # the bilateral rows' impulses per record
-    PE_acc = np.zeros(me)
-    eq = integ._eq
+    me, eq = scene.nconstraints, integ._eq
+    PES, PE_acc = np.zeros((n_rec, me)), np.zeros(me)  # the bilateral rows' impulses per record
     T[0], Q[0], V[0] = t0, integ.q, integ.v
     rec = 1
     impacts: list[ImpactRow] = []
-    P_acc = np.zeros(m)
-    PT_acc = np.zeros(m)
-    act_acc = np.zeros(m, dtype=bool)
-    in_contact = np.zeros(m, dtype=bool)
+    P_acc, PT_acc = np.zeros(m), np.zeros(m)
+    act_acc, in_contact = np.zeros(m, dtype=bool), np.zeros(m, dtype=bool)
     has_contacts = m > 0
     gmax = gmax.copy()
 
@@ -138,17 +131,10 @@ def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, s
                 PTS[rec] = PT_acc
         rec += 1
 
-    stats = SolverStats(
-        solver=integ.solver.name, fallback=integ.fallback.name if integ.fallback is not None else "",
-        steps=integ.k, contact_steps=integ.n_contact_steps, solves=integ.n_solves, fallbacks=integ.n_fallbacks,
-        projections=integ.n_projections, worst_residual=integ.worst_residual, wall_time=wall,
-    )
     traj = assemble(scene, t=T[:rec], q=Q[:rec], v=V[:rec], impulses=PS[:rec], active=ACT[:rec],
-                    onsets=ImpactLog.from_rows(impacts), stats=stats, h=h, stride=stride, status=status,
-                    message=message, work={"forces": integ.work_forces, "contacts": integ.work_contacts,
-                                           **({"friction": integ.work_friction} if friction else {}),
-                                           **({"constraints": integ.work_constraints} if me else {})},
-                    max_penetration=pen, energy=energy, tangential_impulses=PTS[:rec] if friction else None,
+                    onsets=ImpactLog.from_rows(impacts), stats=_stats(integ, wall), h=h, stride=stride,
+                    status=status, message=message, work=_work(integ, friction, me), max_penetration=pen,
+                    energy=energy, tangential_impulses=PTS[:rec] if friction else None,
                     constraint_impulses=PES[:rec] if me else None)
     for said in (check.warned, integ.painleve):
         if said is not None:
@@ -158,6 +144,21 @@ def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, s
         attach_trajectory(error, traj)
         raise error
     return traj
+
+
+def _stats(integ: OneStepIntegrator, wall: float) -> SolverStats:
+    return SolverStats(
+        solver=integ.solver.name, fallback=integ.fallback.name if integ.fallback is not None else "",
+        steps=integ.k, contact_steps=integ.n_contact_steps, solves=integ.n_solves, fallbacks=integ.n_fallbacks,
+        projections=integ.n_projections, worst_residual=integ.worst_residual, wall_time=wall,
+    )
+
+
+def _work(integ: OneStepIntegrator, friction: bool, constraints: int) -> dict[str, float]:
+    """The energy ledger's terms of the run."""
+    return {"forces": integ.work_forces, "contacts": integ.work_contacts,
+            **({"friction": integ.work_friction} if friction else {}),
+            **({"constraints": integ.work_constraints} if constraints else {})}
 
 
 def _log_impacts(integ: OneStepIntegrator, rows: np.ndarray, after_flight: np.ndarray,

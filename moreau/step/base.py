@@ -135,9 +135,14 @@ class OneStepIntegrator(ABC):
         self._locate = bool(getattr(self.drift_control, "locate_impacts", False))
         # with bilateral rows the solvers see the reduced problem (moreau.contact.equality),
         # whose mass matrix is the identity
-        from moreau.step.bilateral import EqualityRows
+        from moreau.step.bilateral import EqualityRows, constraint_rank
 
         self._eq = EqualityRows(scene) if scene.nconstraints else None
+        if self._eq is not None:
+            rank, redundant = constraint_rank(scene, q0)
+            if redundant:  # reported, not an error: v stays unique
+                log.info("scene %r: %d bilateral rows of rank %d at q0; redundant: %s", scene.name,
+                         scene.nconstraints, rank, ", ".join(redundant))
         setup_mass = np.eye(n) if self._eq is not None else self._M if self._constant_mass else None
         self.solver.setup(n, m, setup_mass)
         if self.fallback is not None:

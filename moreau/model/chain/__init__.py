@@ -36,8 +36,8 @@ physical units; :meth:`PendulumChain.nondimensional` gives the paper's scaling M
 from __future__ import annotations
 
 from moreau.model.chain.barriers import JointStop, PointLineBarrier, PointLineRow
-from moreau.model.chain.joints import ChainRows, join_points, pin_point, point_on_line
 from moreau.model.chain.effects import ChainGravity, JointDamping, JointSprings, LinkTorque, PointForce
+from moreau.model.chain.joints import ChainRows, join_points, pin_point, point_on_line
 from moreau.model.chain.links import Link, PendulumChain
 from moreau.model.chain.scaling import Nondimensional, Units
 

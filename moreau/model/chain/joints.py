@@ -42,7 +42,8 @@ class ChainRows(Barrier):
         self._g0 = np.asarray(g0, dtype=float)
         self._A = np.atleast_2d(np.asarray(A, dtype=float))
         self._B = np.atleast_2d(np.asarray(B, dtype=float))
-        self.nrows, self.ndof = self._A.shape
+        self.nrows, n = self._A.shape
+        self.ndof = n
         self._names = list(names)
         self._p = _k.flat(self._g0, self._A, self._B)  # layout of kernels.gaps_trig
 
@@ -52,7 +53,7 @@ class ChainRows(Barrier):
         return out
 
     def jacobian(self, q):
-        out = np.empty((self.nrows, self.ndof))
+        out = np.empty((self.nrows, self._A.shape[1]))
         _k.jacobian_trig(self._p, 0, self.nrows, *_k.cos_sin(q), out, 0)
         return out
 
