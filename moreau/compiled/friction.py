@@ -12,6 +12,7 @@ import numpy as np
 
 from moreau.compiled.layout import A_WORK_T, A_WORST, C_K, C_PAINLEVE, C_PAINLEVE_ROW, C_PAINLEVE_STEP, F_TOL
 from moreau.compiled.layout import part as _part
+from moreau.contact.equality import eq_reduce_rows
 from moreau.contact.friction import friction_workspace, solve_friction_step
 
 __all__ = ["friction_work", "friction_parts"]
@@ -30,13 +31,18 @@ def friction_work(n: int, m: int, mf: int, mu: np.ndarray, tangent_row: np.ndarr
 
 
 @_part
-def _friction_solve(n, m, M, L, b, G, GA, cA, active, na, v_new, PA, fset, acc, fail, fr, cnt):
+def _friction_solve(n, m, M, L, b, G, GA, cA, active, na, v_new, PA, fset, acc, fail, fr, cnt, Lo, eqw, rank):
     """The step's contact problem with friction: the tangent rows of the active rows with
     mu > 0 stacked under the normal rows ``GA`` (na rows), solved and checked. Returns 1
     (solved; ``PA`` = [P_N; P_T], ``fr``'s PT per row), 0 (no active row has friction: the
     caller solves the frictionless problem) or −1 (no answer passed the law check; the
     residuals in ``fail[0]``). A sliding contact in Painlevé's region (as
-    :func:`moreau.contact.friction.painleve_rows` finds them) is counted in ``cnt``."""
+    :func:`moreau.contact.friction.painleve_rows` finds them) is counted in ``cnt``.
+
+    With bilateral rows (``rank`` >= 0: M, L, b are the reduced problem's, ``Lo`` the
+    step's own Cholesky factor, ``eqw`` the bilateral work arrays) the tangent rows are
+    reduced likewise, their slip offsets into ``cA[na:]`` (see
+    :mod:`moreau.contact.equality`); else ``rank`` is −1 and the offsets are 0."""
     fidx, muA, PT, _, res, fws, mu, trow = fr
     kf = 0
     j = 0
@@ -48,11 +54,14 @@ def _friction_solve(n, m, M, L, b, G, GA, cA, active, na, v_new, PA, fset, acc, 
                 t = trow[r]
                 for i in range(n):
                     GA[na + kf, i] = G[t, i]
+                cA[na + kf] = 0.0
                 fidx[kf] = j
                 kf += 1
             j += 1
     if kf == 0:
         return 0
+    if rank >= 0:
+        eq_reduce_rows(Lo, eqw[0], rank, GA, na, na + kf, cA, eqw[4], eqw[3])
     st = solve_friction_step(M, L, b, GA, cA, muA, fidx, np.int64(na), np.int64(kf), PA, v_new, fset[F_TOL], res,
                              fws)
     if st != 0:
@@ -74,7 +83,7 @@ def _friction_solve(n, m, M, L, b, G, GA, cA, active, na, v_new, PA, fset, acc, 
                 pt = PA[na + f]
                 PT[r] = pt
                 pn = PA[j]
-                ut = 0.0
+                ut = -cA[na + f]
                 for i in range(n):
                     ut += GA[na + f, i] * v_new[i]
                 if abs(pt) >= (1.0 - 1e-9) * mu[r] * pn and not (pn == 0.0 and ut == 0.0):

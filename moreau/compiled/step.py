@@ -168,7 +168,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
                 return -1
         b = lw[3]
         _momentum(n, h, M, v, f, b)
-        return _eq_alone(n, m, m0, me, M, L, b, v, GA_all, P, v_new, eqw, cnt)
+        return _eq_alone(n, m, m0, me, M, L, b, v, GA_all, P, v_new, eqw, cnt, fr[2], fr[7])
     if na == 0:
         if not locate:
             _free_acceleration(n, ints[2] == _k.MASS_CONST, Minv, L, f, rhs)
@@ -214,15 +214,16 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     PA = lw[4]
     solved = 0
     Ms, Ls, bs = M, L, b
-    rank = 0
+    rank = -1
     if me > 0:  # bilateral rows: the contact rows solved in their null space (M = I there)
         rank = _eq_prepare(n, m0, me, L, GA_all, v, b, eqw, cnt)
         if rank < 0:
             return -1
         eq_reduce_rows(L, eqw[0], rank, GA, 0, na, cA, eqw[4], eqw[3])
         Ms, Ls, bs = eqw[8], eqw[8], eqw[5]
-    elif ints[9] > 0:  # friction: the tangent rows join (Lemke's method)
-        solved = _friction_solve(n, m, M, L, b, GA_all, GA, cA, active, na, v_new, PA, fset, acc, fail, fr, cnt)
+    if ints[9] > 0:  # friction: the tangent rows join (Lemke's method)
+        solved = _friction_solve(n, m, Ms, Ls, bs, GA_all, GA, cA, active, na, v_new, PA, fset, acc, fail, fr, cnt,
+                                 L, eqw, rank)
     if solved < 0 or (solved == 0 and not _contact_solve(Ms, Ls, bs, GA, cA, na, v_new, PA, iset, fset, cnt, acc,
                                                           fail, ws)):
         cnt[C_FAILKIND] = SOLVER_FAILED
@@ -233,5 +234,5 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
             P[r] = PA[j]
             j += 1
     if me > 0:
-        _eq_finish(n, m, m0, me, rank, M, L, b, GA_all, P, v_new, eqw)
+        _eq_finish(n, m, m0, me, rank, M, L, b, GA_all, P, v_new, eqw, solved == 1, fr[2], fr[7])
     return 1

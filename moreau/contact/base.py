@@ -47,11 +47,13 @@ class ContactSolver(ABC):
 
     def solve_friction(
         self, M: np.ndarray, b: np.ndarray, G: np.ndarray, c: np.ndarray, T: np.ndarray, mu: np.ndarray,
-        rows: np.ndarray,
+        rows: np.ndarray, cT: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Solve the one-step problem with planar Coulomb friction (see
         :mod:`moreau.contact.friction`) on the active ``rows``; ``T`` (m, n) the tangent
-        rows, ``mu`` (m,) the friction coefficients (tangent rows are used where mu > 0).
+        rows, ``mu`` (m,) the friction coefficients (tangent rows are used where mu > 0),
+        ``cT`` (m,) the offsets of the slip velocities ``T v − cT`` (None: 0; set in the
+        reduced problem of a scene with bilateral rows).
         Return ``(v, P_N[rows], P_T[rows])`` (P_T zero where mu = 0).
 
         Raises :class:`~moreau.contact.solvers.SolveFailed` when the backend has no

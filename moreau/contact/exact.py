@@ -39,13 +39,14 @@ class _CompiledLCPSolver(ContactSolver):
     def _check_rows(self, k: int) -> None:
         pass
 
-    def solve_friction(self, M, b, G, c, T, mu, rows):
+    def solve_friction(self, M, b, G, c, T, mu, rows, cT=None):
         """Lemke's method on the friction LCP (:func:`moreau.contact.friction.friction_one_step`)."""
         from moreau.contact.friction import friction_one_step
 
         self._check_rows(rows.shape[0])
         status, v, PN, PT = friction_one_step(M, b, np.ascontiguousarray(G[rows]), c[rows],
-                                              np.ascontiguousarray(T[rows]), mu[rows])
+                                              np.ascontiguousarray(T[rows]), mu[rows],
+                                              cT=None if cT is None else cT[rows])
         if status != 0:
             what = ("and the enumeration of contact states found no solution" if status == 2 else
                     "found no answer that passes its own checks")
@@ -80,7 +81,7 @@ class EnumerationSolver(_CompiledLCPSolver):
     def __init__(self, max_rows: int = 12) -> None:
         self.max_rows = min(int(max_rows), 12)
 
-    def solve_friction(self, M, b, G, c, T, mu, rows):
+    def solve_friction(self, M, b, G, c, T, mu, rows, cT=None):
         """Enumeration of open/stick/slip states (:mod:`moreau.contact.friction_enum`, at
         most 6 active rows): independent of Lemke's LCP."""
         from moreau.contact.friction_enum import MAX_CONTACTS, friction_enumerate
@@ -89,7 +90,7 @@ class EnumerationSolver(_CompiledLCPSolver):
         k = rows.shape[0]
         if k > min(self.max_rows, MAX_CONTACTS):
             raise SolveFailed(f"enumeration with friction refuses {k} active rows (max {MAX_CONTACTS})")
-        W, w, _, MinvGt, vfree = delassus(M, b, G, c, T, mu, rows)
+        W, w, _, MinvGt, vfree = delassus(M, b, G, c, T, mu, rows, cT)
         fidx = np.flatnonzero(mu[rows] > 0.0)
         P = friction_enumerate(W, w, mu[rows], fidx)
         if P is None:

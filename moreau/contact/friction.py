@@ -145,7 +145,10 @@ def solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, tol, res, ws):
     docstring) on the first k normal rows of G and the kf tangential rows after them, and
     the six residuals of the full law (:func:`friction_residuals_kernel`) into ``res``.
 
-    ``L`` = chol(M); ``c`` (>= k) the normal rows' lower bounds; ``mu`` (>= k) their
+    ``L`` = chol(M); ``c`` (>= k + kf) the normal rows' lower bounds, then per tangential
+    row the offset of its slip velocity ``U_T = G_i v − c_i`` (zero, except in the
+    reduced problem of a scene with bilateral rows, :mod:`moreau.contact.equality`);
+    ``mu`` (>= k) their
     friction coefficients; ``fidx`` (>= kf) the normal row of each tangential row;
     ``ws`` from :func:`friction_workspace`. Returns ``OK`` (every residual at most
     ``tol``), ``FAILED`` (the best answer found misses ``tol``; it is in P, v) or ``RAY``
@@ -160,7 +163,7 @@ def solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, tol, res, ws):
     cho_solve(L, b, vfree, n)
     sym_product(G, MinvGt, W, R, n)
     for i in range(R):
-        t = -c[i] if i < k else 0.0
+        t = -c[i]  # a tangential row's c: the slip velocity's offset (0 but with bilateral rows)
         for j in range(n):
             t += G[i, j] * vfree[j]
         w[i] = t
@@ -248,20 +251,24 @@ def friction_residuals_kernel(M, L, b, G, c, mu, fidx, v, P, k, kf, out, ws):
         pn = mu[j] * P[j]
         pt = P[i]
         cone = max(cone, (abs(pt) - pn) * wi / vel)
-        u = Gv[i]
+        u = Gv[i] - c[i]  # the slip velocity (c_i: its offset, see solve_friction_step)
         slip = max(slip, ((pn + pt) * max(u, 0.0) + (pn - pt) * max(-u, 0.0)) * wi / (vel * vel))
     out[4] = cone
     out[5] = slip
 
 
-def _frictional(TA: np.ndarray, muA: np.ndarray, GA: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(G stacked [G_N; G_T of the rows with mu > 0], fidx)``."""
+def _frictional(TA: np.ndarray, muA: np.ndarray, GA: np.ndarray, cA: np.ndarray,
+                cT: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(G stacked [G_N; G_T of the rows with mu > 0], c stacked [c_N; c_T of those rows],
+    fidx)``."""
     fidx = np.flatnonzero(muA > 0.0).astype(np.int64)
-    return np.ascontiguousarray(np.vstack([GA, TA[fidx]]), dtype=float), fidx
+    cT = np.zeros(GA.shape[0]) if cT is None else np.asarray(cT, dtype=float)
+    return (np.ascontiguousarray(np.vstack([GA, TA[fidx]]), dtype=float),
+            np.ascontiguousarray(np.concatenate([cA, cT[fidx]]), dtype=float), fidx)
 
 
 def friction_one_step(M: np.ndarray, b: np.ndarray, GA: np.ndarray, cA: np.ndarray, TA: np.ndarray,
-                      muA: np.ndarray, L: np.ndarray | None = None,
+                      muA: np.ndarray, L: np.ndarray | None = None, cT: np.ndarray | None = None,
                       ) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
     """Solve the one-step problem with friction on k active rows by Lemke's method.
 
@@ -277,6 +284,8 @@ def friction_one_step(M: np.ndarray, b: np.ndarray, GA: np.ndarray, cA: np.ndarr
         Lower bounds of the normal velocities; friction coefficients (0: no tangent row).
     L : ndarray, shape (n, n), optional
         Cholesky factor of M.
+    cT : ndarray, shape (k,), optional
+        Offsets of the slip velocities, ``U_T = T v − cT`` (default 0).
 
     Returns
     -------
@@ -294,13 +303,13 @@ def friction_one_step(M: np.ndarray, b: np.ndarray, GA: np.ndarray, cA: np.ndarr
         L = np.empty((n, n))
         if cholesky(M, L, n) >= 0:
             raise np.linalg.LinAlgError("the mass matrix is not positive definite")
-    G, fidx = _frictional(TA, muA, GA)
+    G, c, fidx = _frictional(TA, muA, GA, cA, cT)
     kf = fidx.shape[0]
     P = np.zeros(k + kf)
     v = np.empty(n)
     # the compiled loop's entry point, with no tolerance: one compiled function serves both paths
     status = solve_friction_step(M, np.ascontiguousarray(L, dtype=float), np.ascontiguousarray(b, dtype=float),
-                                 G, np.ascontiguousarray(cA, dtype=float), np.ascontiguousarray(muA, dtype=float),
+                                 G, c, np.ascontiguousarray(muA, dtype=float),
                                  fidx, k, kf, P, v, np.inf, np.empty(6), friction_workspace(n, k, kf))
     PT = np.zeros(k)
     PT[fidx] = P[k:]
@@ -309,11 +318,11 @@ def friction_one_step(M: np.ndarray, b: np.ndarray, GA: np.ndarray, cA: np.ndarr
 
 def friction_residuals(M: np.ndarray, b: np.ndarray, GA: np.ndarray, cA: np.ndarray, TA: np.ndarray,
                        muA: np.ndarray, v: np.ndarray, PN: np.ndarray, PT: np.ndarray,
-                       L: np.ndarray | None = None) -> np.ndarray:
+                       L: np.ndarray | None = None, cT: np.ndarray | None = None) -> np.ndarray:
     """The six scaled residuals of :func:`friction_residuals_kernel` (primal, dual,
     complementarity, stationarity, cone, stick/slip) of an answer ``(v, PN, PT)``; shapes
-    as in :func:`friction_one_step`. A mass matrix that is not positive definite gives
-    infinite residuals."""
+    as in :func:`friction_one_step` (``cT``: the slip velocities' offsets). A mass matrix
+    that is not positive definite gives infinite residuals."""
     from moreau.core.kernels import cholesky
 
     M = np.ascontiguousarray(M, dtype=float)
@@ -322,12 +331,12 @@ def friction_residuals(M: np.ndarray, b: np.ndarray, GA: np.ndarray, cA: np.ndar
         L = np.empty((n, n))
         if cholesky(M, L, n) >= 0:
             return np.full(6, np.inf)
-    G, fidx = _frictional(TA, muA, GA)
+    G, c, fidx = _frictional(TA, muA, GA, cA, cT)
     kf = fidx.shape[0]
     P = np.concatenate([PN, PT[fidx]]).astype(float)
     out = np.empty(6)
     friction_residuals_kernel(M, np.ascontiguousarray(L, dtype=float), np.ascontiguousarray(b, dtype=float), G,
-                              np.ascontiguousarray(cA, dtype=float), np.ascontiguousarray(muA, dtype=float), fidx,
+                              c, np.ascontiguousarray(muA, dtype=float), fidx,
                               np.ascontiguousarray(v, dtype=float), P, k, kf, out, friction_workspace(n, k, kf))
     return out
 

@@ -39,7 +39,8 @@ def kkt_residuals_rows(M, L, b, G, c, v, P, k, kn, out, Gv, GtP, r, d, x, y):
 
     Only the first ``kn`` rows are unilateral (primal, dual and complementarity); rows
     kn..k−1 (tangential rows of friction, with their own law check in
-    :mod:`moreau.contact.friction`) enter stationarity and the velocity scale. Returns
+    :mod:`moreau.contact.friction`, ``c`` their slip velocity's offset) enter
+    stationarity and the velocity scale. Returns
     the velocity scale; ``Gv`` holds ``G v`` on return.
     """
     n = M.shape[0]
@@ -56,7 +57,7 @@ def kkt_residuals_rows(M, L, b, G, c, v, P, k, kn, out, Gv, GtP, r, d, x, y):
     # 1e-300² underflowed to 0 (a ZeroDivisionError in the complementarity residual)
     vel = 1e-150
     for i in range(k):
-        vel = max(vel, abs(c[i]) if i < kn else 0.0, abs(Gv[i]))
+        vel = max(vel, abs(c[i]), abs(Gv[i]))
         a = 0.0
         f = 0.0
         for j in range(n):

@@ -150,12 +150,12 @@ class OSQPSolver(ContactSolver):
             self.n_unsettled += 1
         return _upper_solve(L, u), p * r[rows]
 
-    def solve_friction(self, M, b, G, c, T, mu, rows):
+    def solve_friction(self, M, b, G, c, T, mu, rows, cT=None):
         """Coulomb friction as a fixed point over Tresca QPs (:mod:`moreau.contact.tresca`),
         each solved by OSQP, set up once per step and updated with the new friction bounds."""
         from moreau.contact.tresca import solve_by_tresca
 
-        return solve_by_tresca(M, b, G, c, T, mu, rows, _BoxQP(self.eps, self.max_iter))
+        return solve_by_tresca(M, b, G, c, T, mu, rows, _BoxQP(self.eps, self.max_iter), cT)
 
     def describe(self):
         return {"name": self.name, "eps": self.eps, "polish": self.polish}

@@ -73,7 +73,7 @@ class QpsolversSolver(ContactSolver):
         P = sol.z if sol.z is not None else np.zeros(rows.shape[0])
         return np.asarray(sol.x, dtype=float), np.asarray(P, dtype=float)
 
-    def solve_friction(self, M, b, G, c, T, mu, rows):
+    def solve_friction(self, M, b, G, c, T, mu, rows, cT=None):
         """Coulomb friction as a fixed point over Tresca QPs (:mod:`moreau.contact.tresca`)."""
         from moreau.contact.tresca import solve_by_tresca
 
@@ -85,7 +85,7 @@ class QpsolversSolver(ContactSolver):
                 raise SolveFailed(f"{self.backend} found no solution of a Tresca problem")
             return np.clip(np.asarray(sol.x, dtype=float), lower, upper)
 
-        return solve_by_tresca(M, b, G, c, T, mu, rows, box_qp)
+        return solve_by_tresca(M, b, G, c, T, mu, rows, box_qp, cT)
 
     def describe(self):
         return {"name": self.name, "options": self.options}

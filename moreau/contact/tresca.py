@@ -29,16 +29,18 @@ BoxQP = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 
 
 def delassus(M: np.ndarray, b: np.ndarray, G: np.ndarray, c: np.ndarray, T: np.ndarray, mu: np.ndarray,
-             rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+             rows: np.ndarray, cT: np.ndarray | None = None,
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``(W, w, Gs, MinvGt, vfree)`` of the active rows: the stacked rows
-    ``Gs = [G[rows]; T[rows with mu > 0]]``, ``W = Gs M⁻¹ Gsᵀ``, ``w = Gs v_free − [c; 0]``."""
+    ``Gs = [G[rows]; T[rows with mu > 0]]``, ``W = Gs M⁻¹ Gsᵀ``, ``w = Gs v_free − [c; c_T]``
+    (``cT`` (m,): the slip velocities' offsets, default 0)."""
     fidx = np.flatnonzero(mu[rows] > 0.0)
     Gs = np.vstack([G[rows], T[rows][fidx]])
     sol = np.linalg.solve(M, np.column_stack([b, Gs.T]))
     vfree, MinvGt = sol[:, 0], sol[:, 1:]
     W = Gs @ MinvGt
     W = 0.5 * (W + W.T)
-    w = Gs @ vfree - np.concatenate([c[rows], np.zeros(fidx.shape[0])])
+    w = Gs @ vfree - np.concatenate([c[rows], np.zeros(fidx.shape[0]) if cT is None else cT[rows][fidx]])
     return W, w, Gs, MinvGt, vfree
 
 
@@ -85,12 +87,13 @@ def tresca_fixed_point(W: np.ndarray, w: np.ndarray, mu: np.ndarray, fidx: np.nd
 
 
 def solve_by_tresca(M: np.ndarray, b: np.ndarray, G: np.ndarray, c: np.ndarray, T: np.ndarray, mu: np.ndarray,
-                    rows: np.ndarray, box_qp: BoxQP) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                    rows: np.ndarray, box_qp: BoxQP, cT: np.ndarray | None = None,
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(v, P_N (k,), P_T (k,))`` of the one-step problem with friction on the active
     ``rows`` (the full-size arguments of :meth:`ContactSolver.solve_friction
     <moreau.contact.base.ContactSolver.solve_friction>`) by :func:`tresca_fixed_point`;
     the QPs are solved in units where W has a unit diagonal."""
-    W, w, _, MinvGt, vfree = delassus(M, b, G, c, T, mu, rows)
+    W, w, _, MinvGt, vfree = delassus(M, b, G, c, T, mu, rows, cT)
     muA = mu[rows]
     fidx = np.flatnonzero(muA > 0.0)
     d = 1.0 / np.sqrt(np.maximum(np.diag(W), 1e-300))  # P = d p: unit diagonal

@@ -187,12 +187,6 @@ class Scene:
             np.concatenate([c.friction for c in self.contacts]) if self.contacts else np.zeros(0)
         )
         self.has_friction = bool(np.any(self.friction > 0.0))
-        if self.has_friction and self.constraints:
-            raise ValueError(
-                "Scene: friction together with bilateral constraints is not supported yet: the tangent rows "
-                "of the reduced problem need a velocity offset the friction solve does not take (contacts with "
-                "NewtonImpactFriction: " + ", ".join(c.name for c in self.contacts if np.any(c.friction > 0.0))
-                + "; constraints: " + ", ".join(c.name for c in self.constraints) + ")")
         self.row_contact = np.concatenate(
             [np.full(c.barrier.nrows, i) for i, c in enumerate(self.contacts)]
         ).astype(int) if self.contacts else np.zeros(0, dtype=int)

@@ -189,7 +189,7 @@ class OneStepIntegrator(ABC):
         """Advance the state by one step h; return True when a contact problem was solved."""
 
     # -- contact solve ------------------------------------------------------------------
-    def _solve_contact(self, M, b, G, c, rows, kind: str = "contact", L=None, T=None):
+    def _solve_contact(self, M, b, G, c, rows, kind: str = "contact", L=None, T=None, cT=None):
         """Solve the step's QP with the main solver, check it, fall back if needed.
 
         ``kind`` names the problem in errors (``"contact"``, or ``"projection"`` for drift
@@ -197,12 +197,14 @@ class OneStepIntegrator(ABC):
         of M when the step has it (the check then does not factorize M again). ``T``: the
         tangent rows (m, n) of a scene with friction; the solve is then the friction
         problem, checked against the full law (cone and stick/slip too), and its
-        tangential impulses of the active rows are left in ``self._PT_active``.
+        tangential impulses of the active rows are left in ``self._PT_active``; ``cT`` (m,)
+        the offsets of the slip velocities ``T v − cT`` (the reduced problem of a scene
+        with bilateral rows; None: 0).
         """
         if kind == "contact":
             self.n_solves += 1
         if T is not None:
-            return self._solve_friction(M, b, G, c, T, rows, L)
+            return self._solve_friction(M, b, G, c, T, rows, L, cT)
         GA, cA = G[rows], c[rows]
         failures: dict[str, dict[str, float] | str] = {}
         for solver in (self.solver, self.fallback):
@@ -228,9 +230,10 @@ class OneStepIntegrator(ABC):
             step=self.k, t=self.t, rows=names, residuals=failures,
         )
 
-    def _solve_friction(self, M, b, G, c, T, rows, L):
+    def _solve_friction(self, M, b, G, c, T, rows, L, cT=None):
         """The friction problem of :meth:`_solve_contact`: main solver, law check, fallback."""
         GA, cA, TA, muA = G[rows], c[rows], T[rows], self._mu[rows]
+        cTA = None if cT is None else cT[rows]
         failures: dict[str, dict[str, float] | str] = {}
         for solver in (self.solver, self.fallback):
             if solver is None:
@@ -240,13 +243,13 @@ class OneStepIntegrator(ABC):
                 log.debug("step %d: %s failed (%s), falling back to %s", self.k, self.solver.name,
                           failures[self.solver.name], solver.name)
             try:
-                v, PN, PT = solver.solve_friction(M, b, G, c, T, self._mu, rows)
-                res = friction_residuals(M, b, GA, cA, TA, muA, v, PN, PT, L=L)
+                v, PN, PT = solver.solve_friction(M, b, G, c, T, self._mu, rows, cT=cT)
+                res = friction_residuals(M, b, GA, cA, TA, muA, v, PN, PT, L=L, cT=cTA)
                 worst = float(res.max())
                 if worst <= self.tol:
                     self.worst_residual = max(self.worst_residual, worst)
                     self._PT_active = PT
-                    self._check_painleve(M, L, GA, TA, muA, PN, PT, v, rows)
+                    self._check_painleve(M, L, GA, TA, muA, PN, PT, v, rows, cTA)
                     return v, PN
                 failures[solver.name] = dict(zip(FRICTION_RESIDUALS, res.tolist()))
             except (SolveFailed, np.linalg.LinAlgError, ValueError) as exc:
@@ -257,12 +260,12 @@ class OneStepIntegrator(ABC):
             f"mu = {muA.tolist()}: {failures}", step=self.k, t=self.t, rows=names, residuals=failures,
         )
 
-    def _check_painleve(self, M, L, GA, TA, muA, PN, PT, v, rows) -> None:
+    def _check_painleve(self, M, L, GA, TA, muA, PN, PT, v, rows, cTA=None) -> None:
         """Count the steps with a sliding contact in Painlevé's region (see
         :func:`moreau.contact.friction.painleve_rows`) and keep the first one's message."""
         if L is None:
             L = np.linalg.cholesky(M)
-        bad = painleve_rows(L, GA, TA, muA, PN, PT, TA @ v)
+        bad = painleve_rows(L, GA, TA, muA, PN, PT, TA @ v if cTA is None else TA @ v - cTA)
         if bad.size:
             self.n_painleve += 1
             if self.painleve is None:

@@ -82,9 +82,11 @@ class EqualityRows:
         self.rank = eq_basis(L, GE, 0, self.me, self.Q, self.R, self.piv, self.x)
         return self.rank
 
-    def velocity(self, integ, qm, M, L, b, v, G, c, rows):
+    def velocity(self, integ, qm, M, L, b, v, G, c, rows, T=None):
         """``(v⁺, P[rows])`` of the step with the bilateral rows held (their impulses in
-        :attr:`PE`); ``G, c`` the contact rows (None without active rows)."""
+        :attr:`PE`); ``G, c`` the contact rows (None without active rows), ``T`` their
+        tangent rows when a row has friction (the reduced tangent rows then carry the slip
+        velocity's offset, ``c_T``)."""
         scene = self.scene
         GE = np.ascontiguousarray(integ._evaluate(scene.constraint_jacobian, (qm,), (self.me, self.n),
                                                   "constraint_jacobian", integ.t, qm, v), dtype=float)
@@ -104,7 +106,11 @@ class EqualityRows:
             Gy = np.array(G, dtype=float)
             cy = np.array(c, dtype=float)
             eq_reduce_rows(L, self.Q, rank, Gy, 0, Gy.shape[0], cy, self.y, self.x)
-            ysol, PA = integ._solve_contact(self.eye, by, Gy, cy, rows, L=self.eye)
+            Ty = cT = None
+            if T is not None:
+                Ty, cT = np.array(T, dtype=float), np.zeros(T.shape[0])
+                eq_reduce_rows(L, self.Q, rank, Ty, 0, Ty.shape[0], cT, self.y, self.x)
+            ysol, PA = integ._solve_contact(self.eye, by, Gy, cy, rows, L=self.eye, T=Ty, cT=cT)
         else:
             ysol, PA = by, np.zeros(0)
         v_new = np.empty(self.n)
@@ -112,6 +118,8 @@ class EqualityRows:
         F = M @ v_new - b
         if PA.size:
             F -= G[rows].T @ PA
+            if T is not None:  # and the friction impulses
+                F -= T[rows].T @ integ._PT_active
         eq_impulses(L, self.Q, self.R, self.piv, rank, self.me, F, self.PE, self.x)
         self.GE, self.L = GE, L
         return v_new, PA

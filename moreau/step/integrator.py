@@ -118,7 +118,7 @@ class MoreauJeanMidpoint(OneStepIntegrator):
                 # solve, as the compiled step does)
                 T = self.tangent_at(qm, v) if scene.has_friction and (self._mu[rows] > 0.0).any() else None
                 if self._eq is not None:  # bilateral rows: the same solve in their null space
-                    v_new, PA = self._eq.velocity(self, qm, M, L, b, v, G, c, rows)
+                    v_new, PA = self._eq.velocity(self, qm, M, L, b, v, G, c, rows, T)
                 else:
                     v_new, PA = self._solve_contact(M, b, G, c, rows, L=L, T=T)
                 P = np.zeros(scene.nrows)
