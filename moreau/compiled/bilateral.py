@@ -25,7 +25,15 @@ from moreau.compiled.layout import (
     DONE,
     USER_FAILED,
 )
-from moreau.contact.equality import MAX_HOLD_ITERATIONS, eq_basis, eq_free, eq_impulses, eq_particular, eq_velocity
+from moreau.contact.equality import (
+    MAX_HOLD_ITERATIONS,
+    eq_basis,
+    eq_free,
+    eq_impulses,
+    eq_particular,
+    eq_reduce_rows,
+    eq_velocity,
+)
 from moreau.core import kernels as _k
 
 __all__ = ["equality_work", "bilateral_parts"]
@@ -65,6 +73,13 @@ def _eq_prepare(n, m0, me, L, G, v, b, eqw, cnt):
         return -1
     eq_free(L, Q, rank, b, y, by, x)
     return rank
+
+
+@_part
+def _eq_reduce(L, eqw, rank, X, k0, k1, c):
+    """Rows k0 .. k1 of X and their bounds c into the reduced problem
+    (:func:`moreau.contact.equality.eq_reduce_rows`)."""
+    eq_reduce_rows(L, eqw[0], rank, X, k0, k1, c, eqw[4], eqw[3])
 
 
 @_part
@@ -173,4 +188,4 @@ def _eq_hold(model, user, q, cq, sq, g, G, L, eqw, cnt, acc):
     return DONE
 
 
-bilateral_parts = (_eq_prepare, _eq_finish, _eq_alone, _eq_records, _eq_hold)
+bilateral_parts = (_eq_prepare, _eq_reduce, _eq_finish, _eq_alone, _eq_records, _eq_hold)

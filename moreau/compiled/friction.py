@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from moreau.compiled.bilateral import _eq_reduce
 from moreau.compiled.layout import A_WORK_T, A_WORST, C_K, C_PAINLEVE, C_PAINLEVE_ROW, C_PAINLEVE_STEP, F_TOL
 from moreau.compiled.layout import part as _part
-from moreau.contact.equality import eq_reduce_rows
 from moreau.contact.friction import friction_workspace, solve_friction_step
 
 __all__ = ["friction_work", "friction_parts"]
@@ -61,7 +61,7 @@ def _friction_solve(n, m, M, L, b, G, GA, cA, active, na, v_new, PA, fset, acc, 
     if kf == 0:
         return 0
     if rank >= 0:
-        eq_reduce_rows(Lo, eqw[0], rank, GA, na, na + kf, cA, eqw[4], eqw[3])
+        _eq_reduce(Lo, eqw, rank, GA, na, na + kf, cA)
     st = solve_friction_step(M, L, b, GA, cA, muA, fidx, np.int64(na), np.int64(kf), PA, v_new, fset[F_TOL], res,
                              fws)
     if st != 0:

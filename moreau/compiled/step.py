@@ -10,7 +10,7 @@ import math
 import numpy as np
 
 from moreau.compiled import evaluate as ev
-from moreau.compiled.bilateral import _eq_alone, _eq_finish, _eq_prepare
+from moreau.compiled.bilateral import _eq_alone, _eq_finish, _eq_prepare, _eq_reduce
 from moreau.compiled.friction import _friction_solve
 from moreau.compiled.layout import (  # the loop's layout
     A_WORST,
@@ -36,7 +36,6 @@ from moreau.compiled.layout import (  # the loop's layout
     USER_FAILED,
 )
 from moreau.compiled.layout import part as _part
-from moreau.contact.equality import eq_reduce_rows
 from moreau.contact.lcp import kkt_residuals_kernel, solve_one_step
 from moreau.core import kernels as _k
 
@@ -162,14 +161,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     na = _count(active, m)
     me = ints[10]
     m0 = m + ints[9]
-    if na == 0 and me > 0:  # no contact row: the bilateral rows alone
-        if not locate:
-            if _user_failed(ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, GA_all), cnt):
-                return -1
-        b = lw[3]
-        _momentum(n, h, M, v, f, b)
-        return _eq_alone(n, m, m0, me, M, L, b, v, GA_all, P, v_new, eqw, cnt, fr[2], fr[7])
-    if na == 0:
+    if na == 0 and me == 0:
         if not locate:
             _free_acceleration(n, ints[2] == _k.MASS_CONST, Minv, L, f, rhs)
         for i in range(n):
@@ -180,10 +172,15 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
             _free_acceleration(n, ints[2] == _k.MASS_CONST, Minv, L, f, rhs)
         k_now = cnt[C_K]
         memory = iset[S_MEMORY]
-    cnt[C_SOLVES] += 1
+    if na > 0:
+        cnt[C_SOLVES] += 1
     if not locate:
         if _user_failed(ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, GA_all), cnt):
             return -1
+    b = lw[3]
+    _momentum(n, h, M, v, f, b)
+    if na == 0:  # no contact row: the bilateral rows alone
+        return _eq_alone(n, m, m0, me, M, L, b, v, GA_all, P, v_new, eqw, cnt, fr[2], fr[7])
     GA = lw[0]
     cA = lw[1]
     j = 0
@@ -209,8 +206,6 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
                         c = cr
             cA[j] = c
             j += 1
-    b = lw[3]
-    _momentum(n, h, M, v, f, b)
     PA = lw[4]
     solved = 0
     Ms, Ls, bs = M, L, b
@@ -219,7 +214,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
         rank = _eq_prepare(n, m0, me, L, GA_all, v, b, eqw, cnt)
         if rank < 0:
             return -1
-        eq_reduce_rows(L, eqw[0], rank, GA, 0, na, cA, eqw[4], eqw[3])
+        _eq_reduce(L, eqw, rank, GA, 0, na, cA)
         Ms, Ls, bs = eqw[8], eqw[8], eqw[5]
     if ints[9] > 0:  # friction: the tangent rows join (Lemke's method)
         solved = _friction_solve(n, m, Ms, Ls, bs, GA_all, GA, cA, active, na, v_new, PA, fset, acc, fail, fr, cnt,
