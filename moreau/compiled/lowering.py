@@ -54,7 +54,7 @@ class CompiledScene:
     restitution : ndarray, shape (m,)
     activation_tol : ndarray, shape (m + me,)
         A row is closed when its gap is at most this (see ``Scene.activation_tol``); then
-        per bilateral row the |g| positions are held to (``Scene.constraint_hold_tol``).
+        per bilateral row the ``|g|`` positions are held to (``Scene.constraint_hold_tol``).
     friction : ndarray, shape (m,)
         Friction coefficient per row.
     tangent_row : ndarray of int64, shape (m,)

@@ -61,7 +61,7 @@ class Bilateral:
         return list(self.geometry.row_names(self.name))
 
     def hold_tol(self) -> np.ndarray:
-        """Per row, the |g| positions are held to (see ``HOLD_TOL``)."""
+        """Per row, the ``|g|`` positions are held to (see ``HOLD_TOL``)."""
         return HOLD_TOL * np.maximum(1.0, np.asarray(self.geometry.gap_scale(), dtype=float))
 
     def describe(self) -> dict:

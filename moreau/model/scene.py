@@ -136,7 +136,7 @@ class Scene:
     constraint_gaps, constraint_jacobian : callable or None
         ``g_E(q)`` (k_E,) and ``G_E(q)`` (k_E, n) of all bilateral rows; None without.
     constraint_hold_tol : ndarray, shape (k_E,)
-        Per bilateral row, the |g_E| positions are held to after every step.
+        Per bilateral row, the ``|g_E|`` positions are held to after every step.
     """
 
     def __init__(
