@@ -175,6 +175,7 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     t_start = time.perf_counter()
     us_per_step(*chain_scene(3, True), 10, h=1e-3, backend="compiled")  # load (or compile) first
+    us_per_step(*chain_scene(3, True), 10, h=1e-3, backend="python", solver="osqp")  # and the Python path's kernels
     print("\nµs per step, compiled loop vs Python path (ratio = python / compiled; piston compiled: best of 3)")
     print(f"{'case':40s} {'steps':>8s} {'compiled':>9s} {'steps':>7s} {'python':>9s} {'ratio':>7s}")
     table = piston_table(args.quick) + chain_table(args.quick) + four_bar_table(args.quick)

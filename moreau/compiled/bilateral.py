@@ -6,7 +6,9 @@ g_E(q) = 0 — the twin of :mod:`moreau.step.bilateral`, with the kernels of
 These parts are calls, compiled once each, not inlined into the loop: inlined (numba's IR
 inlining, as the loop's other parts), they doubled the loop's own cold compile (59 s
 against 33 s, 993 MB peak) and slowed the piston's step by about 5 % (more code in the
-loop); as calls they cost a few tens of ns per step of a scene with constraints."""
+loop); as calls they cost a few tens of ns per step of a scene with constraints. They take
+arrays, not the work tuple: a tuple typed at a call boundary costs compile time in the
+caller."""
 
 from __future__ import annotations
 
@@ -16,7 +18,6 @@ from numba import njit
 from moreau.compiled import evaluate as ev
 from moreau.compiled.layout import (
     A_EQRES,
-    A_WORK_E,
     C_EQROW,
     C_FAILKIND,
     C_USER,
@@ -54,11 +55,10 @@ def equality_work(n: int, me: int) -> tuple:
 
 
 @_part
-def _eq_prepare(n, m0, me, L, G, v, b, eqw, cnt):
+def _eq_prepare(n, m0, me, L, G, v, b, Q, R, piv, x, y, by, cE, keep, cnt):
     """The basis of the bilateral rows (rows m0 .. m0+me of G at the midpoint), y₁ from
     ``c_E = −G_E v``, and ``b_y`` of the reduced problem (from ``b`` = M v + h f); returns
     the rank, or −1 when the rows are inconsistent (the row in ``cnt[C_EQROW]``)."""
-    Q, R, piv, x, y, by, _, _, _, _, _, cE, keep = eqw
     rank = eq_basis(L, G, m0, me, Q, R, piv, x)
     keep[0] = rank
     for j in range(me):
@@ -76,18 +76,17 @@ def _eq_prepare(n, m0, me, L, G, v, b, eqw, cnt):
 
 
 @_part
-def _eq_reduce(L, eqw, rank, X, k0, k1, c):
+def _eq_reduce(L, Q, y, x, rank, X, k0, k1, c):
     """Rows k0 .. k1 of X and their bounds c into the reduced problem
     (:func:`moreau.contact.equality.eq_reduce_rows`)."""
-    eq_reduce_rows(L, eqw[0], rank, X, k0, k1, c, eqw[4], eqw[3])
+    eq_reduce_rows(L, Q, rank, X, k0, k1, c, y, x)
 
 
 @_part
-def _eq_finish(n, m, m0, me, rank, M, L, b, G, P, v_new, eqw, friction, PT, trow):
+def _eq_finish(n, m, me, rank, M, L, b, G, P, v_new, Q, R, piv, x, PE, F, yv, friction, PT, trow):
     """``v⁺ = L⁻ᵀ Q y`` (y: the reduced problem's answer, in ``v_new``) and the bilateral
     rows' impulses from ``G_Eᵀ P_E = M v⁺ − b − Gᵀ P − Tᵀ P_T`` (the contact rows' P per
     row; with ``friction``, the tangential impulses ``PT`` per row on the rows ``trow``)."""
-    Q, R, piv, x, _, _, PE, F, _, yv, _, _, _ = eqw
     for i in range(n):
         yv[i] = v_new[i]
     eq_velocity(L, Q, yv, v_new)
@@ -108,43 +107,43 @@ def _eq_finish(n, m, m0, me, rank, M, L, b, G, P, v_new, eqw, friction, PT, trow
 
 
 @_part
-def _eq_alone(n, m, m0, me, M, L, b, v, G, P, v_new, eqw, cnt, PT, trow):
+def _eq_alone(n, m, m0, me, M, L, b, v, G, P, v_new, Q, R, piv, x, y, by, PE, F, yv, cE, keep, cnt, PT, trow):
     """A step with bilateral rows and no contact row: v⁺ = L⁻ᵀ Q b_y; returns 0, or −1
     when the rows are inconsistent."""
-    rank = _eq_prepare(n, m0, me, L, G, v, b, eqw, cnt)
+    rank = _eq_prepare(n, m0, me, L, G, v, b, Q, R, piv, x, y, by, cE, keep, cnt)
     if rank < 0:
         return -1
-    by = eqw[5]
     for i in range(n):
         v_new[i] = by[i]
-    _eq_finish(n, m, m0, me, rank, M, L, b, G, P, v_new, eqw, False, PT, trow)
+    _eq_finish(n, m, me, rank, M, L, b, G, P, v_new, Q, R, piv, x, PE, F, yv, False, PT, trow)
     return 0
 
 
 @_part
-def _eq_records(n, m0, me, v, v_new, G, eqw, acc):
-    """The step's bilateral impulses into their sum since the last record, and their work
-    ½ P_Eᵀ G_E (v_k + v⁺) (0 up to round-off) into the ledger."""
-    PE, PE_acc = eqw[6], eqw[10]
+def _eq_records(n, m0, me, v, v_new, G, PE, PE_acc):
+    """The step's bilateral impulses into their sum since the last record; returns their
+    work ½ P_Eᵀ G_E (v_k + v⁺) (0 up to round-off)."""
+    w = 0.0
     for j in range(me):
         PE_acc[j] += PE[j]
         u = 0.0
         for i in range(n):
             u += G[m0 + j, i] * (v[i] + v_new[i])
-        acc[A_WORK_E] += 0.5 * PE[j] * u
+        w += 0.5 * PE[j] * u
+    return w
 
 
 @_part
-def _eq_hold(model, user, q, cq, sq, g, G, L, eqw, cnt, acc):
+def _eq_hold(ints, bkind, boff, brow, bnrows, pool, tol, user, q, cq, sq, g, G, L, Q, R, piv, x, y, F, yv, cE, keep,
+             cnt, acc):
     """q moved onto g_E(q) = 0 by Gauss–Newton steps in the metric of the step's M (as
     ``EqualityRows.hold``: the first with the step's basis at q_m, which leaves an error
     of O(h) times the correction, the next ones with the Jacobian at q); returns DONE,
-    USER_FAILED or CONSTRAINTS_NOT_HELD (the row in ``cnt[C_EQROW]``)."""
-    ints, _, _, bkind, boff, brow, bnrows, pool, _, tol = model
+    USER_FAILED or CONSTRAINTS_NOT_HELD (the row in ``cnt[C_EQROW]``). ``tol``: the
+    lowered scene's activation_tol, whose rows m ... are the bilateral rows' tolerances."""
     n, m = ints[0], ints[1]
     m0 = m + ints[9]
     me = ints[10]
-    Q, R, piv, x, y, _, _, F, _, yv, _, cE, keep = eqw
     rank = keep[0]  # the first correction with the step's basis (at q_m), then Newton's
     worst = 0.0
     bad = 0

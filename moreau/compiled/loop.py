@@ -24,6 +24,7 @@ from moreau.compiled.friction import _friction_records, friction_work
 from moreau.compiled.layout import (  # the loop's layout
     A_WORK_B,
     A_WORK_C,
+    A_WORK_E,
     A_WORK_F,
     C_CONTACT,
     C_FAILKIND,
@@ -332,7 +333,7 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
             if code < 0:
                 return cnt[C_FAILKIND]
         if me > 0:
-            _eq_records(n, m + ints[9], me, v, v_new, G, eqw, acc)
+            acc[A_WORK_E] += _eq_records(n, m + ints[9], me, v, v_new, G, eqw[6], eqw[10])
         wf = 0.0  # smooth-force work of the step, h fᵀ (v + v⁺)/2
         for i in range(n):
             wf += f[i] * (v[i] + v_new[i])
@@ -351,7 +352,8 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
         if ints[8] and (m > 0 or me > 0 or iset[S_ENERGY] == 1 or echeck):
             _k.trig(q_new, cq, sq)
         if me > 0:  # positions held on the bilateral rows (before the contacts' drift control)
-            status = _eq_hold(model, user, q_new, cq, sq, gq, G, L, eqw, cnt, acc)
+            status = _eq_hold(ints, model[3], model[4], model[5], model[6], pool, model[9], user, q_new, cq, sq, gq, G,
+                              L, eqw[0], eqw[1], eqw[2], eqw[3], eqw[4], eqw[7], eqw[9], eqw[11], eqw[12], cnt, acc)
             if status != DONE:
                 return status
         if m > 0:

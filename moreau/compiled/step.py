@@ -159,6 +159,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
             rs[r, R_SHIFT] = 0.0
         P[r] = 0.0
     na = _count(active, m)
+    Q, R, piv, x, y, by, PE, F, eye, yv, _, cE, keep = eqw
     me = ints[10]
     m0 = m + ints[9]
     if na == 0 and me == 0:
@@ -180,7 +181,8 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     b = lw[3]
     _momentum(n, h, M, v, f, b)
     if na == 0:  # no contact row: the bilateral rows alone
-        return _eq_alone(n, m, m0, me, M, L, b, v, GA_all, P, v_new, eqw, cnt, fr[2], fr[7])
+        return _eq_alone(n, m, m0, me, M, L, b, v, GA_all, P, v_new, Q, R, piv, x, y, by, PE, F, yv, cE, keep, cnt,
+                         fr[2], fr[7])
     GA = lw[0]
     cA = lw[1]
     j = 0
@@ -211,11 +213,11 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     Ms, Ls, bs = M, L, b
     rank = -1
     if me > 0:  # bilateral rows: the contact rows solved in their null space (M = I there)
-        rank = _eq_prepare(n, m0, me, L, GA_all, v, b, eqw, cnt)
+        rank = _eq_prepare(n, m0, me, L, GA_all, v, b, Q, R, piv, x, y, by, cE, keep, cnt)
         if rank < 0:
             return -1
-        _eq_reduce(L, eqw, rank, GA, 0, na, cA)
-        Ms, Ls, bs = eqw[8], eqw[8], eqw[5]
+        _eq_reduce(L, Q, y, x, rank, GA, 0, na, cA)
+        Ms, Ls, bs = eye, eye, by
     if ints[9] > 0:  # friction: the tangent rows join (Lemke's method)
         solved = _friction_solve(n, m, Ms, Ls, bs, GA_all, GA, cA, active, na, v_new, PA, fset, acc, fail, fr, cnt,
                                  L, eqw, rank)
@@ -229,5 +231,5 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
             P[r] = PA[j]
             j += 1
     if me > 0:
-        _eq_finish(n, m, m0, me, rank, M, L, b, GA_all, P, v_new, eqw, solved == 1, fr[2], fr[7])
+        _eq_finish(n, m, me, rank, M, L, b, GA_all, P, v_new, Q, R, piv, x, PE, F, yv, solved == 1, fr[2], fr[7])
     return 1
