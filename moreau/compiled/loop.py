@@ -65,6 +65,7 @@ from moreau.compiled.layout import (  # the loop's layout
 )
 from moreau.compiled.layout import part as _part
 from moreau.compiled.step import _user_failed, _velocity_update
+from moreau.contact.equality import eq_velocity
 from moreau.contact.lcp import workspace
 from moreau.core import kernels as _k
 
@@ -116,13 +117,17 @@ def _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, f, fb
 
 
 @_part
-def _log_onsets(n, m, t, k, h, v, v_new, f, L, P, G, vfree, in_contact, gmax, fgap, rs, IMP, cnt):
+def _log_onsets(n, m, t, k, h, v, v_new, f, L, P, G, vfree, in_contact, gmax, fgap, rs, IMP, cnt, me, eqw):
     """Log the contact onsets of step k that are impacts: faster than the smooth forces
     alone would change the normal velocity, or after the gap opened beyond its flight gap
-    (the rule of :class:`moreau.results.impacts.ImpactLog`)."""
-    _k.cho_solve(L, f, vfree, n)
-    for i in range(n):
-        vfree[i] = v[i] + h * vfree[i]
+    (the rule of :class:`moreau.results.impacts.ImpactLog`). With bilateral rows the free
+    velocity is the one with the joints held, ``L⁻ᵀ Q b_y`` of the step's reduced problem."""
+    if me > 0:
+        eq_velocity(L, eqw[0], eqw[5], vfree)
+    else:
+        _k.cho_solve(L, f, vfree, n)
+        for i in range(n):
+            vfree[i] = v[i] + h * vfree[i]
     for r in range(m):
         if P[r] > 0.0 and not in_contact[r]:
             ub = 0.0
@@ -150,7 +155,7 @@ def _log_onsets(n, m, t, k, h, v, v_new, f, L, P, G, vfree, in_contact, gmax, fg
 
 @_part
 def _contact_records(n, m, t, k, h, contact, v, v_new, f, L, P, active, G, vfree, P_acc, act_acc, in_contact,
-                     last_imp, gmax, fgap, rs, IMP, cnt, acc, friction, fr):
+                     last_imp, gmax, fgap, rs, IMP, cnt, acc, friction, fr, me, eqw):
     """After the velocity update: impulses and activity summed up to the next record, the
     contact work, the impact log, and which rows are in contact now."""
     if not contact:
@@ -176,7 +181,7 @@ def _contact_records(n, m, t, k, h, contact, v, v_new, f, L, P, active, G, vfree
     if friction:
         _friction_records(n, m, v, v_new, G, active, fr, acc)
     if onset:
-        _log_onsets(n, m, t, k, h, v, v_new, f, L, P, G, vfree, in_contact, gmax, fgap, rs, IMP, cnt)
+        _log_onsets(n, m, t, k, h, v, v_new, f, L, P, G, vfree, in_contact, gmax, fgap, rs, IMP, cnt, me, eqw)
     for r in range(m):
         in_contact[r] = P[r] > 0.0
         if P[r] > 0.0:
@@ -344,7 +349,7 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
                 wb += fb[i] * (v[i] + v_new[i])
             acc[A_WORK_B] += 0.5 * h * wb
         _contact_records(n, m, t, k, h, code == 1, v, v_new, f, L, P, active, G, vfree, P_acc, act_acc,
-                         in_contact, last_imp, gmax, fgap, rs, IMP, cnt, acc, friction, fr)
+                         in_contact, last_imp, gmax, fgap, rs, IMP, cnt, acc, friction, fr, me, eqw)
         if not _end_position(n, m, h, code == 1, iset, qm, v_new, L, P, G, rs, vbar, vfree, q_new):
             return NONFINITE
         # the energy check: every S_ECHECK steps, and after a step with a logged impact

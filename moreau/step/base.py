@@ -360,7 +360,7 @@ class OneStepIntegrator(ABC):
         return ContactDetails(
             U_before=U_before,
             U_after=U_after,
-            U_free=Gr @ (v_new - dv),
+            U_free=Gr @ (v_new - dv if self._eq is None else self._eq.v_free),
             energy_lost=-0.5 * P_all[rows] * (U_after + U_before + self.bounce_shift[rows]),
         )
 
@@ -374,7 +374,8 @@ class ContactDetails(NamedTuple):
         ``G v_k`` and ``G v⁺``.
     U_free : ndarray
         ``G v_free``, the normal velocity the step would have had without contact
-        (``U_free − U_before = h a_n``, the smooth forces' normal velocity change).
+        (``U_free − U_before = h a_n``, the smooth forces' normal velocity change; with
+        bilateral rows, with the joints held).
     energy_lost : ndarray
         Per row ``−½ P_i (U⁻_i + U⁺_i)`` (J), the contact's share of the step's exact
         kinetic energy balance ``½v⁺ᵀMv⁺ − ½v_kᵀMv_k = h fᵀ(v_k + v⁺)/2 + ½ Pᵀ(U⁻ + U⁺)``.

@@ -102,6 +102,10 @@ class EqualityRows:
         b = np.ascontiguousarray(b, dtype=float)
         by = np.empty(self.n)
         eq_free(L, self.Q, rank, b, self.y, by, self.x)
+        #: the free velocity with the joints held (no contact impulse): what the impact
+        #: log's velocity test compares with
+        self.v_free = np.empty(self.n)
+        eq_velocity(L, self.Q, by, self.v_free)
         if rows is not None and rows.size:
             Gy = np.array(G, dtype=float)
             cy = np.array(c, dtype=float)
