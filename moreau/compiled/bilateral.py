@@ -32,6 +32,7 @@ from moreau.contact.equality import (
     eq_free,
     eq_impulses,
     eq_particular,
+    eq_project,
     eq_reduce_rows,
     eq_velocity,
 )
@@ -44,14 +45,16 @@ _part = njit(cache=True, nogil=True, _nrt=False,  # type: ignore[call-overload]
              no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
 
-def equality_work(n: int, me: int) -> tuple:
+def equality_work(n: int, me: int, mc: int = 0) -> tuple:
     """The bilateral rows' work arrays: ``(Q, R, piv, x, y, by, PE, F, eye, yv, PE_acc, cE,
-    rank)``
-    (numpy: allocating compiles nothing)."""
+    rank, S)``; R, piv, cE and S (the rows of the velocity projection: the bilateral rows,
+    then the step's closed contacts and their tangent rows) have room for the me bilateral
+    and the mc contact and tangent rows (numpy: allocating compiles nothing)."""
     k = max(me, 1)
-    return (np.empty((n, n)), np.empty((n, k)), np.zeros(k, dtype=np.int64), np.empty(n), np.zeros(n),
-            np.empty(n), np.zeros(k), np.empty(n), np.eye(n), np.zeros(n), np.zeros(k), np.zeros(k),
-            np.zeros(1, dtype=np.int64))
+    ks = me + mc if me else 1
+    return (np.empty((n, n)), np.empty((n, ks)), np.zeros(ks, dtype=np.int64), np.empty(n), np.zeros(n),
+            np.empty(n), np.zeros(k), np.empty(n), np.eye(n), np.zeros(n), np.zeros(k), np.zeros(ks),
+            np.zeros(1, dtype=np.int64), np.empty((ks, n)))
 
 
 @_part
@@ -187,4 +190,47 @@ def _eq_hold(ints, bkind, boff, brow, bnrows, pool, tol, user, q, cq, sq, g, G, 
     return DONE
 
 
-bilateral_parts = (_eq_prepare, _eq_reduce, _eq_finish, _eq_alone, _eq_records, _eq_hold)
+@_part
+def _eq_project_velocity(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, v, G, M, L, Q, R, piv, x, y, yv, dv,
+                         cE, S, contact, P, PT, mu, trow, cnt):
+    """v projected onto ``G_E(q) v = 0`` in the metric of the step's M, keeping the slip
+    of the step's sticking contacts at 0 (``contact``: a contact step; a row with
+    ``P > 0``, ``mu > 0`` and ``|P_T| < mu P``: its tangent row is held), as
+    ``EqualityRows.project_velocity`` (the same rows in the same order,
+    :func:`moreau.contact.equality.eq_project`); returns the kinetic
+    energy that removes (<= 0), or NaN when a user callable failed (the status in ``cnt``)."""
+    n, m = ints[0], ints[1]
+    m0 = m + ints[9]
+    me = ints[10]
+    st = ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, G)
+    if st != 0:
+        cnt[C_FAILKIND] = USER_FAILED
+        cnt[C_USER] = st
+        return np.nan
+    for j in range(me):
+        t = 0.0
+        for i in range(n):
+            S[j, i] = G[m0 + j, i]
+            t -= G[m0 + j, i] * v[i]
+        cE[j] = t
+    k = me
+    if contact and ints[9] > 0:
+        for r in range(m):
+            if P[r] > 0.0 and mu[r] > 0.0 and abs(PT[r]) < mu[r] * P[r]:  # sticking: slip held at 0
+                for i in range(n):
+                    S[k, i] = G[trow[r], i]
+                cE[k] = 0.0
+                k += 1
+    eq_project(L, S, k, me, cE, Q, R, piv, x, y, yv, dv)
+    w = 0.0
+    for i in range(n):
+        t = 0.0
+        for j in range(n):
+            t += M[i, j] * (v[j] + 0.5 * dv[j])
+        w += dv[i] * t
+    for i in range(n):
+        v[i] += dv[i]
+    return w
+
+
+bilateral_parts = (_eq_prepare, _eq_reduce, _eq_finish, _eq_alone, _eq_records, _eq_hold, _eq_project_velocity)

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 from moreau.compiled import evaluate as ev
+from moreau.compiled.bilateral import _eq_reduce
 from moreau.compiled.layout import (  # the loop's layout
     C_FAILKIND,
     C_PROJ,
@@ -19,19 +20,25 @@ from moreau.compiled.layout import (  # the loop's layout
 )
 from moreau.compiled.layout import part as _part
 from moreau.compiled.step import _contact_solve, _count, _user_failed
+from moreau.contact.equality import eq_basis, eq_velocity
 from moreau.core import kernels as _k
 
 
 @_part
 def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw, rs,
-             in_contact):
+             in_contact, eqw):
     """Drift control: move q onto g >= 0 (see PositionProjection and CombinedProjection).
 
     The rows of the projection QP: with PositionProjection the eligible rows that
     penetrate or were closed; with CombinedProjection the persistent contacts of the
     step (closed, no restitution applied). Those held on g = 0 are marked pinned, and
     stay pinned while they carry an impulse without bouncing and their gap does not grow
-    beyond where the projection left them."""
+    beyond where the projection left them.
+
+    With bilateral rows (``ints[10] > 0``) the QP is solved in their null space at q
+    (``G_E dq = 0``, :mod:`moreau.contact.equality`; ``eqw`` their work arrays), as
+    ``EqualityRows.project_contacts`` does: the contacts are projected along the
+    constraints, and the hold after it restores them to second order."""
     ints, _, _, bkind, boff, brow, bnrows, pool, _, _ = model
     n, m = ints[0], ints[1]
     dtol = fset[F_DRIFT_TOL]
@@ -52,6 +59,7 @@ def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fai
     G = lw[5]
     dq = lw[6]
     zero = lw[7]
+    Qe, Re, pive, xe, ye, _, _, _, eye, yv, _, _, keep, _ = eqw
     for _ in range(iset[S_DRIFT_ITER]):
         if not combined:
             for r in range(m):
@@ -74,9 +82,22 @@ def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fai
                 cA[j] = -gq[r]
                 j += 1
         PA = lw[4]
-        if not _contact_solve(M, L, zero, GA, cA, na, dq, PA, iset, fset, cnt, acc, fail, ws):
+        Ms, Ls = M, L
+        me = ints[10]
+        if me > 0:  # along the bilateral rows: the QP in their null space at q (M = I there)
+            rank = eq_basis(L, G, m + ints[9], me, Qe, Re, pive, xe)
+            keep[0] = rank
+            for i in range(n):
+                ye[i] = 0.0
+            _eq_reduce(L, Qe, ye, xe, rank, GA, 0, na, cA)
+            Ms, Ls = eye, eye
+        if not _contact_solve(Ms, Ls, zero, GA, cA, na, dq, PA, iset, fset, cnt, acc, fail, ws):
             cnt[C_FAILKIND] = SOLVER_FAILED
             return False
+        if me > 0:
+            for i in range(n):
+                yv[i] = dq[i]
+            eq_velocity(L, Qe, yv, dq)
         for i in range(n):
             q[i] += dq[i]
         if ints[8]:

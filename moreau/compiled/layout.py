@@ -38,9 +38,10 @@ N_COUNTERS = 15
 # (A_WORK_T: the work of the friction impulses)
 A_WORST, A_WORK_F, A_WORK_C, A_KE0, A_KEMAX, A_DU_WARN, A_DU, A_WORK_B, A_WORK_T = range(9)
 # (A_WORK_E: the work of the bilateral rows' impulses; A_EQRES: the largest |g_E| the
-# position projection left)
-A_WORK_E, A_EQRES = 9, 10
-N_ACCUMULATORS = 11
+# position projection left; A_WORK_EV: the kinetic energy the velocity projection onto the
+# bilateral rows removed)
+A_WORK_E, A_EQRES, A_WORK_EV = 9, 10, 11
+N_ACCUMULATORS = 12
 
 # The step's parts are inlined into the loop by numba (IR level), as are the evaluation
 # functions (moreau.compiled.evaluate); the kernels and LCP routines they call are inlined by LLVM

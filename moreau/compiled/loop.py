@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit
 
 from moreau.compiled import evaluate as ev
-from moreau.compiled.bilateral import _eq_hold, _eq_records, equality_work
+from moreau.compiled.bilateral import _eq_hold, _eq_project_velocity, _eq_records, equality_work
 from moreau.compiled.drift import _project
 from moreau.compiled.energy import _energy_check, _kinetic_energy
 from moreau.compiled.friction import _friction_records, friction_work
@@ -25,11 +25,13 @@ from moreau.compiled.layout import (  # the loop's layout
     A_WORK_B,
     A_WORK_C,
     A_WORK_E,
+    A_WORK_EV,
     A_WORK_F,
     C_CONTACT,
     C_FAILKIND,
     C_K,
     C_NIMP,
+    C_PROJ,
     C_REC,
     DONE,
     DRIFT_COMBINED,
@@ -83,7 +85,7 @@ def loop_workspace(n: int, m: int, mf: int, mu: np.ndarray, tangent_row: np.ndar
            np.zeros(m), np.zeros(m, dtype=np.bool_), np.empty((mt, n)), np.empty(n), np.empty(n))
     lw = (np.empty((ma, n)), np.empty(ma), np.empty(n), np.empty(n), np.empty(ma),
           np.empty((ma, n)), np.empty(n), np.zeros(n), np.zeros(mm, dtype=np.bool_))
-    return own, workspace(n, m), lw, friction_work(n, m, mf, mu, tangent_row), equality_work(n, me)
+    return own, workspace(n, m), lw, friction_work(n, m, mf, mu, tangent_row), equality_work(n, me, m + mf)
 
 
 @_part
@@ -216,7 +218,7 @@ def _end_position(n, m, h, contact, iset, qm, v_new, L, P, G, rs, vbar, vfree, q
 
 @_part
 def _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw, rs,
-              in_contact, pen, gmax):
+              in_contact, pen, gmax, eqw):
     """The gaps at q⁺, drift control, the deepest penetration and each row's largest gap
     since its last contact; returns DONE or why not."""
     ints, _, _, bkind, boff, brow, bnrows, pool, _, _ = model
@@ -224,9 +226,15 @@ def _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc
     if _user_failed(ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, q_new, cq, sq, gq), cnt):
         return USER_FAILED
     if iset[S_DRIFT] != DRIFT_NONE:
+        nproj = cnt[C_PROJ]
         if not _project(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc,
-                        fail, eligible, ws, lw, rs, in_contact):
+                        fail, eligible, ws, lw, rs, in_contact, eqw):
             return cnt[C_FAILKIND]
+        if ints[10] > 0 and cnt[C_PROJ] > nproj:  # projected along the bilateral rows: restore them
+            status = _eq_hold(ints, bkind, boff, brow, bnrows, pool, model[9], user, q_new, cq, sq, gq, lw[5], L,
+                              eqw[0], eqw[1], eqw[2], eqw[3], eqw[4], eqw[7], eqw[9], eqw[11], eqw[12], cnt, acc)
+            if status != DONE:
+                return status
     for r in range(m):
         if -gq[r] > pen[r]:
             pen[r] = -gq[r]
@@ -363,9 +371,16 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
                 return status
         if m > 0:
             status = _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc, fail, eligible,
-                               ws, lw, rs, in_contact, pen, gmax)
+                               ws, lw, rs, in_contact, pen, gmax, eqw)
             if status != DONE:
                 return status
+        if me > 0:  # the velocity onto the bilateral rows at q⁺ (its work: theirs)
+            w = _eq_project_velocity(ints, model[3], model[4], model[5], model[6], pool, user, q_new, cq, sq, v_new, G,
+                                     M, L, eqw[0], eqw[1], eqw[2], eqw[3], eqw[4], eqw[9], eqw[7], eqw[11], eqw[13],
+                                     code == 1, P, fr[2], fr[6], fr[7], cnt)
+            if w != w:
+                return cnt[C_FAILKIND]
+            acc[A_WORK_EV] += w
         for i in range(n):  # element loops: a slice copy would allocate a temporary
             q[i] = q_new[i]
             v[i] = v_new[i]

@@ -159,7 +159,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
             rs[r, R_SHIFT] = 0.0
         P[r] = 0.0
     na = _count(active, m)
-    Q, R, piv, x, y, by, PE, F, eye, yv, _, cE, keep = eqw
+    Q, R, piv, x, y, by, PE, F, eye, yv, _, cE, keep, _ = eqw
     me = ints[10]
     m0 = m + ints[9]
     if na == 0 and me == 0:

@@ -35,7 +35,7 @@ from moreau.core.kernels import lt_solve
 from moreau.core.kernels.jit import jit as _jit
 
 __all__ = ["RANK_TOL", "MAX_HOLD_ITERATIONS", "eq_basis", "eq_particular", "eq_reduce_rows", "eq_free",
-           "eq_velocity", "eq_impulses"]
+           "eq_velocity", "eq_impulses", "eq_project"]
 
 #: a pivot of the QR below this fraction of the first one ends the rank (a redundant row)
 RANK_TOL = 1e-9
@@ -217,3 +217,23 @@ def eq_impulses(L, Q, R, piv, rank, me, F, PE, x):
         for j in range(i + 1, rank):
             t -= R[i, j] * PE[piv[j]]
         PE[piv[i]] = t / R[i, i]
+
+
+@_jit
+def eq_project(L, S, k, me, c, Q, R, piv, x, y, yv, dv):
+    """The smallest change ``dv`` in the metric of ``M = L Lᵀ`` with ``S[:me] dv = c[:me]``
+    and ``S[me:k] dv = 0``: the velocity projected onto the equality rows (the first me
+    rows of ``S``, ``c = −G_E v``) keeping the velocities of the held rows ``S[me:k]``
+    (the step's closed contacts). Held rows redundant with the equality rows and in
+    conflict with them are dropped (the projection onto the equality rows alone).
+    ``R`` (n, k), ``piv`` (k,), ``c`` (k,) with ``c[me:k] = 0``; ``Q``, ``x``, ``y``,
+    ``yv`` work; returns the rank."""
+    n = L.shape[0]
+    rank = eq_basis(L, S, 0, k, Q, R, piv, x)
+    if eq_particular(R, piv, rank, k, c, y) >= 0 and k > me:
+        rank = eq_basis(L, S, 0, me, Q, R, piv, x)
+        eq_particular(R, piv, rank, me, c, y)
+    for i in range(n):
+        yv[i] = y[i] if i < rank else 0.0
+    eq_velocity(L, Q, yv, dv)
+    return rank

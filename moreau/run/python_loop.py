@@ -158,7 +158,8 @@ def _work(integ: OneStepIntegrator, friction: bool, constraints: int) -> dict[st
     """The energy ledger's terms of the run."""
     return {"forces": integ.work_forces, "contacts": integ.work_contacts,
             **({"friction": integ.work_friction} if friction else {}),
-            **({"constraints": integ.work_constraints} if constraints else {})}
+            **({"constraints": integ.work_constraints,
+                "constraint_projection": integ.work_constraint_projection} if constraints else {})}
 
 
 def _log_impacts(integ: OneStepIntegrator, rows: np.ndarray, after_flight: np.ndarray,

@@ -21,6 +21,7 @@ from moreau.contact.equality import (
     eq_free,
     eq_impulses,
     eq_particular,
+    eq_project,
     eq_reduce_rows,
     eq_velocity,
 )
@@ -74,6 +75,7 @@ class EqualityRows:
         self.PE = np.zeros(me)
         self.GE: np.ndarray | None = None
         self.L: np.ndarray | None = None
+        self.M: np.ndarray | None = None
         self.rank = 0
         self.residual = 0.0
         self.hold_tol = np.asarray(scene.constraint_hold_tol, dtype=float)
@@ -125,8 +127,51 @@ class EqualityRows:
             if T is not None:  # and the friction impulses
                 F -= T[rows].T @ integ._PT_active
         eq_impulses(L, self.Q, self.R, self.piv, rank, self.me, F, self.PE, self.x)
-        self.GE, self.L = GE, L
+        self.GE, self.L, self.M = GE, L, np.ascontiguousarray(M, dtype=float)
         return v_new, PA
+
+    def project_contacts(self, integ, q, M, G, c, rows):
+        """``(dq, P[rows])`` of drift control's projection QP (``min ½ dqᵀ M dq``,
+        ``G[rows] dq >= c[rows]``) solved in the null space of the bilateral rows at the
+        current q (``G_E dq = 0``): the contact rows are projected along the constraints,
+        which they then break only to second order (the hold after it restores them)."""
+        scene = self.scene
+        GE = np.ascontiguousarray(scene.constraint_jacobian(q), dtype=float)
+        L = np.ascontiguousarray(np.linalg.cholesky(M))
+        rank = self._basis(L, GE)
+        self.y[:] = 0.0
+        Gy, cy = np.array(G, dtype=float), np.array(c, dtype=float)
+        eq_reduce_rows(L, self.Q, rank, Gy, 0, Gy.shape[0], cy, self.y, self.x)
+        ysol, PA = integ._solve_contact(self.eye, np.zeros(self.n), Gy, cy, rows, kind="projection", L=self.eye)
+        dq = np.empty(self.n)
+        eq_velocity(L, self.Q, np.ascontiguousarray(ysol, dtype=float), dq)
+        self.L, self.M = L, np.ascontiguousarray(M, dtype=float)
+        return dq, PA
+
+    def project_velocity(self, integ, q, v):
+        """``(v', work)``: v projected onto ``G_E(q) v' = 0`` in the metric of the step's M
+        (the velocity condition holds the rows at the midpoint; this keeps the constraint
+        velocity at q⁺ from persisting, flipping sign from step to step), keeping the slip
+        of the step's sticking contacts at 0 (``P > 0``, ``mu > 0``, ``|P_T| < mu P``: their
+        tangent rows are held, so a rolling contact stays rolling), and the kinetic energy
+        that removes, ``v̄ᵀ M Δv`` (<= 0 up to the held rows' velocity at q⁺; O(h⁴) per
+        step). The rows are stacked in the compiled step's order for the shared kernel
+        :func:`moreau.contact.equality.eq_project`."""
+        scene = self.scene
+        stack = [np.asarray(scene.constraint_jacobian(q), dtype=float)]
+        if integ.contact_step and scene.has_friction:  # sticking rows: their slip held at 0
+            mu, P = integ._mu, integ.P
+            held = np.flatnonzero((P > 0.0) & (mu > 0.0) & (np.abs(integ.PT) < mu * P))
+            if held.size:
+                stack.append(np.asarray(scene.tangent_jacobian(q), dtype=float)[held])
+        S = np.ascontiguousarray(np.vstack(stack))
+        k, n = S.shape
+        c = np.zeros(k)
+        c[:self.me] = -(S[:self.me] @ v)
+        dv = np.empty(n)
+        eq_project(self.L, S, k, self.me, c, np.empty((n, n)), np.empty((n, k)), np.zeros(k, dtype=np.int64),
+                   self.x, self.y, self.yv, dv)
+        return v + dv, float(dv @ (self.M @ (v + 0.5 * dv)))
 
     def work(self, v, v_new) -> float:
         """½ P_Eᵀ G_E (v_k + v⁺) of the last step (0 up to round-off)."""

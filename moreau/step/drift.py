@@ -101,7 +101,10 @@ class PositionProjection:
         for _ in range(self.max_iter):
             rows = np.flatnonzero(self._rows(integ, g, eligible))
             M = integ._M if integ._constant_mass else scene.system.mass_matrix(q)
-            dq, mu = integ._solve_contact(M, zero, scene.jacobian(q), -g, rows, kind="projection")
+            if integ._eq is not None:  # along the bilateral rows (moreau.step.bilateral)
+                dq, mu = integ._eq.project_contacts(integ, q, M, scene.jacobian(q), -g, rows)
+            else:
+                dq, mu = integ._solve_contact(M, zero, scene.jacobian(q), -g, rows, kind="projection")
             q = q + dq
             g = scene.gaps(q)
             held = rows[mu > 0.0]

@@ -173,7 +173,13 @@ class MoreauJeanMidpoint(OneStepIntegrator):
             self.work_constraints += self._eq.work(self.v, v_new)
             q_new = self._eq.hold(self, q_new)
         if self.drift_control is not None and self.scene.nrows:
+            q_held = q_new
             q_new = self.drift_control.project(self, q_new)
+            if self._eq is not None and q_new is not q_held:  # the projection moved along the rows:
+                q_new = self._eq.hold(self, q_new)  # restore them to second order
+        if self._eq is not None:  # and the velocity onto them at q⁺
+            v_new, w = self._eq.project_velocity(self, q_new, v_new)
+            self.work_constraint_projection += w
         self.q = q_new
         self.v = v_new
         self.k += 1

@@ -80,12 +80,14 @@ def test_bilateral_friction_paths_agree(eccentric_runs):
 @pytest.mark.parametrize("backend", ["python", "compiled"])
 def test_bilateral_friction_ledger_and_rolling(eccentric_runs, backend):
     """The kinetic-energy ledger closes exactly (constant M): ΔT = work of gravity, normal
-    and friction impulses and joints (the last 0); once the disk rolls, the contact
+    and friction impulses and joints (the last 0), and the velocity projection's
+    dissipation; once the disk rolls, the contact
     point's slip (in the original coordinates) is 0 and friction does no more work."""
     traj = eccentric_runs[backend]
     w = traj.work
     dT = traj.kinetic_energy[-1] - traj.kinetic_energy[0]
-    assert dT == pytest.approx(w["forces"] + w["contacts"] + w["friction"] + w["constraints"], abs=1e-9)
+    assert dT == pytest.approx(w["forces"] + w["contacts"] + w["friction"] + w["constraints"]
+                               + w["constraint_projection"], abs=1e-9)
     assert abs(w["constraints"]) <= 1e-12 and w["friction"] < 0.0
     late = traj.t > 0.8
     assert traj.sticking[late].all()
