@@ -193,7 +193,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
                 GA[j, i] = GA_all[r, i]
                 u += GA_all[r, i] * v[i]
             er = e[r]
-            c = -er * u
+            c = _k.newton_target(er, u)
             if combined and er != 0.0:
                 c = 0.0
                 if k_now - last_imp[r] > memory:

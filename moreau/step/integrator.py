@@ -18,6 +18,7 @@ import logging
 
 import numpy as np
 
+from moreau.core.kernels import NEGLIGIBLE_VELOCITY
 from moreau.core.kernels import impact_law as _impact_law
 from moreau.step.base import ContactDetails, OneStepIntegrator, _solve_with
 from moreau.step.checks import BadModelOutput, NonFiniteState, check_initial_state
@@ -112,7 +113,7 @@ class MoreauJeanMidpoint(OneStepIntegrator):
                                 self.bounce_delay[r] = 0.5 * h - s
                                 self.bounce_shift[r] = (2.0 * s - h) * an[r]
                 else:
-                    c = -self._e * U
+                    c = np.where(np.abs(U) >= NEGLIGIBLE_VELOCITY, -self._e * U, 0.0)  # kernels.newton_target
                 b = M @ v + h * f
                 # tangent rows only when an active row has friction (else the frictionless
                 # solve, as the compiled step does)

@@ -52,3 +52,18 @@ def test_ball_comes_to_rest_at_the_zeno_time(e, h):
     assert after.sum() > 0.3 * traj.t.shape[0]  # a long rest phase is actually observed
     assert np.abs(traj.v[after, 0]).max() < V_REST
     assert np.ptp(traj.q[after, 0]) < V_REST * h * after.sum()  # it does not move
+
+
+@pytest.mark.parametrize("backend", ["python", "compiled"])
+def test_ball_at_rest_never_reaches_subnormal_velocities(backend):
+    """At rest on the floor, Newton's law multiplies |v| by e every step: after about a
+    thousand steps at e = 0.5 that reached subnormal numbers (below 2.2e-308), whose
+    arithmetic is some 100 times slower. A velocity below NEGLIGIBLE_VELOCITY is taken as
+    0 by the law: every recorded velocity is 0 or a normal number, and the ball (dropped
+    from 1 mm, at rest after its Zeno time of 0.043 s) stays at rest."""
+    traj = mo.simulate(bouncing_ball(0.5), (0.0, 3.0), [1e-3], [0.0], 1e-3, backend=backend, progress=False)
+    assert traj.completed
+    v = np.abs(traj.v)
+    assert np.all((v == 0.0) | (v >= np.finfo(float).tiny))
+    late = traj.t > 0.5
+    assert np.ptp(traj.q[late]) <= 1e-12 and v[late].max() <= 1e-9  # at rest

@@ -6,7 +6,20 @@ import math
 
 from moreau.core.kernels.jit import jit as _jit
 
-__all__ = ["impact_instant", "impact_law"]
+__all__ = ["impact_instant", "impact_law", "newton_target", "NEGLIGIBLE_VELOCITY"]
+
+#: a normal velocity below this (in the scene's unit) is taken as 0 by Newton's law: a
+#: closed row at rest with e > 0 otherwise has ``U⁺ = −e U_k`` shrink by e every step, into
+#: subnormal numbers after about a thousand steps, whose arithmetic is some 100 times
+#: slower (measured: the four-bar resting on its stop at e = 0.5 ran 3x slower per step)
+NEGLIGIBLE_VELOCITY = 1e-150
+
+
+@_jit
+def newton_target(e, u):
+    """Newton's law ``U⁺ = −e U`` for a closed row with normal velocity ``u`` before the
+    step, 0 when ``|u| <`` :data:`NEGLIGIBLE_VELOCITY`."""
+    return -e * u if abs(u) >= NEGLIGIBLE_VELOCITY else 0.0
 
 
 # -- Newton's law at an impact (CombinedProjection) ----------------------------------------
