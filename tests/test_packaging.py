@@ -37,3 +37,10 @@ def test_no_top_level_problems_package(tmp_path):
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, timeout=120)
     assert r.returncode == 0, r.stderr
     assert r.stdout.split() == ["True", "moreau.problems.piston"]
+
+
+def test_build_requirements_include_the_run_time_ones():
+    """setup.py's build step imports the built package to compile the time loop into it:
+    every run-time requirement is a build requirement too (the same bounds)."""
+    build = set(PYPROJECT["build-system"]["requires"])
+    assert set(PYPROJECT["project"]["dependencies"]) <= build

@@ -11,6 +11,11 @@ deletes moreau's cached machine code there so that it is compiled afresh.
 the cache directory): a second process started while the first compiles waits, then
 loads the machine code the first one saved, instead of compiling it again.
 
+A package built with ``pip install .`` carries machine code compiled while it was built
+(:data:`PREBUILT`, written by ``setup.py``'s build step through :func:`export`);
+:func:`ensure_fresh` copies it into an empty cache (:func:`seed`) when it was built from
+the same source and numba, so the first run loads the loop instead of compiling it.
+
 The cache lives where numba puts it: ``$NUMBA_CACHE_DIR`` when set, else the package's
 ``__pycache__`` when writable, else a folder in the user's cache directory
 (:func:`cache_dir` says which).
@@ -23,6 +28,8 @@ import glob
 import hashlib
 import logging
 import os
+import shutil
+import threading
 from collections.abc import Iterator
 
 log = logging.getLogger(__name__)
@@ -36,6 +43,9 @@ _LOCK = "moreau-jit.lock"
 _PACKAGE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 #: the module whose cache directory holds the digest and the lock
 _ANCHOR = os.path.join(_PACKAGE, "compiled", "loop.py")
+#: machine code compiled when the package was built (``setup.py``'s build hook), per
+#: compiled folder; absent in a source checkout or an editable install
+PREBUILT = os.path.join(_PACKAGE, "_prebuilt")
 
 
 def compiled_sources() -> list[str]:
@@ -97,7 +107,9 @@ def clear() -> int:
 
 
 def ensure_fresh() -> None:
-    """Delete moreau's cached machine code when its digest is not the current one."""
+    """Delete moreau's cached machine code when its digest is not the current one; then,
+    when the cache lacks the compiled loop and the package carries machine code compiled
+    when it was built (:data:`PREBUILT`, for this source), copy that in (:func:`seed`)."""
     d = cache_dir()
     if d is None:
         return
@@ -106,12 +118,15 @@ def ensure_fresh() -> None:
     try:
         with open(stamp) as f:
             if f.read().strip() == digest:
+                if not glob.glob(os.path.join(d, "loop.run_chunk-*.nbi")):
+                    seed(digest)
                 return
     except OSError:
         pass
     removed = clear()
     if removed:
         log.info("moreau: source changed, removed %d stale numba cache files in %s", removed, d)
+    seed(digest)
     try:
         os.makedirs(d, exist_ok=True)
         tmp = f"{stamp}.{os.getpid()}.tmp"
@@ -120,6 +135,65 @@ def ensure_fresh() -> None:
         os.replace(tmp, stamp)
     except OSError as exc:
         log.warning("moreau: numba's cache directory %s is not writable (%s); compiled code is not kept", d, exc)
+
+
+def export(out: str) -> int:
+    """Copy moreau's cached machine code (compiled in this process's cache) into ``out``
+    (per compiled folder, with the source digest), for :func:`seed`; returns the number of
+    files copied. The build hook (``setup.py``) calls it after compiling the loop."""
+    n = 0
+    for src in compiled_sources():
+        d = cache_dir(src)
+        if d is None:
+            continue
+        stem = os.path.splitext(os.path.basename(src))[0]
+        dest = os.path.join(out, os.path.dirname(os.path.relpath(src, _PACKAGE)))
+        for p in glob.glob(os.path.join(d, f"{stem}.*.nb[ic]")):
+            os.makedirs(dest, exist_ok=True)
+            shutil.copyfile(p, os.path.join(dest, os.path.basename(p)))
+            n += 1
+    if n:
+        with open(os.path.join(out, _STAMP), "w") as f:
+            f.write(source_digest())
+    return n
+
+
+def seed(digest: str | None = None) -> int:
+    """Copy the machine code the package was built with (:data:`PREBUILT`) into numba's
+    cache when it was compiled from this very source and numba (its digest equals
+    ``digest``, default :func:`source_digest`); files already there are kept. numba
+    itself still checks each file against its source file's content, its Python and
+    numba versions and this machine's processor, and compiles what does not match.
+    Each file is written through a unique temporary name and renamed. Returns the number
+    of files copied (0 when there is nothing to copy or the cache is not writable)."""
+    try:
+        with open(os.path.join(PREBUILT, _STAMP)) as f:
+            built = f.read().strip()
+    except OSError:
+        return 0
+    if built != (digest or source_digest()):
+        log.info("moreau: the machine code built with the package is for another source or numba; not used")
+        return 0
+    n = 0
+    try:
+        for src in compiled_sources():
+            d = cache_dir(src)
+            stem = os.path.splitext(os.path.basename(src))[0]
+            here = os.path.join(PREBUILT, os.path.dirname(os.path.relpath(src, _PACKAGE)))
+            for p in glob.glob(os.path.join(here, f"{stem}.*.nb[ic]")):
+                target = os.path.join(d, os.path.basename(p)) if d is not None else None
+                if target is None or os.path.exists(target):
+                    continue
+                tmp = f"{target}.{os.getpid()}.{threading.get_ident()}.tmp"
+                shutil.copyfile(p, tmp)
+                os.replace(tmp, target)
+                n += 1
+    except OSError as exc:
+        log.warning("moreau: could not copy the machine code built with the package into numba's cache (%s); "
+                    "the time loop is compiled instead", exc)
+    if n:
+        log.info("moreau: copied %d files of machine code built with the package into numba's cache", n)
+    return n
 
 
 @contextlib.contextmanager

@@ -1,0 +1,54 @@
+"""The machine code a built package carries, so that its first run does not compile.
+
+``setup.py``'s build hook runs ``python -m moreau.problems.prebuild DIR`` with the freshly
+built package first on ``sys.path`` and an empty ``NUMBA_CACHE_DIR``: it loads (compiles)
+the time loop, runs one short cycle of the bundled piston (so that the kernels its
+analysis calls from Python are compiled too), and copies the machine code into ``DIR``
+(the package's ``moreau/_prebuilt``). On first use, :func:`moreau.core.jitcache.seed`
+copies it into numba's cache when it was built from the same source and numba; numba
+itself checks each file's source, Python version and processor, and compiles whatever
+does not match, so a package built on another machine is no worse than one without it.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+import tempfile
+import time
+from collections.abc import Sequence
+
+__all__ = ["prebuild", "main"]
+
+log = logging.getLogger(__name__)
+
+
+def prebuild(out: str) -> int:
+    """Compile the time loop and the piston's kernels into numba's cache and copy them into
+    ``out``; returns the number of files copied."""
+    from moreau.compiled.cache import ensure_compiled
+    from moreau.core.jitcache import export
+    from moreau.problems.piston.job import Case, run_cases
+
+    ensure_compiled()
+    with tempfile.TemporaryDirectory(prefix="moreau-prebuild-") as tmp:
+        rows = run_cases([Case(e=0.9, D=0.08004, h=1e-3, cycles=1, transient=0)], tmp, progress=False, workers=1)
+    if rows[0]["status"] != "completed":
+        log.warning("moreau prebuild: the piston's warm-up run ended %r", rows[0]["status"])
+    return export(out)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m moreau.problems.prebuild DIR``: exit code 0 when files were copied."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    if len(args) != 1:
+        print("usage: python -m moreau.problems.prebuild DIR", file=sys.stderr)
+        return 2
+    t = time.perf_counter()
+    n = prebuild(args[0])
+    print(f"moreau prebuild: {n} files of machine code in {args[0]} ({time.perf_counter() - t:.0f} s)")
+    return 0 if n else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
