@@ -233,4 +233,26 @@ def _eq_project_velocity(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq,
     return w
 
 
-bilateral_parts = (_eq_prepare, _eq_reduce, _eq_finish, _eq_alone, _eq_records, _eq_hold, _eq_project_velocity)
+@_part
+def _eq_contact_rows(L, G, m0, me, Q, R, piv, x, y, keep, GA, na, cA):
+    """Drift control's rows ``GA`` (na) and bounds ``cA`` written in the null space of the
+    bilateral rows (rows m0 .. m0+me of G, at the current q; M = I there), as
+    ``EqualityRows.project_contacts`` does. A call, not inlined: the QR inlined into the
+    loop's drift control made its cold compile 110 s against 98 s (one run each)."""
+    rank = eq_basis(L, G, m0, me, Q, R, piv, x)
+    keep[0] = rank
+    for i in range(L.shape[0]):
+        y[i] = 0.0
+    _eq_reduce(L, Q, y, x, rank, GA, 0, na, cA)
+
+
+@_part
+def _eq_back(L, Q, yv, dq):
+    """dq = L⁻ᵀ Q dq: the reduced problem's answer back in coordinates (``yv`` is work)."""
+    for i in range(L.shape[0]):
+        yv[i] = dq[i]
+    eq_velocity(L, Q, yv, dq)
+
+
+bilateral_parts = (_eq_prepare, _eq_reduce, _eq_finish, _eq_alone, _eq_records, _eq_hold, _eq_project_velocity,
+                   _eq_contact_rows, _eq_back)

@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 from moreau.compiled import evaluate as ev
-from moreau.compiled.bilateral import _eq_reduce
+from moreau.compiled.bilateral import _eq_back, _eq_contact_rows
 from moreau.compiled.layout import (  # the loop's layout
     C_FAILKIND,
     C_PROJ,
@@ -20,7 +20,6 @@ from moreau.compiled.layout import (  # the loop's layout
 )
 from moreau.compiled.layout import part as _part
 from moreau.compiled.step import _contact_solve, _count, _user_failed
-from moreau.contact.equality import eq_basis, eq_velocity
 from moreau.core import kernels as _k
 
 
@@ -85,19 +84,13 @@ def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fai
         Ms, Ls = M, L
         me = ints[10]
         if me > 0:  # along the bilateral rows: the QP in their null space at q (M = I there)
-            rank = eq_basis(L, G, m + ints[9], me, Qe, Re, pive, xe)
-            keep[0] = rank
-            for i in range(n):
-                ye[i] = 0.0
-            _eq_reduce(L, Qe, ye, xe, rank, GA, 0, na, cA)
+            _eq_contact_rows(L, G, m + ints[9], me, Qe, Re, pive, xe, ye, keep, GA, na, cA)
             Ms, Ls = eye, eye
         if not _contact_solve(Ms, Ls, zero, GA, cA, na, dq, PA, iset, fset, cnt, acc, fail, ws):
             cnt[C_FAILKIND] = SOLVER_FAILED
             return False
         if me > 0:
-            for i in range(n):
-                yv[i] = dq[i]
-            eq_velocity(L, Qe, yv, dq)
+            _eq_back(L, Qe, yv, dq)
         for i in range(n):
             q[i] += dq[i]
         if ints[8]:
