@@ -12,7 +12,7 @@ the cache directory): a second process started while the first compiles waits, t
 loads the machine code the first one saved, instead of compiling it again.
 
 A package built with ``pip install .`` carries machine code compiled while it was built
-(:data:`PREBUILT`, written by ``setup.py``'s build step through :func:`export`);
+(``moreau/_prebuilt``, written by ``setup.py``'s build step through :func:`export`);
 :func:`ensure_fresh` copies it into an empty cache (:func:`seed`) when it was built from
 the same source and numba, so the first run loads the loop instead of compiling it.
 
@@ -109,7 +109,7 @@ def clear() -> int:
 def ensure_fresh() -> None:
     """Delete moreau's cached machine code when its digest is not the current one; then,
     when the cache lacks the compiled loop and the package carries machine code compiled
-    when it was built (:data:`PREBUILT`, for this source), copy that in (:func:`seed`)."""
+    when it was built (``moreau/_prebuilt``, for this source), copy that in (:func:`seed`)."""
     d = cache_dir()
     if d is None:
         return
@@ -159,9 +159,9 @@ def export(out: str) -> int:
 
 
 def seed(digest: str | None = None) -> int:
-    """Copy the machine code the package was built with (:data:`PREBUILT`) into numba's
+    """Copy the machine code the package was built with (``moreau/_prebuilt``) into numba's
     cache when it was compiled from this very source and numba (its digest equals
-    ``digest``, default :func:`source_digest`); files already there are kept. numba
+    ``digest``, default ``source_digest()``); files already there are kept. numba
     itself still checks each file against its source file's content, its Python and
     numba versions and this machine's processor, and compiles what does not match.
     Each file is written through a unique temporary name and renamed. Returns the number
