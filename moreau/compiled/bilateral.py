@@ -48,8 +48,8 @@ _part = njit(cache=True, nogil=True, _nrt=False,  # type: ignore[call-overload]
 def equality_work(n: int, me: int, mc: int = 0) -> tuple:
     """The bilateral rows' work arrays: ``(Q, R, piv, x, y, by, PE, F, eye, yv, PE_acc, cE,
     rank, S)``; R, piv, cE and S (the rows of the velocity projection: the bilateral rows,
-    then the step's closed contacts and their tangent rows) have room for the me bilateral
-    and the mc contact and tangent rows (numpy: allocating compiles nothing)."""
+    then the tangent rows of the step's sticking contacts) have room for the me bilateral
+    and mc more rows (numpy: allocating compiles nothing)."""
     k = max(me, 1)
     ks = me + mc if me else 1
     return (np.empty((n, n)), np.empty((n, ks)), np.zeros(ks, dtype=np.int64), np.empty(n), np.zeros(n),

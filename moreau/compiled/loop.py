@@ -374,7 +374,7 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
                                ws, lw, rs, in_contact, pen, gmax, eqw)
             if status != DONE:
                 return status
-        if me > 0:  # the velocity onto the bilateral rows at q⁺ (its work: theirs)
+        if me > 0:  # the velocity onto the bilateral rows at q⁺ (traj.work['constraint_projection'])
             w = _eq_project_velocity(ints, model[3], model[4], model[5], model[6], pool, user, q_new, cq, sq, v_new, G,
                                      M, L, eqw[0], eqw[1], eqw[2], eqw[3], eqw[4], eqw[9], eqw[7], eqw[11], eqw[13],
                                      code == 1, P, fr[2], fr[6], fr[7], cnt)

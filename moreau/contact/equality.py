@@ -224,7 +224,7 @@ def eq_project(L, S, k, me, c, Q, R, piv, x, y, yv, dv):
     """The smallest change ``dv`` in the metric of ``M = L Lᵀ`` with ``S[:me] dv = c[:me]``
     and ``S[me:k] dv = 0``: the velocity projected onto the equality rows (the first me
     rows of ``S``, ``c = −G_E v``) keeping the velocities of the held rows ``S[me:k]``
-    (the step's closed contacts). Held rows redundant with the equality rows and in
+    (the tangent rows of the step's sticking contacts). Held rows redundant with the equality rows and in
     conflict with them are dropped (the projection onto the equality rows alone).
     ``R`` (n, k), ``piv`` (k,), ``c`` (k,) with ``c[me:k] = 0``; ``Q``, ``x``, ``y``,
     ``yv`` work; returns the rank."""
