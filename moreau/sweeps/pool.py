@@ -239,6 +239,10 @@ def _worker_died(running: dict, started, procs: dict, on_done) -> list[int]:
         if proc is not None:
             proc.join(timeout=1.0)  # a dead worker's status settles (another thread may reap it)
         code = None if proc is None else proc.exitcode
+        settle = time.monotonic() + 1.0  # the executor's thread may be reaping it: its status lands shortly
+        while proc is not None and code is None and time.monotonic() < settle:
+            time.sleep(0.01)
+            code = proc.exitcode
         # killed by a signal other than the SIGTERM with which the broken pool stops the
         # others (those exit in any way once their job saved what it had)
         killed = code is not None and code < 0 and code != -signal.SIGTERM
