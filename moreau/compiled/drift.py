@@ -18,6 +18,7 @@ from moreau.compiled.layout import (  # the loop's layout
     S_DRIFT_ITER,
     SOLVER_FAILED,
 )
+from moreau.compiled.layout import call as _call
 from moreau.compiled.layout import part as _part
 from moreau.compiled.step import _contact_solve, _count, _user_failed
 from moreau.core import kernels as _k
@@ -38,8 +39,7 @@ def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fai
     (``G_E dq = 0``, :mod:`moreau.contact.equality`; ``eqw`` their work arrays), as
     ``EqualityRows.project_contacts`` does: the contacts are projected along the
     constraints, and the hold after it restores them to second order."""
-    ints, _, _, bkind, boff, brow, bnrows, pool, _, _ = model
-    n, m = ints[0], ints[1]
+    m = model[0][1]
     dtol = fset[F_DRIFT_TOL]
     combined = iset[S_DRIFT] == DRIFT_COMBINED
     sel = lw[8]
@@ -55,6 +55,19 @@ def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fai
             need = True
     if not need:
         return True
+    return _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw,
+                         in_contact, eqw, rs, combined, dtol)
+
+
+@_call
+def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw, in_contact,
+                  eqw, rs, combined, dtol):
+    """The projection itself, when a selected row penetrates beyond the tolerance: a call
+    from the loop, not inlined into it (it runs in few steps; compiled once, apart, it
+    keeps its contact solve and model evaluations out of the loop's own compile)."""
+    ints, _, _, bkind, boff, brow, bnrows, pool, _, _ = model
+    n, m = ints[0], ints[1]
+    sel = lw[8]
     G = lw[5]
     dq = lw[6]
     zero = lw[7]

@@ -17,6 +17,7 @@ from moreau.compiled.layout import (  # the loop's layout
     F_EWARN,
     USER_FAILED,
 )
+from moreau.compiled.layout import call as _call
 from moreau.compiled.layout import part as _part
 from moreau.compiled.step import _user_failed
 
@@ -36,7 +37,7 @@ def _kinetic_energy(model, user, q, v, cq, sq, M, cnt):
     return DONE, 0.5 * ke
 
 
-@_part
+@_call
 def _energy_check(model, user, iset, fset, k, q, v, cq, sq, M, cnt, acc):
     """The energy ledger's check (see :mod:`moreau.model.stability`): the kinetic energy
     T(q, v) against T₀ plus the work of the applied forces (the bias terms do none:

@@ -53,4 +53,12 @@ N_ACCUMULATORS = 12
 # entry points are built for what only the loop calls.
 part = njit(cache=True, nogil=True, _nrt=False, inline="always",  # type: ignore[call-overload]
             no_cpython_wrapper=True, no_cfunc_wrapper=True)
+# What runs in few steps (the drift projection when a row penetrates, the energy check) is
+# a call instead: compiled once, apart from the loop, it keeps its body out of the loop's
+# own optimization (benchmarks/compile_cost.py: the loop function itself 73.5 -> 55.1 s cold,
+# the drift projection 7.7 s apart; the piston step unchanged within noise). Tried: the
+# model evaluations (moreau.compiled.evaluate) as calls: the loop 47.8 s, but the piston
+# step 10-12 % slower (their call sites run every step).
+call = njit(cache=True, nogil=True, _nrt=False,  # type: ignore[call-overload]
+            no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
