@@ -64,12 +64,29 @@ def test_scenes_with_other_user_callables_reuse_the_one_loop():
     assert lower(other).user.addresses.tolist()[:2] == [0, 0]  # no user mass, no bias: empty slots
 
 
-@pytest.mark.slow  # two compiles into its own cache (~1 min)
+def _cache_holding_the_loop(tmp_path) -> dict:
+    """An environment whose empty ``NUMBA_CACHE_DIR`` holds this session's compiled loop
+    (``jitcache.export`` here, ``jitcache.seed`` in a new process): a test that needs a
+    filled cache of its own does not compile the loop for it."""
+    from moreau.core import jitcache
+
+    mo.ensure_compiled()
+    staged = tmp_path / "staged"
+    assert jitcache.export(str(staged)) > 0
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), PYTHONPATH=os.getcwd())
+    fill = f"from moreau.core import jitcache as j; j.ensure_fresh(); assert j.seed(prebuilt={str(staged)!r}) > 0"
+    subprocess.run([sys.executable, "-c", fill], env=env, check=True, timeout=120)
+    return env
+
+
+@pytest.mark.slow  # one compile into its own cache (~1-2 min)
 def test_a_corrupt_cache_warns_and_the_run_works(tmp_path):
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), PYTHONPATH=os.getcwd())
+    env = dict(_cache_holding_the_loop(tmp_path))
     run = [sys.executable, "-c", _PROBE]
-    assert subprocess.run(run, env=env, capture_output=True, timeout=600).returncode == 0
-    files = list(tmp_path.glob("*/loop.run_chunk-*.nbc"))
+    out = subprocess.run(run, env=env, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.split() == ["0", "1"]  # the filled cache is loaded
+    files = list((tmp_path / "cache").glob("*/loop.run_chunk-*.nbc"))
     assert files
     for f in files:
         f.write_bytes(b"\x80\x04 not a pickle")

@@ -158,16 +158,17 @@ def export(out: str) -> int:
     return n
 
 
-def seed(digest: str | None = None) -> int:
-    """Copy the machine code the package was built with (``moreau/_prebuilt``) into numba's
-    cache when it was compiled from this very source and numba (its digest equals
-    ``digest``, default ``source_digest()``); files already there are kept. numba
+def seed(digest: str | None = None, prebuilt: str = PREBUILT) -> int:
+    """Copy the machine code the package was built with (``moreau/_prebuilt``, or the folder
+    ``prebuilt`` written by :func:`export`) into numba's cache when it was compiled from
+    this very source and numba (its digest equals ``digest``, default
+    ``source_digest()``); files already there are kept. numba
     itself still checks each file against its source file's content, its Python and
     numba versions and this machine's processor, and compiles what does not match.
     Each file is written through a unique temporary name and renamed. Returns the number
     of files copied (0 when there is nothing to copy or the cache is not writable)."""
     try:
-        with open(os.path.join(PREBUILT, _STAMP)) as f:
+        with open(os.path.join(prebuilt, _STAMP)) as f:
             built = f.read().strip()
     except OSError:
         return 0
@@ -179,7 +180,7 @@ def seed(digest: str | None = None) -> int:
         for src in compiled_sources():
             d = cache_dir(src)
             stem = os.path.splitext(os.path.basename(src))[0]
-            here = os.path.join(PREBUILT, os.path.dirname(os.path.relpath(src, _PACKAGE)))
+            here = os.path.join(prebuilt, os.path.dirname(os.path.relpath(src, _PACKAGE)))
             for p in glob.glob(os.path.join(here, f"{stem}.*.nb[ic]")):
                 target = os.path.join(d, os.path.basename(p)) if d is not None else None
                 if target is None or os.path.exists(target):
