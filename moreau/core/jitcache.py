@@ -158,15 +158,18 @@ def export(out: str) -> int:
     return n
 
 
-def seed(digest: str | None = None, prebuilt: str = PREBUILT) -> int:
+def seed(digest: str | None = None, prebuilt: str | None = None) -> int:
     """Copy the machine code the package was built with (``moreau/_prebuilt``, or the folder
     ``prebuilt`` written by :func:`export`) into numba's cache when it was compiled from
     this very source and numba (its digest equals ``digest``, default
-    ``source_digest()``); files already there are kept. numba
+    ``source_digest()``); files already there are kept. ``prebuilt`` None: the module's
+    ``PREBUILT`` at the time of the call. numba
     itself still checks each file against its source file's content, its Python and
     numba versions and this machine's processor, and compiles what does not match.
     Each file is written through a unique temporary name and renamed. Returns the number
     of files copied (0 when there is nothing to copy or the cache is not writable)."""
+    if prebuilt is None:
+        prebuilt = PREBUILT
     try:
         with open(os.path.join(prebuilt, _STAMP)) as f:
             built = f.read().strip()
