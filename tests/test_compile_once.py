@@ -81,7 +81,7 @@ def _cache_holding_the_loop(tmp_path) -> dict:
 
 @pytest.mark.slow  # one compile into its own cache (~1-2 min)
 def test_a_corrupt_cache_warns_and_the_run_works(tmp_path):
-    env = dict(_cache_holding_the_loop(tmp_path))
+    env = _cache_holding_the_loop(tmp_path)
     run = [sys.executable, "-c", _PROBE]
     out = subprocess.run(run, env=env, capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr[-2000:]
