@@ -13,7 +13,6 @@ caller."""
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from moreau.compiled import evaluate as ev
 from moreau.compiled.layout import (
@@ -26,6 +25,7 @@ from moreau.compiled.layout import (
     DONE,
     USER_FAILED,
 )
+from moreau.compiled.layout import call as _part  # calls from the loop, not inlined
 from moreau.contact.equality import (
     MAX_HOLD_ITERATIONS,
     eq_basis,
@@ -40,9 +40,6 @@ from moreau.core import kernels as _k
 
 __all__ = ["equality_work", "bilateral_parts"]
 
-# a call from the loop (not inlined), without CPython or C entry points: only the loop calls it
-_part = njit(cache=True, nogil=True, _nrt=False,  # type: ignore[call-overload]
-             no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
 
 def equality_work(n: int, me: int, mc: int = 0) -> tuple:

@@ -163,9 +163,9 @@ def seed(digest: str | None = None, prebuilt: str | None = None) -> int:
     ``prebuilt`` written by :func:`export`) into numba's cache when it was compiled from
     this very source and numba (its digest equals ``digest``, default
     ``source_digest()``); files already there are kept. ``prebuilt`` None: the module's
-    ``PREBUILT`` at the time of the call. numba
-    itself still checks each file against its source file's content, its Python and
-    numba versions and this machine's processor, and compiles what does not match.
+    ``PREBUILT`` at the time of the call. numba itself still checks each file against its
+    source file's content, its Python and numba versions and this machine's processor,
+    and compiles what does not match.
     Each file is written through a unique temporary name and renamed. Returns the number
     of files copied (0 when there is nothing to copy or the cache is not writable)."""
     if prebuilt is None:
