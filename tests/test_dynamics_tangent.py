@@ -106,7 +106,6 @@ def _table(n: int, c: float = 0.0, n_intervals: int = 4):
                                           t0=orb.t_mid)
 
 
-@pytest.mark.slow  # a convergence study over three step sizes: 31-43 s beside another worker
 def test_table_exponents_converge_at_first_order_in_h():
     """Period-1 orbit of the ball on the table (e = 0.5, no damping; 40 periods of
     transient for the scheme's orbit to settle, 12 of alignment, 4 averaged): both
@@ -114,7 +113,7 @@ def test_table_exponents_converge_at_first_order_in_h():
     first order in h (the reference trajectory's impact instants and states are O(h)),
     and are within 1 % at T/h = 8000; the sum is 2 ln(e) / T at every h. Measured
     relative errors at T/h = 500, 2000, 8000: largest 19.3 %, 3.46 %, 0.79 % (ratios 5.6,
-    4.4), second -2.86 %, -0.52 %, -0.12 %. 10 s."""
+    4.4), second -2.86 %, -0.52 %, -0.12 %. About 1 s with the compiled smooth steps."""
     err = {}
     for n in (500, 2000, 8000):
         orb, r = _table(n)
@@ -176,19 +175,19 @@ def chaotic_pendulum_exponents(chaotic_pendulum):
     return tan, contraction
 
 
-@pytest.mark.slow  # ~60 s on an idle core
 def test_tangent_spectrum_of_the_chaotic_triple_pendulum_sums_to_the_contraction(chaotic_pendulum_exponents):
-    """The six exponents sum to the flow's contraction to 1 % (measured: sum -2.835 1/s,
-    spectrum (2.46, 0.72, -0.09, -0.65, -1.35, -3.92) 1/s; the FD-QR spectrum on the same
+    """The six exponents sum to the flow's contraction to 1 % (measured 2026-11-26: sum
+    -2.833 1/s against -2.826, spectrum (2.57, 0.84, 0.00, -0.73, -1.48, -4.04) 1/s, the
+    same to four decimals with the Python smooth steps; the FD-QR spectrum on the same
     segment sums to +2.56 1/s), with a clearly positive largest exponent and no persistent
-    contact."""
+    contact. About 5 s with the compiled smooth steps (80 s on the Python path)."""
     tan, contraction = chaotic_pendulum_exponents
     assert tan.exponents[0] > 3 * tan.stderr[0]
     assert tan.meta["persistent_steps"] == 0
     assert abs(tan.sum / contraction - 1) < 0.01
 
 
-@pytest.mark.slow  # ~3 min on an idle core
+@pytest.mark.slow  # 2 x 896 000 steps: ~13 s with the compiled smooth steps (7 min without)
 def test_tangent_and_two_trajectory_largest_exponents_agree(chaotic_pendulum):
     """The largest exponent of the chaotic triple pendulum by the tangent method and by two
     trajectories, on the same reference trajectory (the tangent method restarting every
@@ -239,3 +238,28 @@ def test_paired_difference_of_two_methods_on_one_reference_trajectory():
     with pytest.raises(ValueError, match="interval"):
         paired_difference(largest_lyapunov(scene, orb.x_mid[:1], orb.x_mid[1:], orb.T / n, d0=1e-6,
                                            **{**kw, "n_intervals": 10}), tan)
+
+
+@pytest.mark.parametrize("k", [6, 2])
+def test_compiled_smooth_steps_match_the_python_reference(chaotic_pendulum, monkeypatch, k):
+    """The smooth steps run compiled (moreau.compiled.tangent) when the scene compiles; on the
+    chaotic triple pendulum (configuration-dependent M, damping, torque, impacts on the
+    wall) over 4 half periods at T/h = 800 they give the Python reference's logs and
+    contraction to round-off (the two differ in summation order and in M⁻¹ by Cholesky
+    against an inverse)."""
+    import moreau.compiled.tangent as compiled_tangent
+    import moreau.dynamics.tangent as tangent
+
+    scene, q0, v0, t0, T = chaotic_pendulum
+    kw = dict(interval=T / 2, n_intervals=4, t0=t0, k=k)
+    runs = []
+    smooth_steps = compiled_tangent.smooth_steps
+    monkeypatch.setattr(compiled_tangent, "smooth_steps", lambda *a: runs.append(a[9] - a[8]) or smooth_steps(*a))
+    compiled = lyapunov_spectrum_tangent(scene, q0, v0, T / 800, **kw)
+    assert sum(runs) > 0.95 * 4 * 400  # nearly every step is smooth, and ran compiled
+    monkeypatch.setattr(tangent, "_compiled_smooth_steps", lambda *a: None)
+    python = lyapunov_spectrum_tangent(scene, q0, v0, T / 800, **kw)
+    assert compiled.n_impacts == python.n_impacts > 0
+    assert np.array_equal(compiled.times, python.times)
+    np.testing.assert_allclose(compiled.logs, python.logs, rtol=1e-7, atol=1e-9)
+    assert compiled.meta["mean_trace"] == pytest.approx(python.meta["mean_trace"], rel=1e-9)

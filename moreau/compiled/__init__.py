@@ -2,7 +2,8 @@
 evaluation (:mod:`~moreau.compiled.evaluate`), user callables behind one C signature
 (:mod:`~moreau.compiled.usercalls`), the time loop (:mod:`~moreau.compiled.loop`, the twin
 of :mod:`moreau.step`), the compile cache (:mod:`~moreau.compiled.cache`) and the driver
-that runs the loop chunk by chunk (:mod:`~moreau.compiled.runner`).
+that runs the loop chunk by chunk (:mod:`~moreau.compiled.runner`); apart from the loop, the
+smooth steps of the tangent dynamics (:mod:`~moreau.compiled.tangent`).
 
 May import: :mod:`moreau.core`, :mod:`moreau.model`, :mod:`moreau.contact`,
 :mod:`moreau.results`.

@@ -5,11 +5,10 @@ and its saltation matrix (:class:`_Flow`), and the matrix exponential of a step 
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 import moreau as mo
+from moreau.core import kernels as _k
 
 from .maps import split_state
 
@@ -112,15 +111,9 @@ class _Flow:
 
 
 def _expm(B: np.ndarray) -> np.ndarray:
-    """exp(B) by scaling and squaring of a degree-6 Taylor polynomial (the scaled norm
-    ``‖B‖₁ / 2ˢ <= 1/4``: truncation below 1e-8 relative; ~10 µs for 6 × 6)."""
-    nrm = float(np.abs(B).sum(axis=0).max())
-    s = max(0, math.ceil(math.log2(nrm / 0.25))) if nrm > 0.25 else 0
-    B = B / 2.0 ** s
-    eye = np.eye(B.shape[0])
-    E = eye + B / 6.0
-    for j in (5, 4, 3, 2, 1):
-        E = eye + (B @ E) / j
-    for _ in range(s):
-        E = E @ E
+    """exp(B) by scaling and squaring of a degree-6 Taylor polynomial
+    (:func:`moreau.core.kernels.expm_taylor`, the kernel the compiled tangent steps use)."""
+    B = np.ascontiguousarray(B, dtype=float)
+    E, W, V = np.empty_like(B), np.empty_like(B), np.empty_like(B)
+    _k.expm_taylor(B, E, W, V)
     return E

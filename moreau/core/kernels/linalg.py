@@ -6,7 +6,7 @@ import math
 
 from moreau.core.kernels.jit import jit as _jit
 
-__all__ = ["cholesky", "lt_solve", "cho_solve", "cho_solve_rows", "sym_product", "symmetry_defect"]
+__all__ = ["cholesky", "lt_solve", "cho_solve", "cho_solve_rows", "sym_product", "symmetry_defect", "expm_taylor"]
 
 
 # -- dense linear algebra for small SPD systems (leading k x k blocks, no views) -----------
@@ -94,3 +94,49 @@ def symmetry_defect(M):
     if big == 0.0:
         return 0.0
     return asym / big
+
+
+@_jit
+def expm_taylor(B, E, W, V):
+    """E = exp(B) (d x d) by scaling and squaring of a degree-6 Taylor polynomial: B is
+    scaled by 2⁻ˢ to a 1-norm of at most 1/4 (truncation below 1e-8 relative, round-off for
+    the small steps of the tangent dynamics), the polynomial evaluated by Horner's rule,
+    then squared s times. ``W``, ``V``: work arrays of B's shape. Returns s."""
+    d = B.shape[0]
+    nrm = 0.0
+    for j in range(d):
+        col = 0.0
+        for i in range(d):
+            col += abs(B[i, j])
+        nrm = max(nrm, col)
+    s = 0
+    if nrm > 0.25:
+        s = max(0, int(math.ceil(math.log2(nrm / 0.25))))
+    scale = 1.0 / 2.0 ** s
+    for i in range(d):
+        for j in range(d):
+            W[i, j] = B[i, j] * scale
+            E[i, j] = W[i, j] / 6.0
+        E[i, i] += 1.0
+    for p in (5, 4, 3, 2, 1):  # E = I + W E / p
+        for i in range(d):
+            for j in range(d):
+                t = 0.0
+                for l in range(d):
+                    t += W[i, l] * E[l, j]
+                V[i, j] = t / p
+        for i in range(d):
+            for j in range(d):
+                E[i, j] = V[i, j]
+            E[i, i] += 1.0
+    for _ in range(s):
+        for i in range(d):
+            for j in range(d):
+                t = 0.0
+                for l in range(d):
+                    t += E[i, l] * E[l, j]
+                V[i, j] = t
+        for i in range(d):
+            for j in range(d):
+                E[i, j] = V[i, j]
+    return s
