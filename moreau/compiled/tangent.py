@@ -18,13 +18,14 @@ import numpy as np
 from numba import njit
 
 from moreau.compiled import evaluate as ev
+from moreau.compiled.layout import call
 from moreau.core import kernels as _k
 
 # the run's entry point (called from Python): NRT on, for numpy's QR
 _entry = njit(cache=True, nogil=True)
 
 
-@njit(cache=True, nogil=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)
+@call
 def _accel(ints, ekind, eoff, pool, user, t, q, v, c, s, M, L, f, fb, a):
     """a = M(q)⁻¹ f(t, q, v); returns 0, a user status (> 0) or −1 (M not positive definite)."""
     n = ints[0]

@@ -32,9 +32,12 @@ of :func:`moreau.simulate` (recorded at every step):
 runs of smooth steps between impacts are taken in compiled code
 (:mod:`moreau.compiled.tangent`, the same rule on the lowered scene; the impact and
 persistent steps stay here): about 10 µs a step for the triple pendulum instead of about
-0.5 ms, the same exponents to round-off. The error is O(h) (the impact instants and states of the reference
-trajectory), not ``O(h·|v| / delta)`` as for finite differences of the scheme: there is no
-perturbation size, and a grazing impact (U⁻ → 0) enters with its exact 1 / U⁻ saltation.
+0.5 ms, the same exponents to round-off. That code is compiled on its first use, apart from
+the time loop (about 10 s, then kept in numba's cache).
+
+The error is O(h) (the impact instants and states of the reference trajectory), not
+``O(h·|v| / delta)`` as for finite differences of the scheme: there is no perturbation
+size, and a grazing impact (U⁻ → 0) enters with its exact 1 / U⁻ saltation.
 
 Persistent contacts (a row carrying an impulse in consecutive steps: sliding, resting,
 the end of a chattering sequence) are outside the impact saltation theory: on a
