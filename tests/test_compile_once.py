@@ -23,7 +23,7 @@ _PROBE = textwrap.dedent("""
 """)
 
 
-@pytest.mark.slow  # a full compile of the loop into its own cache (~50 s on 2 cores)
+@pytest.mark.slow  # a full compile of the loop into its own cache (90-120 s on 2 cores, 2026-11-26)
 def test_two_processes_started_together_on_an_empty_cache_compile_once(tmp_path):
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), PYTHONPATH=os.getcwd())
     procs = [subprocess.Popen([sys.executable, "-c", _PROBE], env=env, stdout=subprocess.PIPE,
@@ -79,7 +79,7 @@ def _cache_holding_the_loop(tmp_path) -> dict:
     return env
 
 
-@pytest.mark.slow  # one compile into its own cache (~1-2 min)
+@pytest.mark.slow  # one compile into its own cache (about 100 s, 2026-11-26)
 def test_a_corrupt_cache_warns_and_the_run_works(tmp_path):
     env = _cache_holding_the_loop(tmp_path)
     run = [sys.executable, "-c", _PROBE]
