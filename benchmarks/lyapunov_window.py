@@ -21,8 +21,12 @@ This study prints, for the chaotic triple pendulum (:func:`moreau.dynamics.bench
 for each ``d0``, the two-trajectory estimate and the paired difference, over a ladder of
 T/h. Standard errors are those of 10 block means.
 
-    python benchmarks/lyapunov_window.py            # T/h = 1600, 6400, 25600; 50 periods; ~8 min
-    python benchmarks/lyapunov_window.py --quick    # T/h = 1600, 6400; 20 periods; ~1 min
+    python benchmarks/lyapunov_window.py            # T/h = 1600, 6400, 25600; 50 periods; ~50 s
+    python benchmarks/lyapunov_window.py --quick    # T/h = 1600, 6400; 20 periods; ~20 s
+
+(Times of 2026-11-26 with the tangent method's smooth steps compiled, the code in numba's
+cache; 8 and 1 min before. At T/h = 25 600, d0 = 1e-2 the paired difference was
+-0.028 ± 0.045 1/s, as on the Python path.)
 """
 
 from __future__ import annotations
