@@ -1,4 +1,5 @@
-"""Dense linear algebra for small SPD systems (leading k x k blocks, no views)."""
+"""Dense linear algebra for small SPD systems (leading k x k blocks, no views), and the
+matrix exponential of a small step matrix (the tangent dynamics, ``expm_taylor``)."""
 
 from __future__ import annotations
 
