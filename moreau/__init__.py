@@ -52,7 +52,12 @@ from .results import diagnostics
 from .results.trajectory import ImpactLog, SolverStats, Trajectory, load
 from .run.simulation import simulate
 from .step.drift import CombinedProjection, PositionProjection
-from .step.integrator import MoreauJeanMidpoint, MoreauJeanPredictorCorrector, OneStepIntegrator
+from .step.integrator import (
+    MoreauJeanEnergyConsistent,
+    MoreauJeanMidpoint,
+    MoreauJeanPredictorCorrector,
+    OneStepIntegrator,
+)
 from .step.integrator import MoreauJeanTheta as MoreauJeanTheta  # the former name, not in __all__
 
 __all__ = [
@@ -60,7 +65,7 @@ __all__ = [
     "Barrier", "FunctionBarrier", "LinearBarrier", "check_jacobian",
     "SimulationError", "SolverError",
     "ConstantForce", "Effect", "FourierLoad", "FunctionForce", "HarmonicForce", "LinearDamping", "LinearSpring",
-    "MoreauJeanMidpoint", "MoreauJeanPredictorCorrector", "OneStepIntegrator",
+    "MoreauJeanMidpoint", "MoreauJeanPredictorCorrector", "MoreauJeanEnergyConsistent", "OneStepIntegrator",
     "PositionProjection", "CombinedProjection",
     "NewtonImpact",
     "NewtonImpactFriction",

@@ -7,10 +7,16 @@ from numba import njit
 DONE, IMPACTS_FULL, SOLVER_FAILED, NONFINITE, NOT_SPD, NONFINITE_GAP, USER_FAILED, ENERGY_GROWTH = range(8)
 # (bilateral rows: inconsistent at a step, or not held by the position projection)
 CONSTRAINTS_INCONSISTENT, CONSTRAINTS_NOT_HELD = 8, 9
+# (the energy-consistent step's iteration did not converge)
+NOT_CONVERGED = 10
 # settings (int array)
 S_THETA, S_DRIFT, S_DRIFT_ITER, S_STRIDE, S_NSTEPS, S_METHOD, S_FALLBACK, S_ENERGY, S_MEMORY, S_LOCATE = range(10)
 # (S_ECHECK: the energy check's interval in steps, 0 = off; see moreau.run.energy)
 S_ECHECK = 10
+# (S_ITER: iterates allowed per energy-consistent step)
+S_ITER = 11
+# the step (S_THETA): midpoint, predictor-corrector, energy-consistent
+STEP_MIDPOINT, STEP_THETA, STEP_ENERGY = 0, 1, 2
 # drift control modes (S_DRIFT)
 DRIFT_NONE, DRIFT_POSITION, DRIFT_COMBINED = 0, 1, 2
 # per-row state of CombinedProjection (float array (m, 6)): gap at q_k, the gap where the
@@ -21,6 +27,8 @@ R_GAP, R_PINGAP, R_PINNED, R_BOUNCED, R_DELAY, R_SHIFT = range(6)
 I_T, I_STEP, I_ROW, I_UB, I_UA, I_P, I_LOST, I_FLIGHT, I_FAST = range(9)
 # settings (float array)
 F_H, F_T0, F_TOL, F_DRIFT_TOL, F_PE0, F_EWARN, F_ESTOP = range(7)
+# (F_ITOL: the energy-consistent step's iteration tolerance)
+F_ITOL = 7
 # counters (int array)
 # (C_USER: the status of a user callable that failed, see moreau.compiled.usercalls.decode)
 # (C_EWARN: the step at which the energy check first warned, 0 = never; C_ELEVEL: the

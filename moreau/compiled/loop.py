@@ -6,7 +6,8 @@ buffer is full, a solve fails or the state breaks) and returns a status code; th
 Python driver (:mod:`moreau.compiled.runner`) calls it chunk after chunk, advancing the
 progress bar and honouring Ctrl-C between chunks, and turns the codes into the
 documented exceptions. The step is the one of :class:`moreau.MoreauJeanMidpoint` (and,
-with ``THETA``, of :class:`moreau.MoreauJeanPredictorCorrector`), evaluated with the same kernels.
+with ``STEP_THETA``, of :class:`moreau.MoreauJeanPredictorCorrector`, with ``STEP_ENERGY`` of
+:class:`moreau.MoreauJeanEnergyConsistent`), evaluated with the same kernels.
 """
 
 from __future__ import annotations
@@ -20,14 +21,13 @@ from moreau.compiled import evaluate as ev
 from moreau.compiled.bilateral import _eq_hold, _eq_project_velocity, _eq_records, equality_work
 from moreau.compiled.drift import _project
 from moreau.compiled.energy import _energy_check, _kinetic_energy
-from moreau.compiled.friction import _friction_records, friction_work
+from moreau.compiled.friction import friction_work
+from moreau.compiled.implicit import energy_start, next_iterate, pass_forces, velocity_passes
 from moreau.compiled.layout import (  # the loop's layout
     A_WORK_B,
-    A_WORK_C,
     A_WORK_E,
     A_WORK_EV,
     A_WORK_F,
-    C_CONTACT,
     C_FAILKIND,
     C_K,
     C_NIMP,
@@ -37,37 +37,28 @@ from moreau.compiled.layout import (  # the loop's layout
     DRIFT_COMBINED,
     DRIFT_NONE,
     F_H,
+    F_ITOL,
     F_PE0,
     F_T0,
-    I_FAST,
-    I_FLIGHT,
-    I_LOST,
-    I_P,
-    I_ROW,
-    I_STEP,
-    I_T,
-    I_UA,
-    I_UB,
     IMPACTS_FULL,
     NONFINITE,
     NONFINITE_GAP,
+    NOT_CONVERGED,
     NOT_SPD,
     R_BOUNCED,
     R_DELAY,
     R_GAP,
-    R_SHIFT,
     S_DRIFT,
     S_ECHECK,
     S_ENERGY,
     S_LOCATE,
     S_NSTEPS,
     S_STRIDE,
-    S_THETA,
     USER_FAILED,
 )
 from moreau.compiled.layout import part as _part
+from moreau.compiled.records import _contact_records
 from moreau.compiled.step import _user_failed, _velocity_update
-from moreau.contact.equality import eq_velocity
 from moreau.contact.lcp import workspace
 from moreau.core import kernels as _k
 
@@ -82,7 +73,8 @@ def loop_workspace(n: int, m: int, mf: int, mu: np.ndarray, tangent_row: np.ndar
     ma = max(mt, 1)
     own = (np.empty((n, n)), np.empty((n, n)), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n),
            np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.zeros(mt), np.zeros(mt),
-           np.zeros(m), np.zeros(m, dtype=np.bool_), np.empty((mt, n)), np.empty(n), np.empty(n))
+           np.zeros(m), np.zeros(m, dtype=np.bool_), np.empty((mt, n)), np.empty(n), np.empty(n),
+           np.empty((n, n)), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n))
     lw = (np.empty((ma, n)), np.empty(ma), np.empty(n), np.empty(n), np.empty(ma),
           np.empty((ma, n)), np.empty(n), np.zeros(n), np.zeros(mm, dtype=np.bool_))
     return own, workspace(n, m), lw, friction_work(n, m, mf, mu, tangent_row), equality_work(n, me, m + mf)
@@ -116,78 +108,6 @@ def _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, f, fb
         if not math.isfinite(s):
             return NONFINITE_GAP
     return DONE
-
-
-@_part
-def _log_onsets(n, m, t, k, h, v, v_new, f, L, P, G, vfree, in_contact, gmax, fgap, rs, IMP, cnt, me, eqw):
-    """Log the contact onsets of step k that are impacts: faster than the smooth forces
-    alone would change the normal velocity, or after the gap opened beyond its flight gap
-    (the rule of :class:`moreau.results.impacts.ImpactLog`). With bilateral rows the free
-    velocity is the one with the joints held, ``L⁻ᵀ Q b_y`` of the step's reduced problem."""
-    if me > 0:
-        eq_velocity(L, eqw[0], eqw[5], vfree)
-    else:
-        _k.cho_solve(L, f, vfree, n)
-        for i in range(n):
-            vfree[i] = v[i] + h * vfree[i]
-    for r in range(m):
-        if P[r] > 0.0 and not in_contact[r]:
-            ub = 0.0
-            ua = 0.0
-            uf = 0.0
-            for i in range(n):
-                ub += G[r, i] * v[i]
-                ua += G[r, i] * v_new[i]
-                uf += G[r, i] * vfree[i]
-            fast = -ub > abs(uf - ub)  # faster than the smooth forces alone
-            flight = gmax[r] > fgap[r]  # after the gap opened by more than fgap
-            if fast or flight:
-                j = cnt[C_NIMP]
-                IMP[j, I_T] = t
-                IMP[j, I_STEP] = k
-                IMP[j, I_ROW] = r
-                IMP[j, I_UB] = ub
-                IMP[j, I_UA] = ua
-                IMP[j, I_P] = P[r]
-                IMP[j, I_LOST] = -0.5 * P[r] * (ua + ub + rs[r, R_SHIFT])  # (see impact_law)
-                IMP[j, I_FLIGHT] = 1.0 if flight else 0.0
-                IMP[j, I_FAST] = 1.0 if fast else 0.0
-                cnt[C_NIMP] = j + 1
-
-
-@_part
-def _contact_records(n, m, t, k, h, contact, v, v_new, f, L, P, active, G, vfree, P_acc, act_acc, in_contact,
-                     last_imp, gmax, fgap, rs, IMP, cnt, acc, friction, fr, me, eqw):
-    """After the velocity update: impulses and activity summed up to the next record, the
-    contact work, the impact log, and which rows are in contact now."""
-    if not contact:
-        for r in range(m):
-            in_contact[r] = False
-            active[r] = False
-        return
-    cnt[C_CONTACT] += 1
-    onset = False
-    for r in range(m):
-        if P[r] != 0.0:
-            P_acc[r] += P[r]
-        if active[r]:
-            act_acc[r] = True
-            ub = 0.0
-            ua = 0.0
-            for i in range(n):
-                ub += G[r, i] * v[i]
-                ua += G[r, i] * v_new[i]
-            acc[A_WORK_C] += 0.5 * P[r] * (ub + ua)
-            if P[r] > 0.0 and not in_contact[r]:
-                onset = True
-    if friction:
-        _friction_records(n, m, v, v_new, G, active, fr, acc)
-    if onset:
-        _log_onsets(n, m, t, k, h, v, v_new, f, L, P, G, vfree, in_contact, gmax, fgap, rs, IMP, cnt, me, eqw)
-    for r in range(m):
-        in_contact[r] = P[r] > 0.0
-        if P[r] > 0.0:
-            last_imp[r] = k
 
 
 @_part
@@ -303,19 +223,21 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
     scene with friction (unused without).
 
     One step: the model at the midpoint, the velocity update (twice with θ: a predictor
-    pass with f(v_k), then f((v_k + v*)/2)), the contact records, the end position, the
-    gaps and drift control there, and a record every ``stride`` steps.
+    pass with f(v_k), then f((v_k + v*)/2); the energy-consistent step's iterates until v⁺
+    stops changing), the contact records, the end position, the gaps and drift control
+    there, and a record every ``stride`` steps.
     """
     ints, ekind, eoff, _, _, _, _, pool, _, _ = model
     n, m = ints[0], ints[1]
     h, t0 = fset[F_H], fset[F_T0]
     stride, nsteps = iset[S_STRIDE], iset[S_NSTEPS]
-    theta = iset[S_THETA] == 1 and ints[7] == 1
     const_mass = ints[2] == _k.MASS_CONST
+    passes, iterate, correct = velocity_passes(iset, ints)
     own, ws, lw, fr, eqw = work
     friction = ints[9] > 0
     me = ints[10]
-    M, L, cm, sm, cq, sq, qm, f, v_new, vbar, q_new, gm, gq, P, active, G, vfree, fb = own
+    M, L, cm, sm, cq, sq, qm, f, v_new, vbar, q_new, gm, gq, P, active, G, vfree, fb = own[:18]
+    ec = own[18:]  # the energy-consistent step's (implicit.pass_forces)
     bias_work = iset[S_ECHECK] > 0 and ints[3] != 0
     if const_mass:
         if _user_failed(ev.mass(ints, pool, user, q, cq, sq, M), cnt):
@@ -332,19 +254,29 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
         status = _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, f, fb, gm, cnt)
         if status != DONE:
             return status
-        # one call site of the velocity update, so the contact solve is compiled (inlined) once
+        status, s0 = energy_start(model, user, correct, q, v, M, ec, cnt)
+        if status != DONE:
+            return status
+        # one call site of the velocity update, so the contact solve is compiled (inlined) once;
+        # its later passes see the forces at (v_k + x)/2 for an iterate x (implicit.pass_forces)
         code = 0
-        for npass in range(2 if theta else 1):
-            if npass == 1:
-                for i in range(n):
-                    vbar[i] = 0.5 * (v[i] + v_new[i])
-                if _user_failed(ev.force(ints, ekind, eoff, pool, user, t + 0.5 * h, qm, cm, sm, vbar, f, fb),
-                                 cnt):
-                    return USER_FAILED
+        mixed = False
+        for npass in range(passes):
+            if npass >= 1:
+                status = pass_forces(model, user, npass, correct, t, h, q, v, qm, cm, sm, v_new, s0, M, ec, vbar,
+                                     f, fb, cnt)
+                if status != DONE:
+                    return status
             code = _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, v_new, P,
                                     active, G, cnt, acc, fail, ws, lw, last_imp, rs, fr, eqw)
             if code < 0:
                 return cnt[C_FAILKIND]
+            if iterate and npass >= 1:
+                if next_iterate(n, v_new, ec[5], ec[6], ec[7], mixed, fset[F_ITOL]):
+                    break
+                if npass == passes - 1:
+                    return NOT_CONVERGED
+                mixed = True
         if me > 0:
             acc[A_WORK_E] += _eq_records(n, m + ints[9], me, v, v_new, G, eqw[6], eqw[10])
         wf = 0.0  # smooth-force work of the step, h fᵀ (v + v⁺)/2

@@ -32,7 +32,9 @@ from moreau.compiled.layout import (  # the loop's layout
     S_LOCATE,
     S_MEMORY,
     S_METHOD,
+    S_THETA,
     SOLVER_FAILED,
+    STEP_ENERGY,
     USER_FAILED,
 )
 from moreau.compiled.layout import part as _part
@@ -127,7 +129,8 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     ``S_MEMORY`` steps; other closed rows take e = 0 (a persistent contact). A row is
     then also closed when the projection holds it, or when it reaches the barrier by the
     end of the step (2 g(q_m) − g(q_k) <= 0; with ``S_LOCATE`` the free step's end gap,
-    2 g(q_m) − g(q_k) + h²/2 G M⁻¹ f <= 0). Newton's law is :func:`moreau.core.kernels.impact_law`.
+    2 g(q_m) − g(q_k) + h²/2 G M⁻¹ f <= 0; the energy-consistent step closes such rows too).
+    Newton's law is :func:`moreau.core.kernels.impact_law`.
     ``rs`` (m, 6) holds per row the gap at q_k, the gap the projection left it at, the
     pinned and bounced flags, and a bounced row's h/2 − s and (2 s − h) a_n (columns
     ``R_GAP`` ... ``R_SHIFT``). ``fr``: the friction arrays (:mod:`moreau.compiled.friction`);
@@ -144,8 +147,9 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
         _free_acceleration(n, ints[2] == _k.MASS_CONST, Minv, L, f, rhs)
         if _user_failed(ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, GA_all), cnt):
             return -1
+    ahead = iset[S_THETA] == STEP_ENERGY and not combined  # MoreauJeanEnergyConsistent.closes_ahead
     for r in range(m):
-        active[r] = gm[r] <= atol[r]
+        active[r] = gm[r] <= atol[r] or (ahead and 2.0 * gm[r] - rs[r, R_GAP] <= 0.0)
         if combined:
             reach = 2.0 * gm[r] - rs[r, R_GAP]
             if locate:

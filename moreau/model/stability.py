@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 __all__ = ["ENERGY_CHECK_EVERY", "DEFAULT_ENERGY_GROWTH", "as_energy_growth", "fastest_rates", "stable_step",
-           "energy_growth_message"]
+           "step_advice", "energy_growth_message"]
 
 #: the check runs every this many steps (a mass-matrix evaluation each time)
 ENERGY_CHECK_EVERY = 8
@@ -87,16 +87,22 @@ def stable_step(scene: Any, t: float, q: np.ndarray, v: np.ndarray) -> float:
     return min(RESOLVE / omega if omega > 0 else math.inf, 0.5 * RESOLVE / rho if rho > 0 else math.inf)
 
 
+def step_advice(scene: Any, t: float, q: np.ndarray, v: np.ndarray) -> str:
+    """The words that name a step size resolving the fastest motion at a state
+    (:func:`stable_step`), for the messages of a step too large for the motion."""
+    try:
+        hs = stable_step(scene, t, q, v)
+        return (f"a step resolving the fastest motion at this state is about h = {hs:.2g} "
+                f"(faster motion later may need less)"
+                if math.isfinite(hs) else "the model has no fast mode at this state")
+    except Exception as exc:  # noqa: BLE001 - the message must not hide the finding
+        return f"(no step size estimate: {type(exc).__name__}: {exc})"
+
+
 def energy_growth_message(scene: Any, t: float, q: np.ndarray, v: np.ndarray, du: float, ke_max: float,
                           h: float) -> str:
     """The words of the energy check (for a warning and for the error that stops a run)."""
-    try:
-        hs = stable_step(scene, t, q, v)
-        advice = (f"a step resolving the fastest motion at this state is about h = {hs:.2g} "
-                  f"(faster motion later may need less)"
-                  if math.isfinite(hs) else "the model has no fast mode at this state")
-    except Exception as exc:  # noqa: BLE001 - the message must not hide the finding
-        advice = f"(no step size estimate: {type(exc).__name__}: {exc})"
+    advice = step_advice(scene, t, q, v)
     return (f"the energy grew by {du:.3g} beyond the work of the applied forces by t = {t:.6g} "
             f"({du / ke_max:.1%} of the largest kinetic energy so far, {ke_max:.3g}) at h = {h:g}: "
             f"the step is too large for this motion; {advice}")

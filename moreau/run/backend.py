@@ -13,7 +13,12 @@ from moreau.model.scene import Scene
 from moreau.results.assemble import assemble
 from moreau.results.impacts import ImpactLog, SolverStats
 from moreau.results.trajectory import Trajectory
-from moreau.step.integrator import MoreauJeanMidpoint, MoreauJeanPredictorCorrector, OneStepIntegrator
+from moreau.step.integrator import (
+    MoreauJeanEnergyConsistent,
+    MoreauJeanMidpoint,
+    MoreauJeanPredictorCorrector,
+    OneStepIntegrator,
+)
 
 __all__ = ["DriftControl", "choose_backend", "initial_state_only"]
 
@@ -58,7 +63,7 @@ def choose_backend(backend: str, scene: Scene, integrator: type[OneStepIntegrato
             raise ValueError(f"{what} must be a name or a ContactSolver, got {x!r}")
     reason = ""
     if backend != "python":
-        if integrator not in (MoreauJeanMidpoint, MoreauJeanPredictorCorrector):
+        if integrator not in (MoreauJeanMidpoint, MoreauJeanPredictorCorrector, MoreauJeanEnergyConsistent):
             reason = f"integrator {integrator.__name__} has no compiled form"
         elif drift_control is not None and type(drift_control) not in (PositionProjection, CombinedProjection):
             reason = f"drift control {type(drift_control).__name__} has no compiled form"

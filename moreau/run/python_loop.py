@@ -19,7 +19,7 @@ from moreau.results.impacts import ImpactLog, ImpactRow, SolverStats
 from moreau.results.trajectory import Trajectory
 from moreau.run.progress import progress_bar
 from moreau.step.base import OneStepIntegrator
-from moreau.step.checks import BadModelOutput, NonFiniteState
+from moreau.step.checks import BadModelOutput, NonFiniteState, NotConverged
 
 __all__ = ["run_python"]
 
@@ -108,7 +108,7 @@ def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, s
         error = SimulationError(message, None, k)
     except SolverError as exc:
         status, message, error = "failed", str(exc), exc
-    except (NonFiniteState, BadModelOutput) as exc:
+    except (NonFiniteState, NotConverged, BadModelOutput) as exc:
         status, message = "failed", str(exc)
         error = SimulationError(message, None, exc.step)
         error.__cause__ = exc

@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from moreau.compiled.cache import ensure_compiled
+from moreau.compiled.layout import STEP_ENERGY, STEP_MIDPOINT, STEP_THETA
 from moreau.compiled.runner import run_compiled
 from moreau.contact.solvers import ContactSolver
 from moreau.core.errors import attach_trajectory
@@ -24,6 +25,7 @@ from moreau.run.progress import progress_bar
 from moreau.run.python_loop import run_python
 from moreau.run.trust import check_jacobians, penetration_warnings
 from moreau.step.integrator import (
+    MoreauJeanEnergyConsistent,
     MoreauJeanMidpoint,
     MoreauJeanPredictorCorrector,
     OneStepIntegrator,
@@ -192,6 +194,7 @@ def _plan(scene: Scene, t_span: tuple[float, float], h: float, tol: float, recor
     t0, n_steps, stride, n_rec = _steps_and_records(scene, t_span, h, record_every)
     if not (isinstance(integrator, type) and issubclass(integrator, OneStepIntegrator)):
         raise ValueError(f"integrator must be a OneStepIntegrator subclass, got {integrator!r}")
+    _iteration(integrator)  # an iterating step's settings, checked for both paths
     if penetration_limit is not None:
         penetration_limit = as_positive(penetration_limit, "penetration_limit")
     if not isinstance(check_jacobian, bool):
@@ -201,6 +204,23 @@ def _plan(scene: Scene, t_span: tuple[float, float], h: float, tol: float, recor
     path, cs, solver, fallback = choose_backend(backend, scene, integrator, solver, fallback, drift_control)
     return _Plan(t0, h, tol, n_steps, stride, n_rec, path, cs, solver, fallback, fg, penetration_limit,
                  initial_penetration, as_energy_growth(energy_growth))
+
+
+def _compiled_step(integrator: type[OneStepIntegrator]) -> int:
+    """The compiled loop's code for the step of ``integrator`` (one of the three it has)."""
+    if integrator is MoreauJeanEnergyConsistent:
+        return STEP_ENERGY
+    return STEP_THETA if integrator is MoreauJeanPredictorCorrector else STEP_MIDPOINT
+
+
+def _iteration(integrator: type[OneStepIntegrator]) -> tuple[int, float]:
+    """``(max_iterations, iteration_tol)`` of an iterating step, checked; (1, 0) otherwise."""
+    if integrator is not MoreauJeanEnergyConsistent:
+        return 1, 0.0
+    its, tol = integrator.max_iterations, integrator.iteration_tol
+    if isinstance(its, bool) or not isinstance(its, (int, np.integer)) or its < 1:
+        raise ValueError(f"{integrator.__name__}.max_iterations must be an integer >= 1, got {its!r}")
+    return int(its), as_positive(tol, f"{integrator.__name__}.iteration_tol")
 
 
 def _compiled_path(scene: Scene, plan: _Plan, q0: ArrayLike, v0: ArrayLike, integrator: type[OneStepIntegrator],
@@ -216,7 +236,8 @@ def _compiled_path(scene: Scene, plan: _Plan, q0: ArrayLike, v0: ArrayLike, inte
         ensure_compiled()  # before the progress bar moves: a first compile says so
         bar = progress_bar(progress, plan.n_steps, scene.name)
         return run_compiled(scene, plan.cs, t0, q, v, plan.h, plan.n_steps,
-                            theta=integrator is MoreauJeanPredictorCorrector, solver=cast(str, plan.solver),
+                            theta=_compiled_step(integrator), iteration=_iteration(integrator),
+                            solver=cast(str, plan.solver),
                             fallback=plan.fallback, stride=plan.stride, bar=bar, energy=energy, tol=plan.tol,
                             drift_control=drift_control, flight_gap=plan.flight_gap,
                             gmax0=initial_flight(scene, q, v), energy_growth=plan.energy_growth)

@@ -13,13 +13,22 @@ import numpy as np
 from moreau.core.validation import as_vector
 from moreau.model.scene import Scene
 
-__all__ = ["NonFiniteState", "BadModelOutput", "check_initial_state"]
+__all__ = ["NonFiniteState", "NotConverged", "BadModelOutput", "check_initial_state"]
 
 log = logging.getLogger(__name__)
 
 
 class NonFiniteState(FloatingPointError):
     """The state became NaN or infinite during a step (``step`` and ``t`` say where)."""
+
+    def __init__(self, message: str, step: int, t: float) -> None:
+        super().__init__(message)
+        self.step = step
+        self.t = t
+
+
+class NotConverged(ArithmeticError):
+    """An implicit step's iteration did not converge (``step`` and ``t`` say where)."""
 
     def __init__(self, message: str, step: int, t: float) -> None:
         super().__init__(message)

@@ -1,0 +1,139 @@
+"""The compiled energy-consistent step's inertial correction: the twin of
+:class:`moreau.step.integrator.MoreauJeanEnergyConsistent` (the loop iterates the velocity
+update; these two parts add κ M_m Δq to the force of every iterate).
+
+The two that evaluate M are calls, not inlined parts: they run once per iterate, evaluate M
+at another configuration (their own copy of the mass evaluation), and keep that code out
+of the loop's own optimization (see :mod:`moreau.compiled.layout`); the iterates'
+bookkeeping is inlined.
+"""
+
+from moreau.compiled import evaluate as ev
+from moreau.compiled.layout import DONE, S_ITER, S_THETA, STEP_ENERGY, STEP_THETA, USER_FAILED
+from moreau.compiled.layout import call as _call
+from moreau.compiled.layout import part as _part
+from moreau.compiled.step import _user_failed
+from moreau.core import kernels as _k
+
+
+@_part
+def velocity_passes(iset, ints):
+    """``(passes, iterate, correct)``: the velocity update's passes in a step (the
+    predictor-corrector's two, or the energy-consistent step's first pass and iterates),
+    whether they iterate, and whether with the inertial correction (M depends on q)."""
+    const_mass = ints[2] == _k.MASS_CONST
+    iterate = iset[S_THETA] == STEP_ENERGY and (ints[7] == 1 or not const_mass)
+    passes = 2 if iset[S_THETA] == STEP_THETA and ints[7] == 1 else (iset[S_ITER] + 1 if iterate else 1)
+    return passes, iterate, iterate and not const_mass
+
+
+@_call
+def energy_start(model, user, correct, q, v, M, ec, cnt):
+    """``(status, s0)``: s0 = T(q_m, v_k) − T(q_k, v_k), the start's share of the step's
+    kinetic-energy change (0 unless ``correct``); ``M`` (n, n) holds M(q_m); M(q_k) is
+    evaluated into ``ec[0]``, cos/sin of q_k into ``ec[1]``/``ec[2]`` (``ec``: the loop's
+    work arrays of this step). Status DONE or USER_FAILED."""
+    if not correct:
+        return DONE, 0.0
+    Ms, c2, s2 = ec[0], ec[1], ec[2]
+    ints = model[0]
+    n = ints[0]
+    if ints[8]:
+        _k.trig(q, c2, s2)
+    if _user_failed(ev.mass(ints, model[7], user, q, c2, s2, Ms), cnt):
+        return USER_FAILED, 0.0
+    t = 0.0
+    for i in range(n):
+        a = 0.0
+        for j in range(n):
+            a += (M[i, j] - Ms[i, j]) * v[j]
+        t += v[i] * a
+    return DONE, 0.5 * t
+
+
+@_call
+def energy_correction(model, user, h, q, v, v_new, s0, M, Ms, c2, s2, qp, dq, f, fb, cnt):
+    """Add κ M_m Δq to ``f`` and ``fb`` (n,), with Δq = h (v_k + v⁺)/2 for the iterate
+    ``v_new`` and κ = (−s − Δqᵀ f_bias) / (Δqᵀ M_m Δq),
+    s = T(q_k + Δq, v⁺) − T(q_m, v⁺) + s0 (nothing when Δq = 0). ``M`` holds M(q_m);
+    ``Ms``, ``c2``, ``s2``, ``qp``, ``dq`` are scratch. Returns DONE or USER_FAILED."""
+    ints = model[0]
+    n = ints[0]
+    for i in range(n):
+        dq[i] = 0.5 * h * (v[i] + v_new[i])
+        qp[i] = q[i] + dq[i]
+    if ints[8]:
+        _k.trig(qp, c2, s2)
+    if _user_failed(ev.mass(ints, model[7], user, qp, c2, s2, Ms), cnt):
+        return USER_FAILED
+    s = s0
+    den = 0.0
+    along = 0.0
+    for i in range(n):
+        a = 0.0
+        b = 0.0
+        for j in range(n):
+            a += (Ms[i, j] - M[i, j]) * v_new[j]
+            b += M[i, j] * dq[j]
+        s += 0.5 * v_new[i] * a
+        den += dq[i] * b
+        along += dq[i] * fb[i]
+        qp[i] = b  # M_m Δq (q⁺ is no longer needed)
+    if den > 0.0:
+        kappa = (-s - along) / den
+        for i in range(n):
+            f[i] += kappa * qp[i]
+            fb[i] += kappa * qp[i]
+    return DONE
+
+
+@_part
+def iterate_from(n, npass, v, v_new, x, vbar):
+    """The velocity at which pass ``npass`` (>= 1) evaluates the forces, vbar = (v_k + x)/2;
+    the first iterate x is the first pass's answer (the midpoint step's v⁺)."""
+    for i in range(n):
+        if npass == 1:
+            x[i] = v_new[i]
+        vbar[i] = 0.5 * (v[i] + x[i])
+
+
+@_part
+def next_iterate(n, y, x, ylast, rlast, mixed, tol):
+    """True when the answer ``y`` of the iterate ``x`` is converged, |y − x|∞ <= tol (1 + |y|∞);
+    else the next iterate into ``x``: y, or with ``mixed`` (a previous pair in ``ylast``,
+    ``rlast``) Anderson's depth-1 mix y − γ (y − y_last), γ = Δrᵀ r / Δrᵀ Δr with r = y − x
+    (as :meth:`moreau.step.integrator.MoreauJeanEnergyConsistent.step`)."""
+    change = 0.0
+    top = 0.0
+    num = 0.0
+    den = 0.0
+    for i in range(n):
+        r = y[i] - x[i]
+        change = max(change, abs(r))
+        top = max(top, abs(y[i]))
+        dr = r - rlast[i]
+        num += dr * r
+        den += dr * dr
+    if change <= tol * (1.0 + top):
+        return True
+    gamma = num / den if mixed and den > 0.0 else 0.0
+    for i in range(n):
+        rlast[i] = y[i] - x[i]
+        x[i] = y[i] - gamma * (y[i] - ylast[i])
+        ylast[i] = y[i]
+    return False
+
+
+@_part
+def pass_forces(model, user, npass, correct, t, h, q, v, qm, cm, sm, v_new, s0, M, ec, vbar, f, fb, cnt):
+    """The forces of pass ``npass`` >= 1 into ``f`` (bias share ``fb``): f(t + h/2, q_m,
+    (v_k + x)/2) at the iterate x (``ec[5]``; the first is the first pass's answer
+    ``v_new``), plus the inertial correction when ``correct``. Returns DONE or USER_FAILED."""
+    ints, ekind, eoff = model[0], model[1], model[2]
+    Ms, c2, s2, qp, dq, x = ec[0], ec[1], ec[2], ec[3], ec[4], ec[5]
+    iterate_from(ints[0], npass, v, v_new, x, vbar)
+    if _user_failed(ev.force(ints, ekind, eoff, model[7], user, t + 0.5 * h, qm, cm, sm, vbar, f, fb), cnt):
+        return USER_FAILED
+    if correct:
+        return energy_correction(model, user, h, q, v, x, s0, M, Ms, c2, s2, qp, dq, f, fb, cnt)
+    return DONE
