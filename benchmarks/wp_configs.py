@@ -44,14 +44,15 @@ SOLVERS: dict[str, SolverSpec] = {
     "osqp1e-3+check": SolverSpec("osqp1e-3+check", lambda: mo.OSQPSolver(eps=1e-3, polish=False)),
 }
 
-_INTEGRATORS = {"mid": mo.MoreauJeanMidpoint, "theta": mo.MoreauJeanPredictorCorrector}
+_INTEGRATORS = {"mid": mo.MoreauJeanMidpoint, "theta": mo.MoreauJeanPredictorCorrector,
+                "ec": mo.MoreauJeanEnergyConsistent}
 #: drift control variants: none, PositionProjection (plastic rows), CombinedProjection (every e)
 _DRIFTS = {"none": None, "proj": mo.PositionProjection, "comb": mo.CombinedProjection}
 
 
 @dataclass(frozen=True)
 class Config:
-    """One configuration: integrator (``"mid"`` or ``"theta"``), solver, drift control
+    """One configuration: integrator (``"mid"``, ``"theta"`` or ``"ec"``: energy-consistent), solver, drift control
     (``"none"``, ``"proj"``: :class:`~moreau.PositionProjection`, ``"comb"``:
     :class:`~moreau.CombinedProjection`; ``False``/``True`` mean none/proj)."""
 

@@ -78,9 +78,11 @@ def make_problems(quick: bool = False) -> list[Problem]:
     return [
         both(BallProblem),
         both(PendulumWallProblem, t_end=12.0),
-        ChainWallsProblem(chain_ladder, compiled),
+        # the energy-consistent step where its terms act: configuration-dependent M, damping
+        ChainWallsProblem(chain_ladder, compiled + configs(integrators=("ec",), solvers=("exact",),
+                                                           drifts=("none", "comb"))),
         SmoothPendulumProblem([0.04, 0.02, 0.01, 0.005, 0.0025, 0.00125, 4e-4],
-                              configs(solvers=("exact",), drifts=(False,))),
+                              configs(integrators=("mid", "theta", "ec"), solvers=("exact",), drifts=(False,))),
         both(BlockProblem),
         both(WoodpeckerProblem),
         *pistons,

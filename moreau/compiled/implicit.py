@@ -116,10 +116,12 @@ def next_iterate(n, y, x, ylast, rlast, mixed, tol):
         den += dr * dr
     if change <= tol * (1.0 + top):
         return True
-    gamma = num / den if mixed and den > 0.0 else 0.0
+    mix = mixed and den > 0.0
+    gamma = num / den if mix else 0.0
     for i in range(n):
         rlast[i] = y[i] - x[i]
-        x[i] = y[i] - gamma * (y[i] - ylast[i])
+        # (not 0 · (y − y_last) unmixed: y_last holds the previous step's values, or none)
+        x[i] = y[i] - gamma * (y[i] - ylast[i]) if mix else y[i]
         ylast[i] = y[i]
     return False
 
