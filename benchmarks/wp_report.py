@@ -147,7 +147,7 @@ def plot(runs: Sequence[Run], orders: dict, problems: Sequence[Problem], path: s
     from matplotlib.lines import Line2D
 
     colors = {"osqp": "C0", "osqp1e-5": "C1", "osqp1e-3": "C3", "enum": "C2", "daqp": "C4", "exact": "C5"}
-    styles = {"mid": "-", "theta": "--"}
+    styles = {"mid": "-", "theta": "--", "ec": ":"}
     markers = {"none": "o", "proj": "s", "comb": "^"}
     n = len(problems)
     ncol = 3
