@@ -27,15 +27,20 @@ def velocity_passes(iset, ints):
     return passes, iterate, iterate and not const_mass
 
 
-@_call
+@_part
 def energy_start(model, user, correct, q, v, M, ec, cnt):
     """``(status, s0)``: s0 = T(q_m, v_k) − T(q_k, v_k), the start's share of the step's
-    kinetic-energy change (0 unless ``correct``); ``M`` (n, n) holds M(q_m); M(q_k) is
-    evaluated into ``ec[0]``, cos/sin of q_k into ``ec[1]``/``ec[2]`` (``ec``: the loop's
-    work arrays of this step). Status DONE or USER_FAILED."""
+    kinetic-energy change (0 unless ``correct``: other steps make no call); ``M`` (n, n)
+    holds M(q_m); M(q_k) is evaluated into ``ec[0]``, cos/sin of q_k into ``ec[1]``/``ec[2]``
+    (``ec``: the loop's work arrays of this step). Status DONE or USER_FAILED."""
     if not correct:
         return DONE, 0.0
-    Ms, c2, s2 = ec[0], ec[1], ec[2]
+    return _energy_start(model, user, q, v, M, ec[0], ec[1], ec[2], cnt)
+
+
+@_call
+def _energy_start(model, user, q, v, M, Ms, c2, s2, cnt):
+    """:func:`energy_start`'s evaluation (a call, out of the loop's own code)."""
     ints = model[0]
     n = ints[0]
     if ints[8]:
