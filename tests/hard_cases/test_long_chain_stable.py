@@ -155,3 +155,39 @@ def test_bad_iteration_settings_are_refused_naming_them(attr, bad, monkeypatch):
     monkeypatch.setattr(EC, attr, bad)
     with pytest.raises(ValueError, match=attr):
         run_chain("python", False, 0.0, 1e-3, T=0.01)
+
+
+def _four_bar():
+    from moreau.problems.four_bar import four_bar
+
+    fb = four_bar(stop=0.75)
+    return (fb.scene, *fb.initial_state(), 1.0, {})
+
+
+def _chain_walls_combined():
+    from moreau.problems.chain_walls import chain_walls
+
+    return (*chain_walls(), 1.5, {"drift_control": mo.CombinedProjection()})
+
+
+def _rough_floor():
+    chain = PendulumChain([Link.rod(m=1.0 / 6, l=1.0 / 6) for _ in range(6)])
+    rows = [PointLineRow(i, (1.0 / 6, 0.0), line_point=(0.0, 0.0), normal=(0.0, 1.0)) for i in range(6)]
+    scene = mo.Scene(chain, [ChainGravity(chain)],
+                     [mo.Contact(PointLineBarrier(chain, rows), mo.NewtonImpactFriction(0.0, 0.5), name="floor")])
+    return scene, np.full(6, np.pi / 2), np.linspace(-1.0, 1.0, 6), 0.5, {}
+
+
+@pytest.mark.parametrize("make", [_four_bar, _chain_walls_combined, _rough_floor],
+                         ids=["four_bar_with_a_stop", "chain_walls_combined", "rough_floor"])
+def test_both_paths_agree_with_joints_drift_control_and_friction(make):
+    """The step with bilateral rows (the four-bar hitting its stop), CombinedProjection (the
+    triple chain against three walls) and Coulomb friction (six links sliding on a rough
+    floor): each completes on both paths, with impacts, and the paths agree to round-off."""
+    scene, q0, v0, T, kw = make()
+    a, b = (mo.simulate(scene, (0.0, T), q0, v0, 1e-3, backend=backend, solver="exact", integrator=EC, **kw)
+            for backend in ("compiled", "python"))
+    assert a.status == b.status == "completed"
+    assert a.work["contacts"] < 0.0
+    assert np.abs(a.q - b.q).max() < 1e-9
+    assert np.abs(a.v - b.v).max() < 1e-7
