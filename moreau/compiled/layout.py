@@ -39,7 +39,9 @@ C_REC, C_NIMP, C_SOLVES, C_FALLBACKS, C_CONTACT, C_PROJ, C_K, C_FAILKIND, C_USER
 C_PAINLEVE, C_PAINLEVE_STEP, C_PAINLEVE_ROW = 11, 12, 13
 # (C_EQROW: the bilateral row named by a CONSTRAINTS_* status)
 C_EQROW = 14
-N_COUNTERS = 15
+# (C_UPDATES: velocity updates computed, one per pass: see SolverStats.velocity_updates)
+C_UPDATES = 15
+N_COUNTERS = 16
 # accumulators (float array)
 # (the energy check: kinetic energy at the start, the largest so far, the unaccounted energy
 # at the warning and at the last check, the work of the bias terms)

@@ -33,6 +33,7 @@ from moreau.compiled.layout import (  # the loop's layout
     C_NIMP,
     C_PROJ,
     C_REC,
+    C_UPDATES,
     DONE,
     DRIFT_COMBINED,
     DRIFT_NONE,
@@ -269,6 +270,7 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
                     return status
             code = _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, v_new, P,
                                     active, G, cnt, acc, fail, ws, lw, last_imp, rs, fr, eqw)
+            cnt[C_UPDATES] += 1
             if code < 0:
                 return cnt[C_FAILKIND]
             if iterate and npass >= 1:

@@ -237,7 +237,7 @@ def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE,
         solver=solver, fallback=fallback or "", steps=k, contact_steps=int(cnt[lay.C_CONTACT]),
         solves=int(cnt[lay.C_SOLVES]), fallbacks=int(cnt[lay.C_FALLBACKS]),
         projections=int(cnt[lay.C_PROJ]), worst_residual=float(acc[lay.A_WORST]), wall_time=wall,
-        backend="compiled",
+        backend="compiled", velocity_updates=int(cnt[lay.C_UPDATES]),
     )
     traj = assemble(
         scene, t=T[:rec], q=Q[:rec], v=V[:rec], impulses=np.ascontiguousarray(PS[:rec, :m]), active=ACT[:rec],

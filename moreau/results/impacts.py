@@ -137,7 +137,9 @@ class SolverStats:
     contact_steps : int
         Steps with at least one closed row (one contact solve each).
     solves : int
-        Contact problems solved (= contact_steps).
+        Contact problems solved: one per contact step, and one per further pass of the
+        velocity update in such a step (the predictor–corrector's second, the
+        energy-consistent step's iterates).
     fallbacks : int
         Solves the main backend failed (wrong answer or error) and the fallback did.
     projections : int
@@ -148,6 +150,10 @@ class SolverStats:
         Seconds spent stepping.
     backend : str
         ``"compiled"`` (the whole loop in machine code) or ``"python"``.
+    velocity_updates : int
+        Velocity updates computed: one per step with the midpoint step, two with the
+        predictor–corrector (velocity-dependent forces), and with the energy-consistent step
+        one plus its iterates (``velocity_updates / steps`` is its cost factor).
     """
 
     solver: str = ""
@@ -160,6 +166,7 @@ class SolverStats:
     worst_residual: float = 0.0
     wall_time: float = 0.0
     backend: str = "python"
+    velocity_updates: int = 0
 
     @property
     def us_per_step(self) -> float:

@@ -171,6 +171,8 @@ class OneStepIntegrator(ABC):
         self.bounce_shift = np.zeros(m)
         self.contact_step = False
         self.n_solves = self.n_fallbacks = self.n_contact_steps = self.n_projections = 0
+        #: velocity updates computed (SolverStats.velocity_updates)
+        self.n_updates = 0
         self.worst_residual = 0.0
         self.work_forces = self.work_contacts = 0.0
         #: work of the friction impulses (<= 0 for Coulomb's law), not in ``work_contacts``

@@ -77,6 +77,7 @@ class MoreauJeanMidpoint(OneStepIntegrator):
     def _velocity_update(self, qm, M, L, f, v):
         """v⁺ from ``M (v⁺ − v) = h f + Gᵀ P`` with the contacts closed at ``qm``; L is the
         Cholesky factor of M."""
+        self.n_updates += 1
         h = self.h
         scene = self.scene
         if scene.gaps is not None:

@@ -87,6 +87,11 @@ def test_both_paths_take_the_same_steps_on_the_floor():
     assert np.abs(a.q - b.q).max() < 1e-7
     assert np.abs(a.v - b.v).max() < 1e-5
     assert abs(a.work["contacts"] - b.work["contacts"]) < 1e-8 * MGL
+    # the same iterates on both paths: 1 + the iterates per step, counted
+    assert a.stats.velocity_updates == b.stats.velocity_updates
+    assert 3 * a.stats.steps < a.stats.velocity_updates < EC.max_iterations * a.stats.steps
+    mid = mo.simulate(chain_scene(True, 0.5), (0.0, 0.1), Q0, V0, 1e-3, solver="exact")
+    assert mid.stats.velocity_updates == mid.stats.steps == 100
 
 
 def test_the_kinetic_energy_changes_by_exactly_the_work_of_the_applied_forces():
