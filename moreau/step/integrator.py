@@ -261,7 +261,7 @@ class MoreauJeanEnergyConsistent(MoreauJeanMidpoint):
 
     where G, e and U_k are the rows closed at q_m, or reaching the barrier by the end of
     the step, 2 g(q_m) − g(q_k) <= 0 (as :class:`~moreau.step.drift.CombinedProjection`
-    closes them): a fast part is stopped at the barrier instead of h/2 · |G v| into it.
+    closes them): a fast part is stopped at the barrier instead of h/2 · (−G v) into it.
     T(q, v) = ½ vᵀ M(q) v. The scalar κ corrects the bias (centrifugal, Coriolis) force
     along Δq so that, at convergence, the kinetic energy changes by exactly the work of
     the applied forces and the contact impulses:
@@ -281,7 +281,8 @@ class MoreauJeanEnergyConsistent(MoreauJeanMidpoint):
     """
 
     closes_ahead = True
-    #: largest change of v⁺ between iterates, relative to 1 + |v⁺|∞, that ends the iteration
+    #: largest change of v⁺ between iterates (max norm), relative to 1 + max(abs(v⁺)), that ends
+    #: the iteration
     iteration_tol = 1e-10
     #: iterates allowed per step before the run stops
     max_iterations = 60
