@@ -106,6 +106,7 @@ def _table(n: int, c: float = 0.0, n_intervals: int = 4):
                                           t0=orb.t_mid)
 
 
+@pytest.mark.slow  # a convergence study (10 s): in the slow suite, which CI runs too
 def test_table_exponents_converge_at_first_order_in_h():
     """Period-1 orbit of the ball on the table (e = 0.5, no damping; 40 periods of
     transient for the scheme's orbit to settle, 12 of alignment, 4 averaged): both

@@ -44,7 +44,13 @@ def test_there_are_notebooks():
     assert {p.stem for p in NOTEBOOKS} >= {"restitution", "clearance", "paper_figures", "triple_pendulum"}
 
 
-@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
+#: the longest runs at reduced size (12-15 s each, 2026-11-26): in the slow suite, which CI
+#: runs too (and CI's documentation build executes every notebook at reduced size again)
+SLOW_NOTEBOOKS = {"clearance", "paper_figures", "restitution", "triple_pendulum"}
+
+
+@pytest.mark.parametrize("path", [pytest.param(p, marks=pytest.mark.slow) if p.stem in SLOW_NOTEBOOKS else p
+                                  for p in NOTEBOOKS], ids=lambda p: p.stem)
 def test_notebook_runs_at_reduced_size(path, tmp_path):
     figures = tmp_path / "figures"
     wall, nb = execute(path, {
