@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from moreau.compiled.layout import STEP_MIDPOINT
 from moreau.compiled.runner import run_compiled
 from moreau.core.jitcache import cache_dir, clear, compile_lock
 
@@ -107,6 +108,6 @@ def _warm_up() -> None:
 
     scene = Scene(FunctionSystem(np.eye(1)), [ConstantForce([-1.0])],
                   [Contact(LinearBarrier([[1.0]], [0.0]), 0.5)])
-    run_compiled(scene, None, 0.0, np.array([1e-3]), np.array([-1.0]), 1e-3, 2, theta=False, solver="exact",
+    run_compiled(scene, None, 0.0, np.array([1e-3]), np.array([-1.0]), 1e-3, 2, step=STEP_MIDPOINT, solver="exact",
                  fallback=None, stride=1, bar=None, energy=True, tol=1e-8, drift_control=None,
                  flight_gap=np.zeros(1), gmax0=np.full(1, np.inf))

@@ -9,7 +9,7 @@ bookkeeping is inlined.
 """
 
 from moreau.compiled import evaluate as ev
-from moreau.compiled.layout import DONE, S_ITER, S_THETA, STEP_ENERGY, STEP_THETA, USER_FAILED
+from moreau.compiled.layout import DONE, S_ITER, S_STEP, STEP_ENERGY, STEP_THETA, USER_FAILED
 from moreau.compiled.layout import call as _call
 from moreau.compiled.layout import part as _part
 from moreau.compiled.step import _user_failed
@@ -22,8 +22,8 @@ def velocity_passes(iset, ints):
     predictor-corrector's two, or the energy-consistent step's first pass and iterates),
     whether they iterate, and whether with the inertial correction (M depends on q)."""
     const_mass = ints[2] == _k.MASS_CONST
-    iterate = iset[S_THETA] == STEP_ENERGY and (ints[7] == 1 or not const_mass)
-    passes = 2 if iset[S_THETA] == STEP_THETA and ints[7] == 1 else (iset[S_ITER] + 1 if iterate else 1)
+    iterate = iset[S_STEP] == STEP_ENERGY and (ints[7] == 1 or not const_mass)
+    passes = 2 if iset[S_STEP] == STEP_THETA and ints[7] == 1 else (iset[S_ITER] + 1 if iterate else 1)
     return passes, iterate, iterate and not const_mass
 
 

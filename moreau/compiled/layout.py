@@ -10,12 +10,12 @@ CONSTRAINTS_INCONSISTENT, CONSTRAINTS_NOT_HELD = 8, 9
 # (the energy-consistent step's iteration did not converge)
 NOT_CONVERGED = 10
 # settings (int array)
-S_THETA, S_DRIFT, S_DRIFT_ITER, S_STRIDE, S_NSTEPS, S_METHOD, S_FALLBACK, S_ENERGY, S_MEMORY, S_LOCATE = range(10)
+S_STEP, S_DRIFT, S_DRIFT_ITER, S_STRIDE, S_NSTEPS, S_METHOD, S_FALLBACK, S_ENERGY, S_MEMORY, S_LOCATE = range(10)
 # (S_ECHECK: the energy check's interval in steps, 0 = off; see moreau.run.energy)
 S_ECHECK = 10
 # (S_ITER: iterates allowed per energy-consistent step)
 S_ITER = 11
-# the step (S_THETA): midpoint, predictor-corrector, energy-consistent
+# the step (S_STEP): midpoint, predictor-corrector, energy-consistent
 STEP_MIDPOINT, STEP_THETA, STEP_ENERGY = 0, 1, 2
 # drift control modes (S_DRIFT)
 DRIFT_NONE, DRIFT_POSITION, DRIFT_COMBINED = 0, 1, 2

@@ -22,7 +22,7 @@ from moreau.compiled.lowering import CompiledScene, lower
 from moreau.compiled.usercalls import decode
 from moreau.contact.friction import FRICTION_RESIDUALS, painleve_message
 from moreau.core.errors import SimulationError, SolverError, attach_trajectory
-from moreau.model.stability import ENERGY_CHECK_EVERY, energy_growth_message, step_advice
+from moreau.model.stability import ENERGY_CHECK_EVERY, energy_growth_message, not_converged_message
 from moreau.results.assemble import assemble
 from moreau.results.impacts import ImpactLog, SolverStats
 from moreau.results.trajectory import Trajectory
@@ -47,13 +47,12 @@ def _methods(solver, fallback) -> tuple[int, int]:
     return COMPILED_SOLVERS[solver], (-1 if fallback is None else COMPILED_SOLVERS[fallback])
 
 
-def _settings(scene, t0: float, h: float, n_steps: int, theta: bool | int, solver: str, fallback, stride: int,
+def _settings(scene, t0: float, h: float, n_steps: int, step: int, solver: str, fallback, stride: int,
               energy: bool, tol: float, drift_control, energy_growth,
               iteration: tuple[int, float] = (1, 0.0)) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The loop's settings (int and float arrays, see :mod:`moreau.compiled.layout`) and the
-    rows eligible for drift control. ``theta``: the step (``layout.STEP_*``; True is the
-    predictor-corrector); ``iteration``: the energy-consistent step's iterates allowed per
-    step and tolerance."""
+    rows eligible for drift control. ``step``: the step (``layout.STEP_*``); ``iteration``:
+    the energy-consistent step's iterates allowed per step and tolerance."""
     method, fb = _methods(solver, fallback)
     m = scene.nrows
     eligible = np.zeros(m, dtype=np.bool_)
@@ -67,25 +66,25 @@ def _settings(scene, t0: float, h: float, n_steps: int, theta: bool | int, solve
     memory = int(getattr(drift_control, "memory", 0))
     locate = int(bool(getattr(drift_control, "locate_impacts", False)))
     echeck = ENERGY_CHECK_EVERY if energy_growth is not None else 0
-    iset = np.array([int(theta), drift_mode, drift_iter, stride, n_steps, method, fb, int(energy), memory, locate,
+    iset = np.array([step, drift_mode, drift_iter, stride, n_steps, method, fb, int(energy), memory, locate,
                      echeck, iteration[0]], dtype=np.int64)
     warn, stop = energy_growth if energy_growth is not None else (math.inf, math.inf)
     return iset, np.array([h, t0, tol, drift_tol, 0.0, warn, stop, iteration[1]]), eligible
 
 
 def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0: np.ndarray,
-                 h: float, n_steps: int, *, theta: bool | int, solver: str, fallback, stride: int,
+                 h: float, n_steps: int, *, step: int, solver: str, fallback, stride: int,
                  bar, energy: bool, tol: float, drift_control, flight_gap: np.ndarray,
                  gmax0: np.ndarray, energy_growth: tuple[float, float] | None = None,
                  iteration: tuple[int, float] = (1, 0.0)) -> Trajectory:
     """Run ``n_steps`` steps compiled from a validated initial state (see :func:`moreau.simulate`,
     which calls this after :func:`~moreau.compiled.cache.ensure_compiled`); ``gmax0`` is each
     row's initial flight gap (``moreau.run.flights.initial_flight``); ``energy_growth`` the energy
-    check's ``(warn, stop)`` (None: no check); ``theta``, ``iteration``: see ``_settings``."""
+    check's ``(warn, stop)`` (None: no check); ``step``, ``iteration``: see ``_settings``."""
     if cs is None:
         cs = lower(scene)
     n, m = scene.ndof, scene.nrows
-    iset, fset, eligible = _settings(scene, t0, h, n_steps, theta, solver, fallback, stride, energy, tol,
+    iset, fset, eligible = _settings(scene, t0, h, n_steps, step, solver, fallback, stride, energy, tol,
                                      drift_control, energy_growth, iteration)
     n_rec = n_steps // stride + 1 + (1 if n_steps % stride else 0)
     T = np.empty(n_rec)
@@ -262,9 +261,7 @@ def _error(code, scene, k, t, q, v, h, fail, cs, user_status, acc, tol=float("na
         return SimulationError(energy_growth_message(scene, t, q, v, float(acc[lay.A_DU]), float(acc[lay.A_KEMAX]), h),
                                None, k)
     if code == lay.NOT_CONVERGED:
-        return SimulationError(f"the energy-consistent step did not converge in {int(max_iter)} iterations {where} "
-                               f"at h = {h:g}: the step is too large for this motion; "
-                               f"{step_advice(scene, t, q, v)}", None, k)
+        return SimulationError(not_converged_message(scene, t, q, v, h, where, int(max_iter)), None, k)
     if code == lay.USER_FAILED:
         return _user_error(scene, cs, user_status, where, k, t, q, v, h)
     if code == lay.SOLVER_FAILED:

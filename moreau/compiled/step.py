@@ -32,7 +32,7 @@ from moreau.compiled.layout import (  # the loop's layout
     S_LOCATE,
     S_MEMORY,
     S_METHOD,
-    S_THETA,
+    S_STEP,
     SOLVER_FAILED,
     STEP_ENERGY,
     USER_FAILED,
@@ -147,7 +147,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
         _free_acceleration(n, ints[2] == _k.MASS_CONST, Minv, L, f, rhs)
         if _user_failed(ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, GA_all), cnt):
             return -1
-    ahead = iset[S_THETA] == STEP_ENERGY and not combined  # MoreauJeanEnergyConsistent.closes_ahead
+    ahead = iset[S_STEP] == STEP_ENERGY and not combined  # MoreauJeanEnergyConsistent.closes_ahead
     for r in range(m):
         active[r] = gm[r] <= atol[r] or (ahead and 2.0 * gm[r] - rs[r, R_GAP] <= 0.0)
         if combined:

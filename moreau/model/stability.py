@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 __all__ = ["ENERGY_CHECK_EVERY", "DEFAULT_ENERGY_GROWTH", "as_energy_growth", "fastest_rates", "stable_step",
-           "step_advice", "energy_growth_message"]
+           "step_advice", "not_converged_message", "energy_growth_message"]
 
 #: the check runs every this many steps (a mass-matrix evaluation each time)
 ENERGY_CHECK_EVERY = 8
@@ -97,6 +97,14 @@ def step_advice(scene: Any, t: float, q: np.ndarray, v: np.ndarray) -> str:
                 if math.isfinite(hs) else "the model has no fast mode at this state")
     except Exception as exc:  # noqa: BLE001 - the message must not hide the finding
         return f"(no step size estimate: {type(exc).__name__}: {exc})"
+
+
+def not_converged_message(scene: Any, t: float, q: np.ndarray, v: np.ndarray, h: float, where: str,
+                          iterations: int) -> str:
+    """The words of an iterating step that did not converge (both paths; ``where`` names
+    the step and its time)."""
+    return (f"the energy-consistent step did not converge in {iterations} iterations {where} at h = {h:g}: "
+            f"the step is too large for this motion; {step_advice(scene, t, q, v)}")
 
 
 def energy_growth_message(scene: Any, t: float, q: np.ndarray, v: np.ndarray, du: float, ke_max: float,

@@ -151,7 +151,7 @@ def _stats(integ: OneStepIntegrator, wall: float) -> SolverStats:
         solver=integ.solver.name, fallback=integ.fallback.name if integ.fallback is not None else "",
         steps=integ.k, contact_steps=integ.n_contact_steps, solves=integ.n_solves, fallbacks=integ.n_fallbacks,
         projections=integ.n_projections, worst_residual=integ.worst_residual, wall_time=wall,
-        velocity_updates=getattr(integ, "n_updates", 0),
+        velocity_updates=integ.n_updates,
     )
 
 

@@ -180,6 +180,8 @@ class _Plan:
     penetration_limit: float | None
     initial_penetration: float
     energy_growth: tuple[float, float] | None
+    #: (max_iterations, iteration_tol) of an iterating step, checked
+    iteration: tuple[int, float] = (1, 0.0)
 
 
 def _plan(scene: Scene, t_span: tuple[float, float], h: float, tol: float, record_every: int,
@@ -194,7 +196,7 @@ def _plan(scene: Scene, t_span: tuple[float, float], h: float, tol: float, recor
     t0, n_steps, stride, n_rec = _steps_and_records(scene, t_span, h, record_every)
     if not (isinstance(integrator, type) and issubclass(integrator, OneStepIntegrator)):
         raise ValueError(f"integrator must be a OneStepIntegrator subclass, got {integrator!r}")
-    _iteration(integrator)  # an iterating step's settings, checked for both paths
+    iteration = _iteration(integrator)  # an iterating step's settings, checked for both paths
     if penetration_limit is not None:
         penetration_limit = as_positive(penetration_limit, "penetration_limit")
     if not isinstance(check_jacobian, bool):
@@ -203,7 +205,7 @@ def _plan(scene: Scene, t_span: tuple[float, float], h: float, tol: float, recor
     initial_penetration = as_positive(initial_penetration, "initial_penetration", allow_zero=True)
     path, cs, solver, fallback = choose_backend(backend, scene, integrator, solver, fallback, drift_control)
     return _Plan(t0, h, tol, n_steps, stride, n_rec, path, cs, solver, fallback, fg, penetration_limit,
-                 initial_penetration, as_energy_growth(energy_growth))
+                 initial_penetration, as_energy_growth(energy_growth), iteration)
 
 
 def _compiled_step(integrator: type[OneStepIntegrator]) -> int:
@@ -214,8 +216,9 @@ def _compiled_step(integrator: type[OneStepIntegrator]) -> int:
 
 
 def _iteration(integrator: type[OneStepIntegrator]) -> tuple[int, float]:
-    """``(max_iterations, iteration_tol)`` of an iterating step, checked; (1, 0) otherwise."""
-    if integrator is not MoreauJeanEnergyConsistent:
+    """``(max_iterations, iteration_tol)`` of an iterating step (and of a subclass's, which
+    takes the Python path), checked; (1, 0) otherwise."""
+    if not issubclass(integrator, MoreauJeanEnergyConsistent):
         return 1, 0.0
     its, tol = integrator.max_iterations, integrator.iteration_tol
     if isinstance(its, bool) or not isinstance(its, (int, np.integer)) or its < 1:
@@ -236,7 +239,7 @@ def _compiled_path(scene: Scene, plan: _Plan, q0: ArrayLike, v0: ArrayLike, inte
         ensure_compiled()  # before the progress bar moves: a first compile says so
         bar = progress_bar(progress, plan.n_steps, scene.name)
         return run_compiled(scene, plan.cs, t0, q, v, plan.h, plan.n_steps,
-                            theta=_compiled_step(integrator), iteration=_iteration(integrator),
+                            step=_compiled_step(integrator), iteration=plan.iteration,
                             solver=cast(str, plan.solver),
                             fallback=plan.fallback, stride=plan.stride, bar=bar, energy=energy, tol=plan.tol,
                             drift_control=drift_control, flight_gap=plan.flight_gap,

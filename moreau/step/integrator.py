@@ -20,7 +20,7 @@ import numpy as np
 
 from moreau.core.kernels import NEGLIGIBLE_VELOCITY
 from moreau.core.kernels import impact_law as _impact_law
-from moreau.model.stability import step_advice
+from moreau.model.stability import not_converged_message
 from moreau.step.base import ContactDetails, OneStepIntegrator, _solve_with
 from moreau.step.checks import BadModelOutput, NonFiniteState, NotConverged, check_initial_state
 
@@ -332,10 +332,8 @@ class MoreauJeanEnergyConsistent(MoreauJeanMidpoint):
                 if dd > 0.0:
                     x = y - (float(dr @ r) / dd) * (y - y_last)
             y_last, r_last = y, r
-        raise NotConverged(
-            f"the energy-consistent step did not converge in {self.max_iterations} iterations at step "
-            f"{self.k} (t = {self.t:.9g}, last change of v⁺ {change:.3g}) at h = {h:g}: the step is too "
-            f"large for this motion; {step_advice(scene, self.t, q, v)}", self.k, self.t)
+        where = f"at step {self.k} (t = {self.t:.9g}, last change of v⁺ {change:.3g})"
+        raise NotConverged(not_converged_message(scene, self.t, q, v, h, where, self.max_iterations), self.k, self.t)
 
 
 #: The former name of :class:`MoreauJeanPredictorCorrector` (kept for existing scripts).
