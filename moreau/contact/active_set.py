@@ -11,7 +11,7 @@ import math
 
 from numba import njit
 
-from moreau.core.kernels import cho_solve, cholesky
+from moreau.core.kernels import cho_solve, cholesky, lt_solve
 
 __all__ = ["lcp_dual_active_set", "lcp_enumerate", "OK", "FAILED"]
 
@@ -82,16 +82,21 @@ def lcp_dual_active_set(W, w, P, k, tol, s, A, inA, rhs, r, sub, fac):
         return OK
     for i in range(k):
         inA[i] = False
-    na = 0
+    na = 0  # fac holds the Cholesky factor of W[A, A] (na x na), rows in the order of A
     converged = False
     for _ in range(10 * (k + 1)):
-        _slacks(W, w, P, s, k)
         p = -1
         worst = 0.0
         for i in range(k):
-            if not inA[i] and s[i] < -tol:
+            if inA[i]:
+                continue
+            si = w[i]  # the slack, summed over the active rows (P is 0 elsewhere)
+            for a in range(na):
+                si += W[i, A[a]] * P[A[a]]
+            s[i] = si
+            if si < -tol:
                 d = W[i, i]
-                score = s[i] / math.sqrt(d) if d > 0.0 else s[i]
+                score = si / math.sqrt(d) if d > 0.0 else si
                 if score < worst:
                     worst, p = score, i
         if p < 0:
@@ -99,18 +104,21 @@ def lcp_dual_active_set(W, w, P, k, tol, s, A, inA, rhs, r, sub, fac):
             break
         added = False
         for _inner in range(k + 1):
-            # r = W_AA⁻¹ W_Ap: how the active impulses change per unit of P_p
-            if na > 0:
-                for i in range(na):
-                    rhs[i] = W[A[i], p]
-                if not _solve_active(W, A, na, rhs, r, sub, fac):
-                    return FAILED
+            # r = W_AA⁻¹ W_Ap: how the active impulses change per unit of P_p; y = L⁻¹ W_Ap
+            # is also the row that appends p to the factor, and W_pp − yᵀy its pivot²
             schur = W[p, p]
             for i in range(na):
-                schur -= W[p, A[i]] * r[i]
-            sp = w[p]
-            for j in range(k):
-                sp += W[p, j] * P[j]
+                t = W[A[i], p]
+                for j in range(i):
+                    t -= fac[i, j] * rhs[j]
+                rhs[i] = t / fac[i, i]
+                schur -= rhs[i] * rhs[i]
+            for i in range(na):
+                r[i] = rhs[i]
+            lt_solve(fac, r, na)
+            sp = w[p] + W[p, p] * P[p]  # (P_p > 0 after a step that dropped a row)
+            for a in range(na):
+                sp += W[p, A[a]] * P[A[a]]
             t1 = math.inf
             if schur > 1e-13 * max(W[p, p], 1e-300):
                 t1 = -sp / schur
@@ -127,14 +135,23 @@ def lcp_dual_active_set(W, w, P, k, tol, s, A, inA, rhs, r, sub, fac):
             for i in range(na):
                 P[A[i]] -= t * r[i]
             P[p] += t
-            if t2 < t1:  # drop the blocking row, keep adding p
+            if t2 < t1:  # drop the blocking row (and refactor W_AA), keep adding p
                 jb = A[jblock]
                 P[jb] = 0.0
                 inA[jb] = False
                 for i in range(jblock, na - 1):
                     A[i] = A[i + 1]
                 na -= 1
+                for i in range(na):
+                    for j in range(na):
+                        sub[i, j] = W[A[i], A[j]]
+                if cholesky(sub, fac, na) >= 0:
+                    return FAILED
                 continue
+            for j in range(na):  # append p: W[A + p, A + p] = [L 0; yᵀ √schur] [..]ᵀ
+                fac[na, j] = rhs[j]
+                fac[j, na] = 0.0
+            fac[na, na] = math.sqrt(schur)
             A[na] = p
             inA[p] = True
             na += 1
@@ -144,18 +161,19 @@ def lcp_dual_active_set(W, w, P, k, tol, s, A, inA, rhs, r, sub, fac):
             return FAILED
     if not converged:
         return FAILED
-    # refine on the final active set: W_AA P_A = −w_A exactly
+    # refine on the final active set: W_AA P_A = −w_A exactly (with its factor, which the
+    # appends built as a fresh factorization would: the same operations in the same order)
     if na > 0:
         for i in range(na):
             rhs[i] = -w[A[i]]
-        if _solve_active(W, A, na, rhs, r, sub, fac):
-            ok = True
+        cho_solve(fac, rhs, r, na)
+        ok = True
+        for i in range(na):
+            if r[i] < 0.0:
+                ok = False
+        if ok:
             for i in range(na):
-                if r[i] < 0.0:
-                    ok = False
-            if ok:
-                for i in range(na):
-                    P[A[i]] = r[i]
+                P[A[i]] = r[i]
     return OK
 
 
