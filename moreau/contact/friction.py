@@ -63,7 +63,7 @@ from moreau.contact.active_set import _inline, _jit
 from moreau.contact.friction_states import enumerate_states
 from moreau.contact.kkt import kkt_residuals_rows
 from moreau.contact.lemke import FAILED, OK, RAY, lcp_lemke
-from moreau.core.kernels import cho_solve, cho_solve_rows, sym_product
+from moreau.core.kernels import cho_solve, delassus
 
 __all__ = ["friction_workspace", "solve_friction_step", "friction_residuals_kernel", "friction_one_step",
            "friction_residuals", "painleve_rows", "painleve_message", "FRICTION_RESIDUALS"]
@@ -85,7 +85,7 @@ def friction_workspace(n: int, m: int, mf: int) -> tuple:
     r = max(m + mf, 1)
     p = max(m + 3 * mf, 1)
     return (np.empty((r, n)), np.empty(n), np.empty((r, r)), np.empty(r), np.zeros((p, p)), np.empty(p),
-            np.empty(p), np.empty((p, 2 * p + 2)), np.empty(p, dtype=np.int64), np.empty(p), np.empty(n),
+            np.empty(p), np.empty((p, 2 * p + 2)), np.empty(p, dtype=np.int64), np.empty(p), np.empty((n, r)),
             np.empty(r), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(6),
             np.empty(6), np.empty(r), np.empty(n))
 
@@ -157,11 +157,10 @@ def solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, tol, res, ws):
     """
     n = M.shape[0]
     R = k + kf
-    MinvGt, vfree, W, w, A, qv, z, T, basis, xb, row = ws[0], ws[1], ws[2], ws[3], ws[4], ws[5], ws[6], ws[7], \
-        ws[8], ws[9], ws[10]
-    cho_solve_rows(L, G, MinvGt, R, n, row)
+    MinvGt, vfree, W, w, A, qv, z, T, basis, xb = ws[0], ws[1], ws[2], ws[3], ws[4], ws[5], ws[6], ws[7], \
+        ws[8], ws[9]
+    delassus(L, G, ws[10], MinvGt, W, R, n)
     cho_solve(L, b, vfree, n)
-    sym_product(G, MinvGt, W, R, n)
     for i in range(R):
         t = -c[i]  # a tangential row's c: the slip velocity's offset (0 but with bilateral rows)
         for j in range(n):

@@ -9,7 +9,7 @@ import numpy as np
 from numba import njit
 
 from moreau.contact.active_set import OK, _inline, _jit, _solve_active, lcp_dual_active_set, lcp_enumerate
-from moreau.core.kernels import cho_solve, cho_solve_rows, sym_product
+from moreau.core.kernels import cho_solve, delassus
 
 __all__ = ["solve_one_step", "workspace"]
 
@@ -23,7 +23,7 @@ def workspace(n, m):
     return (np.empty((mm, n)), np.empty(n), np.empty((mm, mm)), np.empty(mm), np.empty(mm),
             np.empty(mm, dtype=np.int64), np.zeros(mm, dtype=np.bool_), np.empty(mm), np.empty(mm),
             np.empty((mm, mm)), np.empty((mm, mm)), np.empty(mm), np.empty(n), np.empty(n),
-            np.empty(n), np.empty(n), np.empty(4))
+            np.empty(n), np.empty(n), np.empty(4), np.empty((n, mm)))
 
 
 @_jit
@@ -33,10 +33,10 @@ def solve_one_step(M, L, b, G, c, P, v, k, method, tol, ws):
     from :func:`workspace`."""
     n = M.shape[0]
     MinvGt = ws[0]  # row j: M⁻¹ G_jᵀ
-    cho_solve_rows(L, G, MinvGt, k, n, ws[13])
+    W = ws[2]
+    delassus(L, G, ws[17], MinvGt, W, k, n)  # W = G M⁻¹ Gᵀ, exactly symmetric
     vfree = ws[1]
     cho_solve(L, b, vfree, n)
-    W = ws[2]
     w = ws[3]
     scale = 1e-300
     for i in range(k):
@@ -45,7 +45,6 @@ def solve_one_step(M, L, b, G, c, P, v, k, method, tol, ws):
             t += G[i, j] * vfree[j]
         w[i] = t
         scale = max(scale, abs(t), abs(c[i]))
-    sym_product(G, MinvGt, W, k, n)  # W = G M⁻¹ Gᵀ, exactly symmetric
     if method == 0:
         status = lcp_dual_active_set(W, w, P, k, tol * scale, ws[4], ws[5], ws[6], ws[7], ws[8], ws[9], ws[10])
     else:
