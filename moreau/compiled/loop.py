@@ -269,7 +269,7 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
                 if status != DONE:
                     return status
             code = _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, v_new, P,
-                                    active, G, cnt, acc, fail, ws, lw, last_imp, rs, fr, eqw)
+                                    active, G, cnt, acc, fail, ws, lw, last_imp, rs, fr, eqw, npass >= 1)
             cnt[C_UPDATES] += 1
             if code < 0:
                 return cnt[C_FAILKIND]

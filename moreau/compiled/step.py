@@ -63,8 +63,10 @@ def _count(flags, m):
 
 
 @_part
-def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail, ws):
-    """Main LCP method, KKT check, fallback; False when both fail (residuals in ``fail``)."""
+def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail, ws, fresh=True):
+    """Main LCP method, KKT check, fallback; False when both fail (residuals in ``fail``).
+    ``fresh=False``: ``ws`` holds the Delassus matrix of this M and GA (see
+    :func:`~moreau.contact.one_step.solve_one_step`); the fallback reuses the main's."""
     res = ws[16]
     tol = fset[F_TOL]
     # np.int64: numba would type the count as the literal 0 at one of the inlined call
@@ -76,7 +78,7 @@ def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail
             break
         if attempt == 1:
             cnt[C_FALLBACKS] += 1
-        st = solve_one_step(M, L, b, GA, cA, P_out, v_out, k, method, 1e-12, ws)
+        st = solve_one_step(M, L, b, GA, cA, P_out, v_out, k, method, 1e-12, ws, fresh and attempt == 0)
         if st == 0:
             kkt_residuals_kernel(M, L, b, GA, cA, v_out, P_out, k, res, ws[11], ws[12], ws[13], ws[14], ws[15],
                                  ws[1])
@@ -118,7 +120,7 @@ def _momentum(n, h, M, v, f, b):
 
 @_part
 def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, v_new, P, active,
-                     GA_all, cnt, acc, fail, ws, lw, last_imp, rs, fr, eqw):
+                     GA_all, cnt, acc, fail, ws, lw, last_imp, rs, fr, eqw, again):
     """v⁺ with the contacts closed at qm (gaps ``gm``); returns 1 (contact), 0 (free) or
     −1 (failed: the solve, or a user callable; the status is in ``cnt[C_FAILKIND]``).
     ``P`` (m,) and ``active`` (m,) are set for the step.
@@ -136,7 +138,8 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     ``R_GAP`` ... ``R_SHIFT``). ``fr``: the friction arrays (:mod:`moreau.compiled.friction`);
     ``eqw``: the bilateral rows' (:mod:`moreau.compiled.bilateral`): with bilateral rows
     every step solves the reduced problem in their null space (the contact rows, if any,
-    with it), as ``EqualityRows.velocity`` does."""
+    with it), as ``EqualityRows.velocity`` does. ``again``: a later pass of the same step
+    (the predictor-corrector's second, the energy-consistent step's iterates)."""
     ints, _, _, bkind, boff, brow, bnrows, pool, e, atol = model
     n, m = ints[0], ints[1]
     h = fset[F_H]
@@ -225,8 +228,12 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     if ints[9] > 0:  # friction: the tangent rows join (Lemke's method)
         solved = _friction_solve(n, m, Ms, Ls, bs, GA_all, GA, cA, active, na, v_new, PA, fset, acc, fail, fr, cnt,
                                  L, eqw, rank)
+    # a later pass of the step (``again``) closes the same rows at the same q_m: the Delassus
+    # matrix of the last solve stands (not with bilateral rows or friction, which solve
+    # other problems, nor with ``S_LOCATE``, whose closed rows depend on f)
+    fresh = not again or locate or me > 0 or ints[9] > 0
     if solved < 0 or (solved == 0 and not _contact_solve(Ms, Ls, bs, GA, cA, na, v_new, PA, iset, fset, cnt, acc,
-                                                          fail, ws)):
+                                                          fail, ws, fresh)):
         cnt[C_FAILKIND] = SOLVER_FAILED
         return -1
     j = 0

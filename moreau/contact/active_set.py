@@ -73,6 +73,7 @@ def lcp_dual_active_set(W, w, P, k, tol, s, A, inA, rhs, r, sub, fac):
     """
     for i in range(k):
         P[i] = 0.0
+        inA[i] = False  # (also for k = 1: the flags tell the refinement which rows have a factor)
     if k == 1:  # closed form
         if w[0] >= -tol:
             return OK
@@ -80,8 +81,6 @@ def lcp_dual_active_set(W, w, P, k, tol, s, A, inA, rhs, r, sub, fac):
             return FAILED
         P[0] = -w[0] / W[0, 0]
         return OK
-    for i in range(k):
-        inA[i] = False
     na = 0  # fac holds the Cholesky factor of W[A, A] (na x na), rows in the order of A
     converged = False
     for _ in range(10 * (k + 1)):

@@ -5,6 +5,8 @@ Re-exported by :mod:`moreau.contact.lcp`."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -27,14 +29,17 @@ def workspace(n, m):
 
 
 @_jit
-def solve_one_step(M, L, b, G, c, P, v, k, method, tol, ws):
+def solve_one_step(M, L, b, G, c, P, v, k, method, tol, ws, fresh=True):
     """v, P of the one-step QP on the first k rows of G with the LCP solver ``method``
     (0: dual active set, 1: enumeration); returns its status. ``L`` = chol(M), ``ws``
-    from :func:`workspace`."""
+    from :func:`workspace`. ``fresh=False``: ``ws`` holds W = G M⁻¹ Gᵀ and M⁻¹ Gᵀ of
+    this very M and G from the last call (the compiled energy-consistent step's later
+    iterates: only b changes), and they are not formed again."""
     n = M.shape[0]
     MinvGt = ws[0]  # row j: M⁻¹ G_jᵀ
     W = ws[2]
-    delassus(L, G, ws[17], MinvGt, W, k, n)  # W = G M⁻¹ Gᵀ, exactly symmetric
+    if fresh:
+        delassus(L, G, ws[17], MinvGt, W, k, n)  # W = G M⁻¹ Gᵀ, exactly symmetric
     vfree = ws[1]
     cho_solve(L, b, vfree, n)
     w = ws[3]
@@ -58,28 +63,34 @@ def solve_one_step(M, L, b, G, c, P, v, k, method, tol, ws):
         # iterative refinement; repeated (twice at most) while the residual it corrected was
         # above the round-off of G v − c: nearly dependent active rows (cond(W_AA) ~ 1e12)
         # take two or three steps, a well-conditioned set none more
-        applied, residual, scale = _refine(G, c, P, v, k, W, MinvGt, ws)
+        applied, residual, scale = _refine(G, c, P, v, k, W, MinvGt, ws, method == 0)
         for _ in range(2):
             if not applied or residual <= 64.0 * 2.220446049250313e-16 * scale:
                 break
-            applied, residual, scale = _refine(G, c, P, v, k, W, MinvGt, ws)
+            applied, residual, scale = _refine(G, c, P, v, k, W, MinvGt, ws, False)
     return status
 
 
 @_inline
-def _refine(G, c, P, v, k, W, MinvGt, ws):
+def _refine(G, c, P, v, k, W, MinvGt, ws, kept):
     """One step of iterative refinement on the rows with P > 0: v⁺ = v_free + M⁻¹GᵀP
     cancels large free velocities (an impulse that stops a driven joint), leaving G v⁺
     off its bound c by round-off of the large terms; correct P and v by the residual.
     Returns ``(applied, max |G_i v − c_i| before the correction, max (|c_i| + |G_i||v|))``
     over those rows; nothing is applied when the residual is already at the round-off
-    of G v − c (64 ε of that scale)."""
+    of G v − c (64 ε of that scale). ``kept``: the rows flagged in ``ws[6]`` are listed in
+    ``ws[5]`` with the Cholesky factor of their W_AA in ``ws[10]`` (the dual active-set
+    method leaves them so, and so does a refinement); when they are the rows with P > 0,
+    that factor is used instead of factoring W_AA again."""
     A = ws[5]
+    inA = ws[6]
+    res = ws[4]
     rhs = ws[7]
     dP = ws[8]
     na = 0
     worst = 0.0
     scale = 0.0
+    same = kept
     for i in range(k):
         if P[i] > 0.0:
             t = -c[i]
@@ -87,15 +98,40 @@ def _refine(G, c, P, v, k, W, MinvGt, ws):
             for j in range(v.shape[0]):
                 t += G[i, j] * v[j]
                 s += abs(G[i, j] * v[j])
-            A[na] = i
-            rhs[na] = -t
+            res[i] = t
             na += 1
             worst = max(worst, abs(t))
             scale = max(scale, s)
+            same = same and inA[i]
+        elif inA[i]:
+            same = False
     if na == 0 or worst <= 64.0 * 2.220446049250313e-16 * scale:  # nothing to refine
         return False, worst, scale
-    if not _solve_active(W, A, na, rhs, dP, ws[9], ws[10]):
-        return False, worst, scale
+    if same:  # unless W_AA is ill-conditioned (pivots spread by 1e4, cond >= 1e8): factored
+        # afresh in the rows' order, as it was before the factor was kept; at cond ~ 1e13 the
+        # factor of the order the rows were added in left complementarity residuals of 3e-9
+        lo = math.inf
+        hi = 0.0
+        for a in range(na):
+            lo = min(lo, ws[10][a, a])
+            hi = max(hi, ws[10][a, a])
+        same = hi <= 1e4 * lo
+    if same:  # A[:na] holds these rows, ws[10] the factor of their W_AA
+        for a in range(na):
+            rhs[a] = -res[A[a]]
+        cho_solve(ws[10], rhs, dP, na)
+    else:
+        na = 0
+        for i in range(k):
+            inA[i] = P[i] > 0.0
+            if inA[i]:
+                A[na] = i
+                rhs[na] = -res[i]
+                na += 1
+        if not _solve_active(W, A, na, rhs, dP, ws[9], ws[10]):
+            for i in range(k):
+                inA[i] = False
+            return False, worst, scale
     for a in range(na):
         if P[A[a]] + dP[a] < 0.0:
             return False, worst, scale
