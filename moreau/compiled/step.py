@@ -66,7 +66,9 @@ def _count(flags, m):
 def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail, ws, fresh=True):
     """Main LCP method, KKT check, fallback; False when both fail (residuals in ``fail``).
     ``fresh=False``: ``ws`` holds the Delassus matrix of this M and GA (see
-    :func:`~moreau.contact.one_step.solve_one_step`); the fallback reuses the main's."""
+    :func:`~moreau.contact.one_step.solve_one_step`); the fallback reuses the main's. A
+    step's later passes pass it, except with bilateral rows or friction (which solve other
+    problems) and with ``S_LOCATE`` (whose closed rows depend on f)."""
     res = ws[16]
     tol = fset[F_TOL]
     # np.int64: numba would type the count as the literal 0 at one of the inlined call
@@ -123,7 +125,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
                      GA_all, cnt, acc, fail, ws, lw, last_imp, rs, fr, eqw, again):
     """v⁺ with the contacts closed at qm (gaps ``gm``); returns 1 (contact), 0 (free) or
     −1 (failed: the solve, or a user callable; the status is in ``cnt[C_FAILKIND]``).
-    ``P`` (m,) and ``active`` (m,) are set for the step.
+    ``P`` (m,) and ``active`` (m,) are set for the step; ``again``: a later pass of it.
 
     With combined drift control, a row's restitution acts only at an impact (see
     :class:`moreau.step.drift.CombinedProjection`): it approaches faster than the smooth forces
@@ -131,15 +133,13 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     ``S_MEMORY`` steps; other closed rows take e = 0 (a persistent contact). A row is
     then also closed when the projection holds it, or when it reaches the barrier by the
     end of the step (2 g(q_m) − g(q_k) <= 0; with ``S_LOCATE`` the free step's end gap,
-    2 g(q_m) − g(q_k) + h²/2 G M⁻¹ f <= 0; the energy-consistent step closes such rows too).
-    Newton's law is :func:`moreau.core.kernels.impact_law`.
-    ``rs`` (m, 6) holds per row the gap at q_k, the gap the projection left it at, the
-    pinned and bounced flags, and a bounced row's h/2 − s and (2 s − h) a_n (columns
-    ``R_GAP`` ... ``R_SHIFT``). ``fr``: the friction arrays (:mod:`moreau.compiled.friction`);
-    ``eqw``: the bilateral rows' (:mod:`moreau.compiled.bilateral`): with bilateral rows
-    every step solves the reduced problem in their null space (the contact rows, if any,
-    with it), as ``EqualityRows.velocity`` does. ``again``: a later pass of the same step
-    (the predictor-corrector's second, the energy-consistent step's iterates)."""
+    2 g(q_m) − g(q_k) + h²/2 G M⁻¹ f <= 0; the energy-consistent step closes such rows
+    too). Newton's law is :func:`moreau.core.kernels.impact_law`.
+    ``rs`` (m, 6, columns ``R_GAP`` ... ``R_SHIFT``) holds per row the gap at q_k, the gap
+    the projection left, the pinned and bounced flags, a bounced row's h/2 − s and (2 s − h) a_n.
+    ``fr``: the friction arrays (:mod:`moreau.compiled.friction`); ``eqw``: the bilateral
+    rows' (:mod:`moreau.compiled.bilateral`): with them every step solves the reduced
+    problem in their null space (with the contact rows), as ``EqualityRows.velocity``."""
     ints, _, _, bkind, boff, brow, bnrows, pool, e, atol = model
     n, m = ints[0], ints[1]
     h = fset[F_H]
@@ -228,12 +228,9 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     if ints[9] > 0:  # friction: the tangent rows join (Lemke's method)
         solved = _friction_solve(n, m, Ms, Ls, bs, GA_all, GA, cA, active, na, v_new, PA, fset, acc, fail, fr, cnt,
                                  L, eqw, rank)
-    # a later pass of the step (``again``) closes the same rows at the same q_m: the Delassus
-    # matrix of the last solve stands (not with bilateral rows or friction, which solve
-    # other problems, nor with ``S_LOCATE``, whose closed rows depend on f)
-    fresh = not again or locate or me > 0 or ints[9] > 0
+    # a later pass closes the same rows at q_m: the last Delassus matrix stands (see _contact_solve)
     if solved < 0 or (solved == 0 and not _contact_solve(Ms, Ls, bs, GA, cA, na, v_new, PA, iset, fset, cnt, acc,
-                                                          fail, ws, fresh)):
+                                                          fail, ws, not again or locate or me > 0 or ints[9] > 0)):
         cnt[C_FAILKIND] = SOLVER_FAILED
         return -1
     j = 0

@@ -48,6 +48,24 @@ def _slacks(W, w, P, s, k):
     return smin
 
 
+@_inline
+def _direction(W, A, na, p, fac, y, r):
+    """r = W_AA⁻¹ W_Ap (how the active impulses change per unit of P_p) with the factor
+    ``fac`` of W_AA; y = L⁻¹ W_Ap is also the row that appends p to the factor, and the
+    returned W_pp − yᵀy its pivot² (the Schur complement of W_AA)."""
+    schur = W[p, p]
+    for i in range(na):
+        t = W[A[i], p]
+        for j in range(i):
+            t -= fac[i, j] * y[j]
+        y[i] = t / fac[i, i]
+        schur -= y[i] * y[i]
+    for i in range(na):
+        r[i] = y[i]
+    lt_solve(fac, r, na)
+    return schur
+
+
 @_jit
 def lcp_dual_active_set(W, w, P, k, tol, s, A, inA, rhs, r, sub, fac):
     """Solve ``0 <= P ⟂ w + W P >= 0`` (W PSD, the leading k x k block) by the
@@ -103,18 +121,7 @@ def lcp_dual_active_set(W, w, P, k, tol, s, A, inA, rhs, r, sub, fac):
             break
         added = False
         for _inner in range(k + 1):
-            # r = W_AA⁻¹ W_Ap: how the active impulses change per unit of P_p; y = L⁻¹ W_Ap
-            # is also the row that appends p to the factor, and W_pp − yᵀy its pivot²
-            schur = W[p, p]
-            for i in range(na):
-                t = W[A[i], p]
-                for j in range(i):
-                    t -= fac[i, j] * rhs[j]
-                rhs[i] = t / fac[i, i]
-                schur -= rhs[i] * rhs[i]
-            for i in range(na):
-                r[i] = rhs[i]
-            lt_solve(fac, r, na)
+            schur = _direction(W, A, na, p, fac, rhs, r)
             sp = w[p] + W[p, p] * P[p]  # (P_p > 0 after a step that dropped a row)
             for a in range(na):
                 sp += W[p, A[a]] * P[A[a]]

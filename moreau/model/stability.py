@@ -87,16 +87,22 @@ def stable_step(scene: Any, t: float, q: np.ndarray, v: np.ndarray) -> float:
     return min(RESOLVE / omega if omega > 0 else math.inf, 0.5 * RESOLVE / rho if rho > 0 else math.inf)
 
 
-def step_advice(scene: Any, t: float, q: np.ndarray, v: np.ndarray) -> str:
+def step_advice(scene: Any, t: float, q: np.ndarray, v: np.ndarray, h: float) -> str:
     """The words that name a step size resolving the fastest motion at a state
-    (:func:`stable_step`), for the messages of a step too large for the motion."""
+    (:func:`stable_step`), for the messages of a step ``h`` too large for the motion; when
+    that estimate is not below ``h`` (the smooth motion is resolved, so contacts closing at
+    once or an iterate cap are what failed), they name h/2 instead of a larger step."""
     try:
         hs = stable_step(scene, t, q, v)
-        return (f"a step resolving the fastest motion at this state is about h = {hs:.2g} "
-                f"(faster motion later may need less)"
-                if math.isfinite(hs) else "the model has no fast mode at this state")
     except Exception as exc:  # noqa: BLE001 - the message must not hide the finding
-        return f"(no step size estimate: {type(exc).__name__}: {exc})"
+        return f"(no step size estimate: {type(exc).__name__}: {exc}); try h = {h / 2:.2g}"
+    if not math.isfinite(hs):
+        return f"the model has no fast mode at this state; try h = {h / 2:.2g}"
+    if hs < h:
+        return (f"a step resolving the fastest motion at this state is about h = {hs:.2g} "
+                "(faster motion later may need less)")
+    return (f"the fastest smooth motion at this state is resolved (about h = {hs:.2g} would do), so contacts "
+            f"closing at once or the cap of iterates are what is too much: try h = {h / 2:.2g}")
 
 
 def not_converged_message(scene: Any, t: float, q: np.ndarray, v: np.ndarray, h: float, where: str,
@@ -104,13 +110,13 @@ def not_converged_message(scene: Any, t: float, q: np.ndarray, v: np.ndarray, h:
     """The words of an iterating step that did not converge (both paths; ``where`` names
     the step and its time)."""
     return (f"the energy-consistent step did not converge in {iterations} iterations {where} at h = {h:g}: "
-            f"the step is too large for this motion; {step_advice(scene, t, q, v)}")
+            f"the step is too large for this motion; {step_advice(scene, t, q, v, h)}")
 
 
 def energy_growth_message(scene: Any, t: float, q: np.ndarray, v: np.ndarray, du: float, ke_max: float,
                           h: float) -> str:
     """The words of the energy check (for a warning and for the error that stops a run)."""
-    advice = step_advice(scene, t, q, v)
+    advice = step_advice(scene, t, q, v, h)
     return (f"the energy grew by {du:.3g} beyond the work of the applied forces by t = {t:.6g} "
             f"({du / ke_max:.1%} of the largest kinetic energy so far, {ke_max:.3g}) at h = {h:g}: "
             f"the step is too large for this motion; {advice}")
