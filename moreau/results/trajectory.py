@@ -74,12 +74,14 @@ class Trajectory:
         Energy-ledger terms summed over every step: ``"forces"``, the work of the smooth
         forces h fᵀ(v_k + v⁺)/2, and ``"contacts"``, the work of the contact impulses
         ½ Pᵀ(U⁻ + U⁺) (≤ 0 for e ≤ 1), in the scene's energy unit; with friction also
-        ``"friction"``, the work of the tangential impulses ½ P_Tᵀ(U_T⁻ + U_T⁺) (≤ 0 for
-        Coulomb's law); with bilateral constraints ``"constraints"``, the work of their
-        impulses (0 up to round-off), and ``"constraint_projection"``, the kinetic energy the
-        velocity projection onto them at the end of each step removed (<= 0, O(h⁴) per
-        step). They close the discrete balance ΔT = forces + contacts (+ friction, + both
-        constraint terms) exactly for a constant mass matrix.
+        ``"friction"``, the work of the tangential impulses ½ P_Tᵀ(U_T⁻ + U_T⁺) (≤ 0 in every
+        step where the slip keeps its direction; Coulomb's law holds at U_T⁺, so a step in
+        which the slip reverses can add a little, and so can their sum); with bilateral
+        constraints ``"constraints"``, the work of their impulses (0 up to round-off), and
+        ``"constraint_projection"``, the kinetic energy the velocity projection onto them
+        at the end of each step removed (<= 0, O(h⁴) per step). They close the discrete
+        balance ΔT = forces + contacts (+ friction, + both constraint terms) exactly for a
+        constant mass matrix.
     warnings : list of str
         What the run-level checks found (a penetration beyond its limit, see
         :mod:`moreau.run.trust`); empty for a clean run. Kept by ``save``/``load``.

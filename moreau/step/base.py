@@ -175,7 +175,8 @@ class OneStepIntegrator(ABC):
         self.n_updates = 0
         self.worst_residual = 0.0
         self.work_forces = self.work_contacts = 0.0
-        #: work of the friction impulses (<= 0 for Coulomb's law), not in ``work_contacts``
+        #: work of the friction impulses, not in ``work_contacts``: ½ P_T (U_T⁻ + U_T⁺) per step, <= 0
+        #: unless the slip reverses within the step (Coulomb's law holds at U_T⁺ only)
         self.work_friction = 0.0
         #: steps with a sliding contact in Painlevé's region, and the first one's message
         self.n_painleve = 0
