@@ -56,7 +56,7 @@ e = 0.9 piston (:func:`osqp_comparison`) shows both.
 Run::
 
     python benchmarks/work_precision.py --quick      # ~2 min: prints the tables
-    python benchmarks/work_precision.py              # full study (~18-20 min), writes
+    python benchmarks/work_precision.py              # full study (~34 min), writes
                                                      # docs/work_precision.{csv,png}
 
 Absolute times on a shared machine drift; ratios measured in one run hold better.
