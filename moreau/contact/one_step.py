@@ -33,8 +33,8 @@ def solve_one_step(M, L, b, G, c, P, v, k, method, tol, ws, fresh=True):
     """v, P of the one-step QP on the first k rows of G with the LCP solver ``method``
     (0: dual active set, 1: enumeration); returns its status. ``L`` = chol(M), ``ws``
     from :func:`workspace`. ``fresh=False``: ``ws`` holds W = G M⁻¹ Gᵀ and M⁻¹ Gᵀ of
-    this very M and G from the last call (the compiled energy-consistent step's later
-    iterates: only b changes), and they are not formed again."""
+    this very M and G from the last call (a compiled step's later passes: only b
+    changes), and they are not formed again."""
     n = M.shape[0]
     MinvGt = ws[0]  # row j: M⁻¹ G_jᵀ
     W = ws[2]

@@ -7,8 +7,7 @@ import math
 
 from moreau.core.kernels.jit import jit as _jit
 
-__all__ = ["cholesky", "lt_solve", "cho_solve", "cho_solve_rows", "sym_product", "delassus", "symmetry_defect",
-           "expm_taylor"]
+__all__ = ["cholesky", "lt_solve", "cho_solve", "sym_product", "delassus", "symmetry_defect", "expm_taylor"]
 
 
 # -- dense linear algebra for small SPD systems (leading k x k blocks, no views) -----------
@@ -56,17 +55,6 @@ def cho_solve(L, b, out, k):
 
 
 @_jit
-def cho_solve_rows(L, G, out, k, n, row):
-    """out[j] = M⁻¹ G[j] for the first k rows of G (M = L Lᵀ, n x n); ``row`` (n,) is work."""
-    for j in range(k):
-        for i in range(n):
-            row[i] = G[j, i]
-        cho_solve(L, row, row, n)
-        for i in range(n):
-            out[j, i] = row[i]
-
-
-@_jit
 def sym_product(A, B, W, k, n):
     """W[:k, :k] = A[:k, :n] B[:k, :n]ᵀ for a product known to be symmetric: the lower
     triangle is summed and mirrored, so that W is exactly symmetric."""
@@ -82,10 +70,11 @@ def sym_product(A, B, W, k, n):
 @_jit
 def delassus(L, G, X, MinvGt, W, k, n):
     """W[:k, :k] = G M⁻¹ Gᵀ (exactly symmetric) and MinvGt[j] = M⁻¹ G[j] for the first k
-    rows of G (M = L Lᵀ, n x n): the answers of :func:`cho_solve_rows` and
-    :func:`sym_product` bit for bit (each entry summed in the same order), with the k
-    right-hand sides side by side in ``X`` (work, (n, >= k)): the inner loops run over
-    them, contiguous and independent, so they vectorize (4x faster at n = k = 40)."""
+    rows of G (M = L Lᵀ, n x n): each column of X is :func:`cho_solve` of a row of G and W
+    :func:`sym_product` of G and M⁻¹ Gᵀ, bit for bit (each entry summed in the same
+    order), with the k right-hand sides side by side in ``X`` (work, (n, >= k)): the inner
+    loops run over them, contiguous and independent, so they vectorize (4x faster than a
+    row at a time at n = k = 40)."""
     for i in range(n):
         for j in range(k):
             X[i, j] = G[j, i]
