@@ -132,6 +132,38 @@ def test_mass_matrix_spd_for_random_chains(rng, orientation, lateral):
                 assert np.linalg.eigvalsh(M - np.diag(chain.inertias))[0] > -1e-12 * np.abs(M).max()
 
 
+@pytest.mark.parametrize("lateral", [False, True])
+def test_linear_time_chain_kernels_match_the_dense_matrix(rng, lateral):
+    """M x, the centrifugal terms and the Cholesky factor from the O(n) generators
+    (moreau.core.kernels.chain) against the dense ν ∘ cos + ν^s ∘ sin forms (N(q) of the
+    paper's eq. (2.2), numpy's Cholesky), up to chains of 60 links."""
+    from moreau.core import kernels as k
+
+    for n in (1, 2, 3, 7, 24, 60):
+        chain = random_chain(rng, n, lateral=lateral)
+        for _ in range(3):
+            q = rng.uniform(-np.pi, np.pi, n)
+            x = rng.normal(size=n)
+            c, s = k.cos_sin(q)
+            M = chain.mass_matrix(q)
+            Mx = np.empty(n)
+            k.chain_product(chain._pm, 0, c, s, x, Mx)
+            np.testing.assert_allclose(Mx, M @ x, rtol=0, atol=1e-13 * np.abs(M).sum(axis=1).max() * np.abs(x).max())
+            bias = chain.bias_force(q, x)
+            ref = -chain.n_matrix(q) @ x**2
+            np.testing.assert_allclose(bias, ref, rtol=0, atol=1e-13 * np.abs(chain.n_matrix(q)).sum(axis=1).max()
+                                       * np.max(x**2))
+            L = np.full((n, n), np.nan)
+            assert k.chain_factor(chain._pm, 0, c, s, L) == -1
+            assert not np.triu(L, 1).any()
+            Lref = np.linalg.cholesky(M)
+            assert np.abs(L - Lref).max() <= 1e-12 * np.linalg.cond(M) * np.abs(Lref).max()
+            assert np.abs(L @ L.T - M).max() <= 1e-14 * n * np.abs(M).max()
+    broken = chain._pm.copy()
+    broken[2 * n * n + 5] = -1.0  # M_55 < 0: the factor names the first non-positive pivot
+    assert k.chain_factor(broken, 0, c, s, np.empty((n, n))) == 5
+
+
 @pytest.mark.parametrize("orientation", ["hanging", "inverted"])
 def test_triple_pendulum_matches_paper_closed_form(rng, orientation):
     chain = PendulumChain.from_arrays(**PISTON, orientation=orientation)

@@ -1,4 +1,4 @@
-"""Compiled evaluation of a lowered scene: M(q), f(t, q, v), g(q), G(q), energies.
+"""Compiled evaluation of a lowered scene: M(q) and its factor, f(t, q, v), g(q), G(q), energies.
 
 Each function walks the records of a :class:`~moreau.compiled.lowering.CompiledScene` and calls
 the kernels of :mod:`moreau.core.kernels` for exactly the effects and contacts the scene
@@ -38,6 +38,17 @@ def mass(ints, pool, user, q, c, s, M):
         st = call_user(user[U_MASS], 0.0, q, q, M, n, ints[1])
         return 0 if st == 0 else st * 8 + U_MASS
     return 0
+
+
+@_internal
+def factor(ints, pool, M, c, s, L):
+    """The lower Cholesky factor of M (n x n, just evaluated at the configuration whose
+    cos/sin are ``c, s``) into ``L``: the chain's from its O(n) generators
+    (:func:`moreau.core.kernels.chain_factor`, O(n²) against O(n³)), others from M.
+    Returns the index of the first non-positive pivot, or −1."""
+    if ints[2] == _k.MASS_CHAIN:
+        return _k.chain_factor(pool, ints[4], c, s, L)
+    return _k.cholesky(M, L, ints[0])
 
 
 @_internal

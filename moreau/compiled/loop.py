@@ -96,7 +96,7 @@ def _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, f, fb
             return USER_FAILED
         if ints[2] != _k.MASS_CHAIN and _k.symmetry_defect(M) > 1e-10:
             return NOT_SPD
-        if _k.cholesky(M, L, n) >= 0:
+        if ev.factor(ints, pool, M, cm, sm, L) >= 0:
             return NOT_SPD
     if _user_failed(ev.force(ints, ekind, eoff, pool, user, t + 0.5 * h, qm, cm, sm, v, f, fb), cnt):
         return USER_FAILED
@@ -255,7 +255,7 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
         status = _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, f, fb, gm, cnt)
         if status != DONE:
             return status
-        status, s0 = energy_start(model, user, correct, q, v, M, ec, cnt)
+        status, s0 = energy_start(model, user, correct, q, v, cm, sm, M, ec, cnt)
         if status != DONE:
             return status
         # one call site of the velocity update, so the contact solve is compiled (inlined) once;

@@ -182,7 +182,11 @@ class PendulumChain(MechanicalSystem):
         # hot-path constants
         self._nu_c = np.array(nu)
         self._nu_s = np.array(nu_s)
-        self._pm = _k.flat(nu, nu_s)  # layout of kernels.chain_mass
+        # the generators of M's semiseparable structure (see moreau.core.kernels.chain)
+        beyond = np.concatenate([np.cumsum(m[::-1])[::-1][1:], [0.0]])  # Σ_{k>j} m_k
+        beta = self.lengths * beyond + m * np.array([k.com for k in self.links])
+        gamma = m * np.array([k.com_lateral for k in self.links])
+        self._pm = _k.flat(nu, nu_s, np.diag(nu), self.lengths, beta, gamma)  # layout of kernels.chain
         self.has_bias = n > 1
 
     @classmethod
