@@ -20,8 +20,23 @@ class _Flow:
         self.scene = scene
         self.n = scene.ndof
         self.eps = eps
-        self.Minv = np.linalg.inv(scene.system.mass_matrix(np.zeros(self.n))) \
-            if scene.system.constant_mass else None
+        # M⁻¹ by the kernels' Cholesky factor, as the compiled smooth steps: the forward
+        # differences of A divide its round-off by eps, so the two paths agree only when
+        # they solve alike (numpy's LU or inverse left them 1e-7 apart on the triple pendulum)
+        self.L = self._factor(np.zeros(self.n)) if scene.system.constant_mass else None
+
+    def _factor(self, q: np.ndarray) -> np.ndarray:
+        """The lower Cholesky factor of M(q) (:func:`moreau.core.kernels.cholesky`)."""
+        M = np.ascontiguousarray(self.scene.system.mass_matrix(q), dtype=float)
+        L = np.empty((self.n, self.n))
+        if _k.cholesky(M, L, self.n) >= 0:
+            raise RuntimeError(f"lyapunov_spectrum_tangent: M(q) not positive definite at q = {q}")
+        return L
+
+    def _solve(self, L: np.ndarray, b: np.ndarray) -> np.ndarray:
+        out = np.empty(self.n)
+        _k.cho_solve(L, np.ascontiguousarray(b, dtype=float), out, self.n)
+        return out
 
     def jac(self, q: np.ndarray) -> np.ndarray:
         """Contact Jacobian G(q), shape (m, n)."""
@@ -34,9 +49,8 @@ class _Flow:
         return np.asarray(self.scene.gaps(q), float)
 
     def solve_M(self, q: np.ndarray, b: np.ndarray) -> np.ndarray:
-        if self.Minv is not None:
-            return self.Minv @ b
-        return np.linalg.solve(self.scene.system.mass_matrix(q), b)
+        """M(q)⁻¹ b, shape (n,)."""
+        return self._solve(self.L if self.L is not None else self._factor(q), b)
 
     def accel(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """``M(q)⁻¹ f(t, q, v)``, shape (n,)."""
@@ -52,9 +66,9 @@ class _Flow:
         n = self.n
         q, v = split_state(x)
         force = self.scene.force
-        Minv = self.Minv if self.Minv is not None else np.linalg.inv(self.scene.system.mass_matrix(q))
+        L = self.L if self.L is not None else self._factor(q)
         f0 = np.asarray(force(t, q, v), float)
-        a0 = Minv @ f0
+        a0 = self._solve(L, f0)
         A = np.zeros((2 * n, 2 * n))
         A[:n, n:] = np.eye(n)
         for j in range(n):
@@ -65,7 +79,7 @@ class _Flow:
             d = self.eps * max(1.0, abs(v[j]))
             y = v.copy()
             y[j] += d
-            A[n:, n + j] = Minv @ (np.asarray(force(t, q, y), float) - f0) / d
+            A[n:, n + j] = self._solve(L, np.asarray(force(t, q, y), float) - f0) / d
         return A
 
     def newton(self, q: np.ndarray, v: np.ndarray, row: int) -> np.ndarray:
