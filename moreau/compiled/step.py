@@ -66,7 +66,8 @@ def _count(flags, m):
 def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail, ws, fresh=True):
     """Main LCP method, KKT check, fallback; False when both fail (residuals in ``fail``).
     ``fresh=False``: ``ws`` holds the Delassus matrix of this M and GA (see
-    :func:`~moreau.contact.one_step.solve_one_step`); the fallback reuses the main's. A
+    :func:`~moreau.contact.one_step.solve_one_step`) and the KKT check's √(M⁻¹)_jj of
+    this M; the fallback reuses the main's. A
     step's later passes pass it, except with bilateral rows or friction (which solve other
     problems) and with ``S_LOCATE`` (whose closed rows depend on f)."""
     res = ws[16]
@@ -82,8 +83,10 @@ def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail
             cnt[C_FALLBACKS] += 1
         st = solve_one_step(M, L, b, GA, cA, P_out, v_out, k, method, 1e-12, ws, fresh and attempt == 0)
         if st == 0:
+            # a later pass (and the fallback) checks against the same M: the check's
+            # round-off floor keeps its √(M⁻¹)_jj (O(n³))
             kkt_residuals_kernel(M, L, b, GA, cA, v_out, P_out, k, res, ws[11], ws[12], ws[13], ws[14], ws[15],
-                                 ws[1])
+                                 ws[18], ws[19], not fresh or attempt == 1)
             worst = max(res[0], res[1], res[2], res[3])
             if worst <= tol:
                 if worst > acc[A_WORST]:

@@ -87,7 +87,7 @@ def friction_workspace(n: int, m: int, mf: int) -> tuple:
     return (np.empty((r, n)), np.empty(n), np.empty((r, r)), np.empty(r), np.zeros((p, p)), np.empty(p),
             np.empty(p), np.empty((p, 2 * p + 2)), np.empty(p, dtype=np.int64), np.empty(p), np.empty((n, r)),
             np.empty(r), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(6),
-            np.empty(6), np.empty(r), np.empty(n))
+            np.empty(6), np.empty(r), np.empty(n), np.empty((n, n)), np.zeros(n + 1))
 
 
 @_inline
@@ -238,7 +238,8 @@ def friction_residuals_kernel(M, L, b, G, c, mu, fidx, v, P, k, kf, out, ws):
     check). All dimensionless; ``ws`` from :func:`friction_workspace`."""
     R = k + kf
     Gv = ws[11]
-    vel = kkt_residuals_rows(M, L, b, G, c, v, P, R, k, out, Gv, ws[12], ws[13], ws[14], ws[15], ws[16])
+    vel = kkt_residuals_rows(M, L, b, G, c, v, P, R, k, out, Gv, ws[12], ws[13], ws[14], ws[15], ws[21], ws[22],
+                             False)
     cone = 0.0
     slip = 0.0
     for f in range(kf):

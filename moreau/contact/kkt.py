@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import math
 
+from numba import njit
+
 from moreau.contact.active_set import _jit
 from moreau.core.kernels import cho_solve
 
@@ -12,14 +14,14 @@ __all__ = ["kkt_residuals_kernel", "kkt_residuals_rows"]
 
 
 @_jit
-def kkt_residuals_kernel(M, L, b, G, c, v, P, k, out, Gv, GtP, r, d, x, y):
+def kkt_residuals_kernel(M, L, b, G, c, v, P, k, out, Gv, GtP, r, d, x, X, rd, keep):
     """Scaled KKT residuals of ``(v, P)`` for the one-step QP on the first k rows of G
     (all unilateral): :func:`~moreau.contact.kkt.kkt_residuals_rows` with ``kn = k``."""
-    kkt_residuals_rows(M, L, b, G, c, v, P, k, k, out, Gv, GtP, r, d, x, y)
+    kkt_residuals_rows(M, L, b, G, c, v, P, k, k, out, Gv, GtP, r, d, x, X, rd, keep)
 
 
 @_jit
-def kkt_residuals_rows(M, L, b, G, c, v, P, k, kn, out, Gv, GtP, r, d, x, y):
+def kkt_residuals_rows(M, L, b, G, c, v, P, k, kn, out, Gv, GtP, r, d, x, X, rd, keep):
     """Scaled KKT residuals of ``(v, P)`` for the one-step QP on the first k rows of G,
     written to ``out`` (4,): primal, dual, complementarity, stationarity (dimensionless).
 
@@ -35,7 +37,10 @@ def kkt_residuals_rows(M, L, b, G, c, v, P, k, kn, out, Gv, GtP, r, d, x, y):
     that bound of the measure is returned and the floor (O(n³)) is not computed. Every
     measure is invariant under a rescaling of any single coordinate (a change of units),
     so a light coordinate's velocity error is not hidden behind a heavy one's momentum.
-    ``L`` is the Cholesky factor of M; Gv (>= k), GtP, r, d, x (n) are work arrays.
+    ``L`` is the Cholesky factor of M; Gv (>= k), GtP, r, d, x (n) and X (n x n) are work
+    arrays. The floor's √(M⁻¹)_jj are kept in ``rd`` (n + 1, ``rd[n]`` = 1 once they are):
+    ``keep`` says M and L are those of the last call with this ``rd`` (a step's later
+    passes), so they are reused, not formed again (O(n³)).
 
     Only the first ``kn`` rows are unilateral (primal, dual and complementarity); rows
     kn..k−1 (tangential rows of friction, with their own law check in
@@ -44,6 +49,8 @@ def kkt_residuals_rows(M, L, b, G, c, v, P, k, kn, out, Gv, GtP, r, d, x, y):
     the velocity scale; ``Gv`` holds ``G v`` on return.
     """
     n = M.shape[0]
+    if not keep:
+        rd[n] = 0.0
     for j in range(n):
         GtP[j] = 0.0
     for i in range(k):
@@ -104,27 +111,48 @@ def kkt_residuals_rows(M, L, b, G, c, v, P, k, kn, out, Gv, GtP, r, d, x, y):
     energy = math.sqrt(max(ev, 0.0)) + math.sqrt(max(ex, 0.0))
     # round-off floor of δ: |M⁻¹| (|M||v| + |b| + |Gᵀ||P|) ε, with |M⁻¹_ij| <= √(M⁻¹_ii M⁻¹_jj)
     # (r cancels large momenta when an impulse stops a motion: the answer is then exact
-    # to this floor, not better); √(M⁻¹)_jj = ‖L⁻¹ e_j‖ by forward substitution into y
+    # to this floor, not better)
+    if not (keep and rd[n] == 1.0):
+        inverse_diagonal_sqrt(L, n, X, rd)
+        rd[n] = 1.0
     total = 0.0
     for j in range(n):
-        nrm = 0.0
-        for i in range(j, n):
-            t = 1.0 if i == j else 0.0
-            for l in range(j, i):
-                t -= L[i, l] * y[l]
-            y[i] = t / L[i, i]
-            nrm += y[i] * y[i]
         sj = abs(b[j])
         for l in range(n):
             sj += abs(M[j, l] * v[l])
         for l in range(k):
             sj += abs(G[l, j] * P[l])
-        r[j] = math.sqrt(nrm)  # r is free now: √(M⁻¹)_jj
-        total += r[j] * sj
+        total += rd[j] * sj
     stat = 0.0
     for i in range(n):
         sc = max(abs(v[i]), abs(x[i]), 1e-9 * energy / math.sqrt(M[i, i]), 1e-300)
-        floor = 16.0 * 2.220446049250313e-16 * r[i] * total
+        floor = 16.0 * 2.220446049250313e-16 * rd[i] * total
         stat = max(stat, max(0.0, abs(d[i]) - floor) / sc)
     out[3] = stat
     return vel
+
+
+# a call, not inlined: it runs at most once per step, and inlined into every check it
+# slowed the small problems' steps (the 3-link chain on a floor, the four-bar) by 1.5–2x
+@njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]
+def inverse_diagonal_sqrt(L, n, X, out):
+    """out[j] = √(M⁻¹)_jj = ‖L⁻¹ e_j‖ (j < n) for M = L Lᵀ: X = L⁻¹ (lower triangle) row by
+    row, each row an update by the rows above it (contiguous), then its column norms."""
+    for i in range(n):
+        for j in range(i):
+            X[i, j] = 0.0
+        X[i, i] = 1.0
+        for l in range(i):
+            a = L[i, l]
+            for j in range(l + 1):
+                X[i, j] -= a * X[l, j]
+        d = 1.0 / L[i, i]
+        for j in range(i + 1):
+            X[i, j] *= d
+    for j in range(n):
+        out[j] = 0.0
+    for i in range(n):
+        for j in range(i + 1):
+            out[j] += X[i, j] * X[i, j]
+    for j in range(n):
+        out[j] = math.sqrt(out[j])

@@ -25,7 +25,7 @@ def workspace(n, m):
     return (np.empty((mm, n)), np.empty(n), np.empty((mm, mm)), np.empty(mm), np.empty(mm),
             np.empty(mm, dtype=np.int64), np.zeros(mm, dtype=np.bool_), np.empty(mm), np.empty(mm),
             np.empty((mm, mm)), np.empty((mm, mm)), np.empty(mm), np.empty(n), np.empty(n),
-            np.empty(n), np.empty(n), np.empty(4), np.empty((n, mm)))
+            np.empty(n), np.empty(n), np.empty(4), np.empty((n, mm)), np.empty((n, n)), np.zeros(n + 1))
 
 
 @_jit

@@ -122,5 +122,6 @@ def kkt_residuals(M: np.ndarray, b: np.ndarray, G: np.ndarray, c: np.ndarray, v:
     kkt_residuals_kernel(M, L, np.ascontiguousarray(b, dtype=float), np.ascontiguousarray(G, dtype=float),
                          np.ascontiguousarray(c, dtype=float), np.ascontiguousarray(v, dtype=float),
                          np.ascontiguousarray(P, dtype=float), np.shape(G)[0], out,
-                         *(np.empty(max(n, np.shape(G)[0])) for _ in range(6)))
+                         *(np.empty(max(n, np.shape(G)[0])) for _ in range(5)), np.empty((n, n)), np.zeros(n + 1),
+                         False)
     return Residuals(*(float(x) for x in out))
