@@ -114,8 +114,15 @@ def _free_acceleration(n, const_mass, Minv, L, f, out):
 
 
 @_part
-def _momentum(n, h, M, v, f, b):
-    """b = M v + h f, the right-hand side of the step's velocity update."""
+def _momentum(ints, pool, h, M, cm, sm, v, f, b):
+    """b = M v + h f, the right-hand side of the step's velocity update; the chain's M v in
+    O(n) (``cm, sm``: cos/sin of the configuration of M)."""
+    n = ints[0]
+    if ints[2] == _k.MASS_CHAIN:
+        _k.chain_product(pool, ints[4], cm, sm, v, b)
+        for i in range(n):
+            b[i] += h * f[i]
+        return
     for i in range(n):
         s = h * f[i]
         for l in range(n):
@@ -133,11 +140,10 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     With combined drift control, a row's restitution acts only at an impact (see
     :class:`moreau.step.drift.CombinedProjection`): it approaches faster than the smooth forces
     change its normal velocity in one step, and it carried no impulse in the last
-    ``S_MEMORY`` steps; other closed rows take e = 0 (a persistent contact). A row is
-    then also closed when the projection holds it, or when it reaches the barrier by the
-    end of the step (2 g(q_m) − g(q_k) <= 0; with ``S_LOCATE`` the free step's end gap,
-    2 g(q_m) − g(q_k) + h²/2 G M⁻¹ f <= 0; the energy-consistent step closes such rows
-    too). Newton's law is :func:`moreau.core.kernels.impact_law`.
+    ``S_MEMORY`` steps; other closed rows take e = 0 (a persistent contact). A row is then
+    also closed when the projection holds it, or when it reaches the barrier by the end of
+    the step (2 g(q_m) − g(q_k) <= 0; with ``S_LOCATE`` the free step's end gap, + h²/2 G M⁻¹ f;
+    the energy-consistent step too; Newton's law: :func:`moreau.core.kernels.impact_law`).
     ``rs`` (m, 6, columns ``R_GAP`` ... ``R_SHIFT``) holds per row the gap at q_k, the gap
     the projection left, the pinned and bounced flags, a bounced row's h/2 − s and (2 s − h) a_n.
     ``fr``: the friction arrays (:mod:`moreau.compiled.friction`); ``eqw``: the bilateral
@@ -185,11 +191,12 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
         memory = iset[S_MEMORY]
     if na > 0:
         cnt[C_SOLVES] += 1
-    if not locate:
-        if _user_failed(ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, GA_all), cnt):
-            return -1
+    # G(q_m) once a step (later passes close the same rows; not with bilateral rows or friction)
+    if not locate and not (again and me == 0 and ints[9] == 0) and \
+            _user_failed(ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, GA_all), cnt):
+        return -1
     b = lw[3]
-    _momentum(n, h, M, v, f, b)
+    _momentum(ints, pool, h, M, cm, sm, v, f, b)
     if na == 0:  # no contact row: the bilateral rows alone
         return _eq_alone(n, m, m0, me, M, L, b, v, GA_all, P, v_new, Q, R, piv, x, y, by, PE, F, yv, cE, keep, cnt,
                          fr[2], fr[7])
