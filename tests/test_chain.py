@@ -134,9 +134,9 @@ def test_mass_matrix_spd_for_random_chains(rng, orientation, lateral):
 
 @pytest.mark.parametrize("lateral", [False, True])
 def test_linear_time_chain_kernels_match_the_dense_matrix(rng, lateral):
-    """M x, the centrifugal terms and the Cholesky factor from the O(n) generators
+    """M x, the centrifugal terms, the Cholesky factor and M⁻¹ b from the O(n) generators
     (moreau.core.kernels.chain) against the dense ν ∘ cos + ν^s ∘ sin forms (N(q) of the
-    paper's eq. (2.2), numpy's Cholesky), up to chains of 60 links."""
+    paper's eq. (2.2), numpy's Cholesky and solve), up to chains of 60 links."""
     from moreau.core import kernels as k
 
     for n in (1, 2, 3, 7, 24, 60):
@@ -153,15 +153,19 @@ def test_linear_time_chain_kernels_match_the_dense_matrix(rng, lateral):
             ref = -chain.n_matrix(q) @ x**2
             np.testing.assert_allclose(bias, ref, rtol=0, atol=1e-13 * np.abs(chain.n_matrix(q)).sum(axis=1).max()
                                        * np.max(x**2))
-            L = np.full((n, n), np.nan)
-            assert k.chain_factor(chain._pm, 0, c, s, L) == -1
+            L, gen = np.full((n, n), np.nan), np.empty((3, n))
+            assert k.chain_factor(chain._pm, 0, c, s, gen, L) == -1
             assert not np.triu(L, 1).any()
             Lref = np.linalg.cholesky(M)
             assert np.abs(L - Lref).max() <= 1e-12 * np.linalg.cond(M) * np.abs(Lref).max()
             assert np.abs(L @ L.T - M).max() <= 1e-14 * n * np.abs(M).max()
+            sol = x.copy()
+            k.chain_solve(chain._pm, 0, c, s, gen, sol, sol)  # in place, from the generators alone
+            ref = np.linalg.solve(M, x)
+            assert np.abs(sol - ref).max() <= 1e-14 * np.linalg.cond(M) * np.abs(ref).max()
     broken = chain._pm.copy()
     broken[2 * n * n + 5] = -1.0  # M_55 < 0: the factor names the first non-positive pivot
-    assert k.chain_factor(broken, 0, c, s, np.empty((n, n))) == 5
+    assert k.chain_factor(broken, 0, c, s, np.empty((3, n)), np.empty((n, n))) == 5
 
 
 @pytest.mark.parametrize("orientation", ["hanging", "inverted"])

@@ -167,3 +167,31 @@ def test_nearly_dependent_active_rows_are_refined_to_the_checks_tolerance(seed, 
     vo, Po = osqp.solve(M, b, G, c, rows)
     assert kkt_residuals(M, b, G, c, vo, Po).worst <= 1e-9
     assert rel(v, vo) <= 1e-9
+
+
+def test_the_checks_round_off_floor_is_kept_through_a_steps_passes():
+    """kkt_residuals_kernel with ``keep`` (a step's later passes: the same M) gives the
+    residuals of a check that forms √(M⁻¹)_jj afresh, bit for bit, and those are √ of the
+    inverse's diagonal; without ``keep`` a new M is never checked against the last one's."""
+    from moreau.contact.kkt import kkt_residuals_kernel
+    from moreau.core.kernels import cholesky
+
+    rng = np.random.default_rng(5)
+    M, b, G, c = random_problem(rng)
+    n, k = M.shape[0], G.shape[0]
+    L = np.empty((n, n))
+    assert cholesky(M, L, n) == -1
+    v = np.linalg.solve(M, b) * (1.0 + 1e-9 * rng.normal(size=n))  # off by 1e-9: the floor is formed
+    P = np.zeros(k)
+    work = [np.empty(max(n, k)) for _ in range(5)]
+    X, rd = np.empty((n, n)), np.zeros(n + 1)
+    first, again = np.empty(4), np.empty(4)
+    kkt_residuals_kernel(M, L, b, G, c, v, P, k, first, *work, X, rd, False)
+    assert rd[n] == 1.0  # formed
+    np.testing.assert_allclose(rd[:n], np.sqrt(np.diag(np.linalg.inv(M))), rtol=1e-12)
+    kkt_residuals_kernel(M, L, b, G, c, v, P, k, again, *work, X, rd, True)
+    assert np.array_equal(first, again) and first[3] > 0.0
+    M2 = 4.0 * M  # another M: without keep its floor is formed again (√ of a quarter)
+    L2 = 2.0 * L
+    kkt_residuals_kernel(M2, L2, b, G, c, v, P, k, again, *work, X, rd, False)
+    np.testing.assert_allclose(rd[:n], 0.5 * np.sqrt(np.diag(np.linalg.inv(M))), rtol=1e-12)

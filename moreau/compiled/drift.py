@@ -79,7 +79,7 @@ def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc
         na = _count(sel, m)
         if _user_failed(ev.mass(ints, pool, user, q, cq, sq, M), cnt):
             return False
-        if ev.factor(ints, pool, M, cq, sq, L) >= 0:
+        if ev.factor(ints, pool, M, cq, sq, L, lw[9]) >= 0:
             cnt[C_FAILKIND] = NOT_SPD
             return False
         if _user_failed(ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, G), cnt):

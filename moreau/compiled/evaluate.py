@@ -41,13 +41,13 @@ def mass(ints, pool, user, q, c, s, M):
 
 
 @_internal
-def factor(ints, pool, M, c, s, L):
+def factor(ints, pool, M, c, s, L, gen):
     """The lower Cholesky factor of M (n x n, just evaluated at the configuration whose
-    cos/sin are ``c, s``) into ``L``: the chain's from its O(n) generators
-    (:func:`moreau.core.kernels.chain_factor`, O(n²) against O(n³)), others from M.
+    cos/sin are ``c, s``) into ``L``: the chain's from its O(n) generators, kept in ``gen``
+    (3, n) (:func:`moreau.core.kernels.chain_factor`, O(n²) against O(n³)), others from M.
     Returns the index of the first non-positive pivot, or −1."""
     if ints[2] == _k.MASS_CHAIN:
-        return _k.chain_factor(pool, ints[4], c, s, L)
+        return _k.chain_factor(pool, ints[4], c, s, gen, L)
     return _k.cholesky(M, L, ints[0])
 
 

@@ -77,26 +77,31 @@ def loop_workspace(n: int, m: int, mf: int, mu: np.ndarray, tangent_row: np.ndar
            np.zeros(m), np.zeros(m, dtype=np.bool_), np.empty((mt, n)), np.empty(n), np.empty(n),
            np.empty((n, n)), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.zeros(n), np.zeros(n))
     lw = (np.empty((ma, n)), np.empty(ma), np.empty(n), np.empty(n), np.empty(ma),
-          np.empty((ma, n)), np.empty(n), np.zeros(n), np.zeros(mm, dtype=np.bool_))
+          np.empty((ma, n)), np.empty(n), np.zeros(n), np.zeros(mm, dtype=np.bool_), np.empty((3, n)))
     return own, workspace(n, m), lw, friction_work(n, m, mf, mu, tangent_row), equality_work(n, me, m + mf)
 
 
 @_part
-def _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, f, fb, gm, cnt):
+def _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, gen, f, fb, gm, cnt):
     """The midpoint q_m = q + h/2 v and the model there: M(q_m) factorized (unless
-    constant), f(t + h/2, q_m, v) and the gaps g(q_m); returns DONE or why not."""
+    constant; the chain's factor only as its O(n) generators ``gen``, M and L are formed
+    by the velocity update when a row closes), f(t + h/2, q_m, v) and the gaps g(q_m);
+    returns DONE or why not."""
     ints, ekind, eoff, bkind, boff, brow, bnrows, pool, _, _ = model
     n, m = ints[0], ints[1]
     for i in range(n):
         qm[i] = q[i] + 0.5 * h * v[i]
     if ints[8]:
         _k.trig(qm, cm, sm)
-    if not const_mass:
+    if ints[2] == _k.MASS_CHAIN:
+        if _k.chain_generators(pool, ints[4], cm, sm, gen) >= 0:
+            return NOT_SPD
+    elif not const_mass:
         if _user_failed(ev.mass(ints, pool, user, qm, cm, sm, M), cnt):
             return USER_FAILED
-        if ints[2] != _k.MASS_CHAIN and _k.symmetry_defect(M) > 1e-10:
+        if _k.symmetry_defect(M) > 1e-10:
             return NOT_SPD
-        if ev.factor(ints, pool, M, cm, sm, L) >= 0:
+        if _k.cholesky(M, L, n) >= 0:
             return NOT_SPD
     if _user_failed(ev.force(ints, ekind, eoff, pool, user, t + 0.5 * h, qm, cm, sm, v, f, fb), cnt):
         return USER_FAILED
@@ -252,7 +257,7 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
         k = cnt[C_K]
         t = t0 + k * h
         nimp = cnt[C_NIMP]
-        status = _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, f, fb, gm, cnt)
+        status = _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, lw[9], f, fb, gm, cnt)
         if status != DONE:
             return status
         status, s0 = energy_start(model, user, correct, q, v, cm, sm, M, ec, cnt)

@@ -83,10 +83,11 @@ def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail
             cnt[C_FALLBACKS] += 1
         st = solve_one_step(M, L, b, GA, cA, P_out, v_out, k, method, 1e-12, ws, fresh and attempt == 0)
         if st == 0:
-            # a later pass (and the fallback) checks against the same M: the check's
-            # round-off floor keeps its √(M⁻¹)_jj (O(n³))
+            # a later pass checks against the same M: the check's round-off floor keeps its
+            # √(M⁻¹)_jj (O(n³)); not the fallback of a fresh pass (the main may have failed
+            # before any check of this M)
             kkt_residuals_kernel(M, L, b, GA, cA, v_out, P_out, k, res, ws[11], ws[12], ws[13], ws[14], ws[15],
-                                 ws[18], ws[19], not fresh or attempt == 1)
+                                 ws[18], ws[19], not fresh)
             worst = max(res[0], res[1], res[2], res[3])
             if worst <= tol:
                 if worst > acc[A_WORST]:
@@ -101,9 +102,13 @@ def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail
 
 
 @_part
-def _free_acceleration(n, const_mass, Minv, L, f, out):
-    """M⁻¹ f into ``out`` (with the inverse of a constant M, as the reference path)."""
-    if const_mass:
+def _free_acceleration(ints, pool, Minv, L, gen, cm, sm, f, out):
+    """M⁻¹ f into ``out`` (with the inverse of a constant M, as the reference path; the
+    chain's from the generators ``gen`` of its factor, O(n), ``cm, sm``: cos/sin of q_m)."""
+    n = ints[0]
+    if ints[2] == _k.MASS_CHAIN:
+        _k.chain_solve(pool, ints[4], cm, sm, gen, f, out)
+    elif ints[2] == _k.MASS_CONST:
         for i in range(n):
             t = 0.0
             for j in range(n):
@@ -128,6 +133,21 @@ def _momentum(ints, pool, h, M, cm, sm, v, f, b):
         for l in range(n):
             s += M[i, l] * v[l]
         b[i] = s
+
+
+@_part
+def _closed_model(model, user, qm, cm, sm, M, L, gen, G, cnt, locate, again):
+    """What a pass with closed rows (or bilateral rows) needs at q_m, once a step (later
+    passes close the same rows): the chain's M and factor (from the generators ``gen``)
+    and G(q_m) (again in every pass with bilateral rows or friction, whose solves work on
+    G's rows; with ``locate`` it is already there). False when a user callable failed."""
+    ints, _, _, bkind, boff, brow, bnrows, pool, _, _ = model
+    if ints[2] == _k.MASS_CHAIN and not again:
+        _k.chain_mass(pool, ints[4], cm, sm, M)
+        _k.chain_fill(pool, ints[4], cm, sm, gen, L)
+    if locate or (again and ints[10] == 0 and ints[9] == 0):
+        return True
+    return not _user_failed(ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, G), cnt)
 
 
 @_part
@@ -156,7 +176,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     locate = combined and iset[S_LOCATE] == 1
     rhs = lw[2]
     if locate:  # the free step's end gap, + h²/2 G M⁻¹ f, decides which rows close
-        _free_acceleration(n, ints[2] == _k.MASS_CONST, Minv, L, f, rhs)
+        _free_acceleration(ints, pool, Minv, L, lw[9], cm, sm, f, rhs)
         if _user_failed(ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, GA_all), cnt):
             return -1
     ahead = iset[S_STEP] == STEP_ENERGY and not combined  # MoreauJeanEnergyConsistent.closes_ahead
@@ -180,20 +200,18 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     m0 = m + ints[9]
     if na == 0 and me == 0:
         if not locate:
-            _free_acceleration(n, ints[2] == _k.MASS_CONST, Minv, L, f, rhs)
+            _free_acceleration(ints, pool, Minv, L, lw[9], cm, sm, f, rhs)
         for i in range(n):
             v_new[i] = v[i] + h * rhs[i]
         return 0
     if combined:
         if not locate:
-            _free_acceleration(n, ints[2] == _k.MASS_CONST, Minv, L, f, rhs)
+            _free_acceleration(ints, pool, Minv, L, lw[9], cm, sm, f, rhs)
         k_now = cnt[C_K]
         memory = iset[S_MEMORY]
     if na > 0:
         cnt[C_SOLVES] += 1
-    # G(q_m) once a step (later passes close the same rows; not with bilateral rows or friction)
-    if not locate and not (again and me == 0 and ints[9] == 0) and \
-            _user_failed(ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, GA_all), cnt):
+    if not _closed_model(model, user, qm, cm, sm, M, L, lw[9], GA_all, cnt, locate, again):
         return -1
     b = lw[3]
     _momentum(ints, pool, h, M, cm, sm, v, f, b)

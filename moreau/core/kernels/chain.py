@@ -20,7 +20,8 @@ import math
 
 from moreau.core.kernels.jit import jit as _jit
 
-__all__ = ["chain_mass", "add_chain_bias", "chain_product", "chain_factor"]
+__all__ = ["chain_mass", "add_chain_bias", "chain_product", "chain_generators", "chain_fill", "chain_factor",
+           "chain_solve"]
 
 
 # -- the pendulum chain's mass matrix and centrifugal terms ------------------------------
@@ -88,10 +89,10 @@ def chain_product(p, o, c, s, x, out):
 
 
 @_jit
-def chain_factor(p, o, c, s, L):
-    """The lower Cholesky factor of M(q) into ``L`` (n x n, upper triangle zeroed) in O(n²)
-    (O(n) generators): L_jj = d_j and L_ij = w_i · p_j below the diagonal, with
-    p_j = (u_j − S_j w_j) / d_j, d_j² = M_jj − w_jᵀ S_j w_j, S_j = Σ_{k<j} p_k p_kᵀ (2 x 2).
+def chain_generators(p, o, c, s, gen):
+    """The O(n) generators of M(q)'s lower Cholesky factor into ``gen`` (3, n): the pivots
+    d_j and p_j = (u_j − S_j w_j) / d_j, with d_j² = M_jj − w_jᵀ S_j w_j and
+    S_j = Σ_{k<j} p_k p_kᵀ (2 x 2), so that L_jj = d_j and L_ij = w_i · p_j (i > j).
     Returns the index of the first non-positive pivot, or −1 (as ``cholesky``)."""
     n = c.shape[0]
     g = o + 2 * n * n
@@ -114,10 +115,58 @@ def chain_factor(p, o, c, s, L):
         sxx += px * px
         sxy += px * py
         syy += py * py
-        L[j, j] = d
-        for i in range(j):
-            L[i, j] = 0.0
-        for i in range(j + 1, n):
-            be, ga = p[g + 2 * n + i], p[g + 3 * n + i]
-            L[i, j] = (be * c[i] - ga * s[i]) * px + (be * s[i] + ga * c[i]) * py
+        gen[0, j] = d
+        gen[1, j] = px
+        gen[2, j] = py
     return -1
+
+
+@_jit
+def chain_fill(p, o, c, s, gen, L):
+    """The dense factor L (n x n, upper triangle zeroed) from :func:`chain_generators`,
+    row by row: L_ij = w_i · p_j (O(n²))."""
+    n = c.shape[0]
+    g = o + 2 * n * n
+    for i in range(n):
+        be, ga = p[g + 2 * n + i], p[g + 3 * n + i]
+        wx = be * c[i] - ga * s[i]
+        wy = be * s[i] + ga * c[i]
+        for j in range(i):
+            L[i, j] = wx * gen[1, j] + wy * gen[2, j]
+        L[i, i] = gen[0, i]
+        for j in range(i + 1, n):
+            L[i, j] = 0.0
+
+
+@_jit
+def chain_factor(p, o, c, s, gen, L):
+    """The lower Cholesky factor of M(q) into ``L`` (n x n) in O(n²), its generators into
+    ``gen`` (3, n); returns the index of the first non-positive pivot, or −1."""
+    st = chain_generators(p, o, c, s, gen)
+    if st < 0:
+        chain_fill(p, o, c, s, gen, L)
+    return st
+
+
+@_jit
+def chain_solve(p, o, c, s, gen, b, out):
+    """out = M(q)⁻¹ b (n,) in O(n) from :func:`chain_generators`: L y = b, then Lᵀ x = y,
+    with L_ij = w_i · p_j carried as 2-vector sums (``b`` and ``out`` may alias)."""
+    n = c.shape[0]
+    g = o + 2 * n * n
+    zx = 0.0
+    zy = 0.0
+    for i in range(n):
+        be, ga = p[g + 2 * n + i], p[g + 3 * n + i]
+        y = (b[i] - ((be * c[i] - ga * s[i]) * zx + (be * s[i] + ga * c[i]) * zy)) / gen[0, i]
+        out[i] = y
+        zx += gen[1, i] * y
+        zy += gen[2, i] * y
+    zx = 0.0
+    zy = 0.0
+    for j in range(n - 1, -1, -1):
+        x = (out[j] - (gen[1, j] * zx + gen[2, j] * zy)) / gen[0, j]
+        out[j] = x
+        be, ga = p[g + 2 * n + j], p[g + 3 * n + j]
+        zx += (be * c[j] - ga * s[j]) * x
+        zy += (be * s[j] + ga * c[j]) * x
