@@ -21,6 +21,13 @@ _jit = njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]
 # entry points to build
 _internal = njit(cache=True, nogil=True, _nrt=False, inline="always",  # type: ignore[call-overload]
                  no_cpython_wrapper=True, no_cfunc_wrapper=True)
+# the chain's O(n(²)) algebra of a step with rows closed: calls, compiled apart from the
+# loop (inlined into it, with the rest of the chain's O(n) algebra, they made the steps of
+# the piston, the four-bar and the 3-link chain on a floor 13-15 % slower than the build
+# before them, as calls 5-7 %, measured interleaved; the generators and the solve of the
+# free steps inlined or as calls: the same)
+_apart = njit(cache=True, nogil=True, _nrt=False,  # type: ignore[call-overload]
+              no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
 
 # -- the scene ----------------------------------------------------------------------------
@@ -52,6 +59,29 @@ def factor(ints, pool, M, c, s, L, gen):
 
 
 @_internal
+def linear_chain(ints):
+    """True when the step takes the chain's O(n) algebra: for every chain (at n = 3 too:
+    with the dense algebra inlined for chains under 6 links, the steps of the piston, the
+    four-bar and the 3-link chain on a floor were 6-9 % slower; measured interleaved)."""
+    return ints[2] == _k.MASS_CHAIN
+
+
+@_apart
+def chain_dense(ints, pool, c, s, gen, M, L):
+    """The chain's M (n x n) and its dense factor L from the generators ``gen``."""
+    _k.chain_mass(pool, ints[4], c, s, M)
+    _k.chain_fill(pool, ints[4], c, s, gen, L)
+
+
+@_apart
+def chain_momentum(ints, pool, h, c, s, v, f, b):
+    """b = M v + h f (n,) for the chain, M v in O(n)."""
+    _k.chain_product(pool, ints[4], c, s, v, b)
+    for i in range(ints[0]):
+        b[i] += h * f[i]
+
+
+@_internal
 def force(ints, ekind, eoff, pool, user, t, q, c, s, v, f, fb):
     """f(t, q, v) into ``f`` (n,): the bias terms and exactly the scene's effects; the bias
     terms alone also into ``fb`` (n,) (for the energy ledger: they do no work); ``c, s`` =
@@ -59,7 +89,7 @@ def force(ints, ekind, eoff, pool, user, t, q, c, s, v, f, fb):
     for i in range(f.shape[0]):
         fb[i] = 0.0
     if ints[3]:
-        if ints[2] == _k.MASS_CHAIN:
+        if ints[2] == _k.MASS_CHAIN:  # inlined (as a call the piston's step was 5-10 % slower)
             _k.add_chain_bias(pool, ints[4], c, s, v, fb)
         else:
             st = call_user(user[U_BIAS], t, q, v, fb, ints[0], ints[1])

@@ -84,8 +84,8 @@ def loop_workspace(n: int, m: int, mf: int, mu: np.ndarray, tangent_row: np.ndar
 @_part
 def _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, gen, f, fb, gm, cnt):
     """The midpoint q_m = q + h/2 v and the model there: M(q_m) factorized (unless
-    constant; the chain's factor only as its O(n) generators ``gen``, M and L are formed
-    by the velocity update when a row closes), f(t + h/2, q_m, v) and the gaps g(q_m);
+    constant; a chain's only as the O(n) generators ``gen`` of its factor, M and L are
+    formed by the velocity update when a row closes), f(t + h/2, q_m, v) and the gaps g(q_m);
     returns DONE or why not."""
     ints, ekind, eoff, bkind, boff, brow, bnrows, pool, _, _ = model
     n, m = ints[0], ints[1]
@@ -93,13 +93,13 @@ def _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, gen, 
         qm[i] = q[i] + 0.5 * h * v[i]
     if ints[8]:
         _k.trig(qm, cm, sm)
-    if ints[2] == _k.MASS_CHAIN:
+    if ev.linear_chain(ints):
         if _k.chain_generators(pool, ints[4], cm, sm, gen) >= 0:
             return NOT_SPD
     elif not const_mass:
         if _user_failed(ev.mass(ints, pool, user, qm, cm, sm, M), cnt):
             return USER_FAILED
-        if _k.symmetry_defect(M) > 1e-10:
+        if ints[2] != _k.MASS_CHAIN and _k.symmetry_defect(M) > 1e-10:
             return NOT_SPD
         if _k.cholesky(M, L, n) >= 0:
             return NOT_SPD
