@@ -153,7 +153,7 @@ def test_linear_time_chain_kernels_match_the_dense_matrix(rng, lateral):
             ref = -chain.n_matrix(q) @ x**2
             np.testing.assert_allclose(bias, ref, rtol=0, atol=1e-13 * np.abs(chain.n_matrix(q)).sum(axis=1).max()
                                        * np.max(x**2))
-            L, gen = np.full((n, n), np.nan), np.empty((3, n))
+            L, gen = np.full((n, n), np.nan), np.empty((4, n))
             assert k.chain_factor(chain._pm, 0, c, s, gen, L) == -1
             assert not np.triu(L, 1).any()
             Lref = np.linalg.cholesky(M)
@@ -165,7 +165,7 @@ def test_linear_time_chain_kernels_match_the_dense_matrix(rng, lateral):
             assert np.abs(sol - ref).max() <= 1e-14 * np.linalg.cond(M) * np.abs(ref).max()
     broken = chain._pm.copy()
     broken[2 * n * n + 5] = -1.0  # M_55 < 0: the factor names the first non-positive pivot
-    assert k.chain_factor(broken, 0, c, s, np.empty((3, n)), np.empty((n, n))) == 5
+    assert k.chain_factor(broken, 0, c, s, np.empty((4, n)), np.empty((n, n))) == 5
 
 
 @pytest.mark.parametrize("orientation", ["hanging", "inverted"])

@@ -51,7 +51,7 @@ def mass(ints, pool, user, q, c, s, M):
 def factor(ints, pool, M, c, s, L, gen):
     """The lower Cholesky factor of M (n x n, just evaluated at the configuration whose
     cos/sin are ``c, s``) into ``L``: the chain's from its O(n) generators, kept in ``gen``
-    (3, n) (:func:`moreau.core.kernels.chain_factor`, O(n²) against O(n³)), others from M.
+    (4, n) (:func:`moreau.core.kernels.chain_factor`, O(n²) against O(n³)), others from M.
     Returns the index of the first non-positive pivot, or −1."""
     if ints[2] == _k.MASS_CHAIN:
         return _k.chain_factor(pool, ints[4], c, s, gen, L)

@@ -90,9 +90,9 @@ def chain_product(p, o, c, s, x, out):
 
 @_jit
 def chain_generators(p, o, c, s, gen):
-    """The O(n) generators of M(q)'s lower Cholesky factor into ``gen`` (3, n): the pivots
-    d_j and p_j = (u_j − S_j w_j) / d_j, with d_j² = M_jj − w_jᵀ S_j w_j and
-    S_j = Σ_{k<j} p_k p_kᵀ (2 x 2), so that L_jj = d_j and L_ij = w_i · p_j (i > j).
+    """The O(n) generators of M(q)'s lower Cholesky factor into ``gen`` (4, n): the pivots
+    d_j, p_j = (u_j − S_j w_j) / d_j (two rows) and 1 / d_j, with d_j² = M_jj − w_jᵀ S_j w_j
+    and S_j = Σ_{k<j} p_k p_kᵀ (2 x 2), so that L_jj = d_j and L_ij = w_i · p_j (i > j).
     Returns the index of the first non-positive pivot, or −1 (as ``cholesky``)."""
     n = c.shape[0]
     g = o + 2 * n * n
@@ -109,15 +109,17 @@ def chain_generators(p, o, c, s, gen):
         if not t > 0.0:  # also NaN
             return j
         d = math.sqrt(t)
+        inv = 1.0 / d
         lj = p[g + n + j]
-        px = (lj * c[j] - tx) / d
-        py = (lj * s[j] - ty) / d
+        px = (lj * c[j] - tx) * inv
+        py = (lj * s[j] - ty) * inv
         sxx += px * px
         sxy += px * py
         syy += py * py
         gen[0, j] = d
         gen[1, j] = px
         gen[2, j] = py
+        gen[3, j] = inv
     return -1
 
 
@@ -141,7 +143,7 @@ def chain_fill(p, o, c, s, gen, L):
 @_jit
 def chain_factor(p, o, c, s, gen, L):
     """The lower Cholesky factor of M(q) into ``L`` (n x n) in O(n²), its generators into
-    ``gen`` (3, n); returns the index of the first non-positive pivot, or −1."""
+    ``gen`` (4, n); returns the index of the first non-positive pivot, or −1."""
     st = chain_generators(p, o, c, s, gen)
     if st < 0:
         chain_fill(p, o, c, s, gen, L)
@@ -158,14 +160,14 @@ def chain_solve(p, o, c, s, gen, b, out):
     zy = 0.0
     for i in range(n):
         be, ga = p[g + 2 * n + i], p[g + 3 * n + i]
-        y = (b[i] - ((be * c[i] - ga * s[i]) * zx + (be * s[i] + ga * c[i]) * zy)) / gen[0, i]
+        y = (b[i] - ((be * c[i] - ga * s[i]) * zx + (be * s[i] + ga * c[i]) * zy)) * gen[3, i]
         out[i] = y
         zx += gen[1, i] * y
         zy += gen[2, i] * y
     zx = 0.0
     zy = 0.0
     for j in range(n - 1, -1, -1):
-        x = (out[j] - (gen[1, j] * zx + gen[2, j] * zy)) / gen[0, j]
+        x = (out[j] - (gen[1, j] * zx + gen[2, j] * zy)) * gen[3, j]
         out[j] = x
         be, ga = p[g + 2 * n + j], p[g + 3 * n + j]
         zx += (be * c[j] - ga * s[j]) * x
