@@ -21,11 +21,11 @@ _jit = njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]
 # entry points to build
 _internal = njit(cache=True, nogil=True, _nrt=False, inline="always",  # type: ignore[call-overload]
                  no_cpython_wrapper=True, no_cfunc_wrapper=True)
-# the chain's O(n(²)) algebra of a step with rows closed: calls, compiled apart from the
-# loop (inlined into it, with the rest of the chain's O(n) algebra, they made the steps of
-# the piston, the four-bar and the 3-link chain on a floor 13-15 % slower than the build
-# before them, as calls 5-7 %, measured interleaved; the generators and the solve of the
-# free steps inlined or as calls: the same)
+# the chain's dense M and factor and its momentum, in a step with rows closed: calls,
+# compiled apart from the loop (inlined into it, the steps of the piston, the four-bar and
+# the 3-link chain on a floor were 13-15 % slower than before the O(n) algebra, as calls
+# 5-7 %, measured interleaved; every chain takes it: the dense algebra inlined for chains
+# under 6 links was 6-9 % slower still)
 _apart = njit(cache=True, nogil=True, _nrt=False,  # type: ignore[call-overload]
               no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
@@ -56,14 +56,6 @@ def factor(ints, pool, M, c, s, L, gen):
     if ints[2] == _k.MASS_CHAIN:
         return _k.chain_factor(pool, ints[4], c, s, gen, L)
     return _k.cholesky(M, L, ints[0])
-
-
-@_internal
-def linear_chain(ints):
-    """True when the step takes the chain's O(n) algebra: for every chain (at n = 3 too:
-    with the dense algebra inlined for chains under 6 links, the steps of the piston, the
-    four-bar and the 3-link chain on a floor were 6-9 % slower; measured interleaved)."""
-    return ints[2] == _k.MASS_CHAIN
 
 
 @_apart

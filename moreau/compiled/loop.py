@@ -93,13 +93,13 @@ def _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, gen, 
         qm[i] = q[i] + 0.5 * h * v[i]
     if ints[8]:
         _k.trig(qm, cm, sm)
-    if ev.linear_chain(ints):
+    if ints[2] == _k.MASS_CHAIN:
         if _k.chain_generators(pool, ints[4], cm, sm, gen) >= 0:
             return NOT_SPD
     elif not const_mass:
         if _user_failed(ev.mass(ints, pool, user, qm, cm, sm, M), cnt):
             return USER_FAILED
-        if ints[2] != _k.MASS_CHAIN and _k.symmetry_defect(M) > 1e-10:
+        if _k.symmetry_defect(M) > 1e-10:
             return NOT_SPD
         if _k.cholesky(M, L, n) >= 0:
             return NOT_SPD

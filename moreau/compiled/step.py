@@ -103,10 +103,10 @@ def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail
 
 @_part
 def _free_acceleration(ints, pool, Minv, L, gen, cm, sm, f, out):
-    """M⁻¹ f into ``out`` (with the inverse of a constant M, as the reference path; a long
+    """M⁻¹ f into ``out`` (with the inverse of a constant M, as the reference path; a
     chain's from the generators ``gen`` of its factor, O(n), ``cm, sm``: cos/sin of q_m)."""
     n = ints[0]
-    if ev.linear_chain(ints):
+    if ints[2] == _k.MASS_CHAIN:
         _k.chain_solve(pool, ints[4], cm, sm, gen, f, out)
     elif ints[2] == _k.MASS_CONST:
         for i in range(n):
@@ -120,10 +120,10 @@ def _free_acceleration(ints, pool, Minv, L, gen, cm, sm, f, out):
 
 @_part
 def _momentum(ints, pool, h, M, cm, sm, v, f, b):
-    """b = M v + h f, the right-hand side of the step's velocity update; a long chain's M v
+    """b = M v + h f, the right-hand side of the step's velocity update; a chain's M v
     in O(n) (``cm, sm``: cos/sin of the configuration of M)."""
     n = ints[0]
-    if ev.linear_chain(ints):
+    if ints[2] == _k.MASS_CHAIN:
         ev.chain_momentum(ints, pool, h, cm, sm, v, f, b)
         return
     for i in range(n):
@@ -136,11 +136,11 @@ def _momentum(ints, pool, h, M, cm, sm, v, f, b):
 @_part
 def _closed_model(model, user, qm, cm, sm, M, L, gen, G, cnt, locate, again):
     """What a pass with closed rows (or bilateral rows) needs at q_m, once a step (later
-    passes close the same rows): a long chain's M and factor (from the generators ``gen``)
+    passes close the same rows): a chain's M and factor (from the generators ``gen``)
     and G(q_m) (again in every pass with bilateral rows or friction, whose solves work on
     G's rows; with ``locate`` it is already there). False when a user callable failed."""
     ints, _, _, bkind, boff, brow, bnrows, pool, _, _ = model
-    if ev.linear_chain(ints) and not again:
+    if ints[2] == _k.MASS_CHAIN and not again:
         ev.chain_dense(ints, pool, cm, sm, gen, M, L)
     if locate or (again and ints[10] == 0 and ints[9] == 0):
         return True
