@@ -9,10 +9,11 @@ bookkeeping is inlined.
 """
 
 from moreau.compiled import evaluate as ev
-from moreau.compiled.layout import DONE, S_ITER, S_STEP, STEP_ENERGY, STEP_THETA, USER_FAILED
+from moreau.compiled.layout import A_WORST, DONE, F_ITOL, F_TOL, S_ITER, S_STEP, STEP_ENERGY, STEP_THETA, USER_FAILED
 from moreau.compiled.layout import call as _call
 from moreau.compiled.layout import part as _part
 from moreau.compiled.step import _user_failed
+from moreau.contact.kkt import kkt_residuals_kernel
 from moreau.core import kernels as _k
 
 
@@ -168,3 +169,40 @@ def pass_forces(model, user, npass, correct, t, h, q, v, qm, cm, sm, v_new, s0, 
     if correct:
         return energy_correction(model, user, h, q, v, x, s0, cm, sm, M, Ms, c2, s2, qp, dq, f, fb, cnt)
     return DONE
+
+
+@_call
+def checked(M, L, active, m, lw, ws, v_new, fset, acc):
+    """The KKT check of the last pass's contact solve, which ran unchecked (``check=False``
+    of :func:`moreau.compiled.step._velocity_update`): the step's iterates are checked in
+    the one kept, the converged one (as ``OneStepIntegrator._check_deferred``). True when
+    it passes (the worst residual kept in ``acc``); False: the loop solves that pass again,
+    with the check and the fallback. A call: it runs once a contact step."""
+    k = 0
+    for r in range(m):
+        if active[r]:
+            k += 1
+    res = ws[16]
+    kkt_residuals_kernel(M, L, lw[3], lw[0], lw[1], v_new, lw[4], k, res, ws[11], ws[12], ws[13], ws[14], ws[15],
+                         ws[18], ws[19], False)
+    worst = max(res[0], res[1], res[2], res[3])
+    if worst <= fset[F_TOL]:
+        if worst > acc[A_WORST]:
+            acc[A_WORST] = worst
+        return True
+    return False
+
+
+@_part
+def end_of_pass(n, m, code, defer, mixed, v_new, ec, M, L, active, lw, ws, fset, acc):
+    """``(done, defer, mixed)`` after an iterate's pass: done when it converged
+    (:func:`next_iterate`) and, if its contact solve ran unchecked (``defer`` and a contact
+    pass), its answer passes the check (:func:`checked`); the iterates' plain contact solves
+    (no friction, no bilateral rows) are checked only in the pass whose answer is kept. An
+    answer that fails it: the same iterate again, with ``defer`` off (checked, with the
+    fallback). ``mixed``: the next iterate is Anderson-mixed."""
+    if next_iterate(n, v_new, ec[5], ec[6], ec[7], mixed, fset[F_ITOL]):
+        if not (defer and code == 1) or checked(M, L, active, m, lw, ws, v_new, fset, acc):
+            return True, defer, mixed
+        return False, False, mixed
+    return False, defer, True

@@ -22,7 +22,7 @@ from moreau.compiled.bilateral import _eq_hold, _eq_project_velocity, _eq_record
 from moreau.compiled.drift import _project
 from moreau.compiled.energy import _energy_check, _kinetic_energy
 from moreau.compiled.friction import friction_work
-from moreau.compiled.implicit import energy_start, next_iterate, pass_forces, velocity_passes
+from moreau.compiled.implicit import end_of_pass, energy_start, pass_forces, velocity_passes
 from moreau.compiled.layout import (  # the loop's layout
     A_WORK_B,
     A_WORK_E,
@@ -38,7 +38,6 @@ from moreau.compiled.layout import (  # the loop's layout
     DRIFT_COMBINED,
     DRIFT_NONE,
     F_H,
-    F_ITOL,
     F_PE0,
     F_T0,
     IMPACTS_FULL,
@@ -265,8 +264,7 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
             return status
         # one call site of the velocity update, so the contact solve is compiled (inlined) once;
         # its later passes see the forces at (v_k + x)/2 for an iterate x (implicit.pass_forces)
-        code = 0
-        mixed = False
+        code, mixed, defer = 0, False, iterate and not friction and me == 0  # (implicit.end_of_pass)
         for npass in range(passes):
             if npass >= 1:
                 status = pass_forces(model, user, npass, correct, t, h, q, v, qm, cm, sm, v_new, s0, M, ec, vbar,
@@ -274,16 +272,16 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
                 if status != DONE:
                     return status
             code = _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, v_new, P,
-                                    active, G, cnt, acc, fail, ws, lw, last_imp, rs, fr, eqw, npass >= 1)
+                                    active, G, cnt, acc, fail, ws, lw, last_imp, rs, fr, eqw, npass >= 1, not defer)
             cnt[C_UPDATES] += 1
             if code < 0:
                 return cnt[C_FAILKIND]
             if iterate and npass >= 1:
-                if next_iterate(n, v_new, ec[5], ec[6], ec[7], mixed, fset[F_ITOL]):
+                done, defer, mixed = end_of_pass(n, m, code, defer, mixed, v_new, ec, M, L, active, lw, ws, fset, acc)
+                if done:
                     break
                 if npass == passes - 1:
                     return NOT_CONVERGED
-                mixed = True
         if me > 0:
             acc[A_WORK_E] += _eq_records(n, m + ints[9], me, v, v_new, G, eqw[6], eqw[10])
         wf = 0.0  # smooth-force work of the step, h fᵀ (v + v⁺)/2

@@ -170,7 +170,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
             traj, error = _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE, IMP,
                                     q, v, P_acc, act_acc, pen, cnt, acc, fail, cs, t0, h, stride, solver,
                                     fallback, energy, wall, PTS if mf else None, work[3][3], tol, work[4][10],
-                                    int(iset[lay.S_ITER]))
+                                    int(iset[lay.S_ITER]), work[0][14])
             break
         except KeyboardInterrupt as exc:
             if interrupt is None:
@@ -195,9 +195,10 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
 
 def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE, IMP, q, v, P_acc, act_acc,
               pen, cnt, acc, fail, cs, t0, h, stride, solver, fallback, energy, wall, PTS=None, PT_acc=None,
-              tol=float("nan"), PE_acc=None, max_iter=0):
+              tol=float("nan"), PE_acc=None, max_iter=0, active=None):
     """The Trajectory (and the error to raise, if any) from the loop's buffers (``PTS``:
-    the tangential impulses of a scene with friction, else None)."""
+    the tangential impulses of a scene with friction, else None; ``active``: the rows the
+    last step closed)."""
     m = scene.nrows
     me = scene.nconstraints
     error = None
@@ -206,7 +207,7 @@ def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE,
     if code != lay.DONE and status == "completed":
         status = "failed"
         error = _error(code, scene, k, t_now, q, v, h, fail, cs, int(cnt[lay.C_USER]), acc, tol,
-                       cnt[lay.C_EQROW:lay.C_EQROW + 1], max_iter)
+                       cnt[lay.C_EQROW:lay.C_EQROW + 1], max_iter, active)
         message = str(error)
     rec = int(cnt[lay.C_REC])
     if status != "completed" and T[rec - 1] != t_now and rec < n_rec + 1:
@@ -255,7 +256,8 @@ def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE,
     return traj, error
 
 
-def _error(code, scene, k, t, q, v, h, fail, cs, user_status, acc, tol=float("nan"), cnt_row=None, max_iter=0):
+def _error(code, scene, k, t, q, v, h, fail, cs, user_status, acc, tol=float("nan"), cnt_row=None, max_iter=0,
+           active=None):
     where = f"at step {k} (t = {t:.9g})"
     if code == lay.ENERGY_GROWTH:
         return SimulationError(energy_growth_message(scene, t, q, v, float(acc[lay.A_DU]), float(acc[lay.A_KEMAX]), h),
@@ -265,12 +267,17 @@ def _error(code, scene, k, t, q, v, h, fail, cs, user_status, acc, tol=float("na
     if code == lay.USER_FAILED:
         return _user_error(scene, cs, user_status, where, k, t, q, v, h)
     if code == lay.SOLVER_FAILED:
-        qm = q + 0.5 * h * v
-        g = scene.gaps(qm) if scene.nrows else np.zeros(0)
-        rows = [scene.row_names[i] for i in np.flatnonzero(g <= scene.activation_tol)]
+        # the rows the step closed (also those closed ahead of the barrier: the
+        # energy-consistent step, CombinedProjection), else the rows closed at q_m
+        if active is not None:
+            closed = np.flatnonzero(active[:scene.nrows])
+        else:
+            closed = np.flatnonzero(scene.gaps(q + 0.5 * h * v) <= scene.activation_tol) if scene.nrows \
+                else np.zeros(0, dtype=int)
+        rows = [scene.row_names[i] for i in closed]
         names = ["main", "fallback"]
         if cs.ints[9]:  # friction: Lemke's method and the full law's six residuals, no fallback
-            mu = [float(cs.friction[i]) for i in np.flatnonzero(g <= scene.activation_tol)]
+            mu = [float(cs.friction[i]) for i in closed]
             residuals = {"lemke": dict(zip(FRICTION_RESIDUALS, fail[0].tolist()))}
             why = ("Lemke's method and the enumeration of contact states found no solution"
                    if not np.isfinite(fail[0]).all() else

@@ -63,8 +63,11 @@ def _count(flags, m):
 
 
 @_part
-def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail, ws, fresh=True):
+def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail, ws, fresh=True, check=True):
     """Main LCP method, KKT check, fallback; False when both fail (residuals in ``fail``).
+    ``check=False``: an answer the method reports solved is taken unchecked (the
+    energy-consistent step's passes; the loop checks the one it keeps,
+    :func:`moreau.compiled.implicit.checked`).
     ``fresh=False``: ``ws`` holds the Delassus matrix of this M and GA (see
     :func:`~moreau.contact.one_step.solve_one_step`) and the KKT check's √(M⁻¹)_jj of
     this M; the fallback reuses the main's. A
@@ -82,6 +85,8 @@ def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail
         if attempt == 1:
             cnt[C_FALLBACKS] += 1
         st = solve_one_step(M, L, b, GA, cA, P_out, v_out, k, method, 1e-12, ws, fresh and attempt == 0)
+        if st == 0 and not check:
+            return True
         if st == 0:
             # a later pass checks against the same M: the check's round-off floor keeps its
             # √(M⁻¹)_jj (O(n³)); not the fallback of a fresh pass (the main may have failed
@@ -149,7 +154,7 @@ def _closed_model(model, user, qm, cm, sm, M, L, gen, G, cnt, locate, again):
 
 @_part
 def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, v_new, P, active,
-                     GA_all, cnt, acc, fail, ws, lw, last_imp, rs, fr, eqw, again):
+                     GA_all, cnt, acc, fail, ws, lw, last_imp, rs, fr, eqw, again, check):
     """v⁺ with the contacts closed at qm (gaps ``gm``); returns 1 (contact), 0 (free) or
     −1 (failed: the solve, or a user callable; the status is in ``cnt[C_FAILKIND]``).
     ``P`` (m,) and ``active`` (m,) are set for the step; ``again``: a later pass of it.
@@ -165,7 +170,8 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     the projection left, the pinned and bounced flags, a bounced row's h/2 − s and (2 s − h) a_n.
     ``fr``: the friction arrays (:mod:`moreau.compiled.friction`); ``eqw``: the bilateral
     rows' (:mod:`moreau.compiled.bilateral`): with them every step solves the reduced
-    problem in their null space (with the contact rows), as ``EqualityRows.velocity``."""
+    problem in their null space (with the contact rows), as ``EqualityRows.velocity``.
+    ``check=False``: its answer unchecked, the problem left in ``lw`` (``implicit.checked``)."""
     ints, _, _, bkind, boff, brow, bnrows, pool, e, atol = model
     n, m = ints[0], ints[1]
     h = fset[F_H]
@@ -255,7 +261,8 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
                                  L, eqw, rank)
     # a later pass closes the same rows at q_m: the last Delassus matrix stands (see _contact_solve)
     if solved < 0 or (solved == 0 and not _contact_solve(Ms, Ls, bs, GA, cA, na, v_new, PA, iset, fset, cnt, acc,
-                                                          fail, ws, not again or locate or me > 0 or ints[9] > 0)):
+                                                          fail, ws, not again or locate or me > 0 or ints[9] > 0,
+                                                          check)):
         cnt[C_FAILKIND] = SOLVER_FAILED
         return -1
     j = 0

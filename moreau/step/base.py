@@ -1,5 +1,6 @@
-"""The one-step integrator's base: state, model evaluation with checks, the contact solve
-with fallback and the KKT check, drift control; subclasses write :meth:`step`."""
+"""The one-step integrator's base: state, model evaluation with checks, drift control,
+and the contact solve (:class:`~moreau.step.nonsmooth.NonsmoothSolve`); subclasses write
+:meth:`step`."""
 
 from __future__ import annotations
 
@@ -9,23 +10,21 @@ from typing import NamedTuple
 
 import numpy as np
 
-from moreau.contact.friction import FRICTION_RESIDUALS, friction_residuals, painleve_message, painleve_rows
-from moreau.contact.problem import kkt_residuals
-from moreau.contact.solvers import ContactSolver, SolveFailed, make_solver
-from moreau.core.errors import SolverError
+from moreau.contact.solvers import ContactSolver, make_solver
 from moreau.core.kernels import cho_solve as _cho_solve
 from moreau.core.kernels import cholesky as _cholesky
 from moreau.core.kernels import symmetry_defect as _symmetry_defect
 from moreau.core.validation import as_positive
 from moreau.model.scene import Scene
 from moreau.step.checks import _COMPOSITE, BadModelOutput, NonFiniteState, _locate_bad_shape, check_initial_state
+from moreau.step.nonsmooth import NonsmoothSolve
 
 __all__ = ["OneStepIntegrator", "ContactDetails"]
 
 log = logging.getLogger(__name__)
 
 
-class OneStepIntegrator(ABC):
+class OneStepIntegrator(NonsmoothSolve, ABC):
     """What every time-stepper shares: the state, the contact solve, its checks.
 
     Parameters
@@ -186,95 +185,15 @@ class OneStepIntegrator(ABC):
         self.track_bias_work = False
         #: (M, G, v_k, v⁺, P) of the last contact step, for last_contact_details
         self._last: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
+        #: defer the KKT check of plain contact solves (an iterating step's passes: only the
+        #: answer it keeps is checked, by :meth:`_check_deferred`); the unchecked answer
+        self._defer_check = False
+        self._unchecked: tuple | None = None
         self._initialized = True
 
     @abstractmethod
     def step(self) -> bool:
         """Advance the state by one step h; return True when a contact problem was solved."""
-
-    # -- contact solve ------------------------------------------------------------------
-    def _solve_contact(self, M, b, G, c, rows, kind: str = "contact", L=None, T=None, cT=None):
-        """Solve the step's QP with the main solver, check it, fall back if needed.
-
-        ``kind`` names the problem in errors (``"contact"``, or ``"projection"`` for drift
-        control, whose solves are not counted in ``n_solves``). ``L``: the Cholesky factor
-        of M when the step has it (the check then does not factorize M again). ``T``: the
-        tangent rows (m, n) of a scene with friction; the solve is then the friction
-        problem, checked against the full law (cone and stick/slip too), and its
-        tangential impulses of the active rows are left in ``self._PT_active``; ``cT`` (m,)
-        the offsets of the slip velocities ``T v − cT`` (the reduced problem of a scene
-        with bilateral rows; None: 0).
-        """
-        if kind == "contact":
-            self.n_solves += 1
-        if T is not None:
-            return self._solve_friction(M, b, G, c, T, rows, L, cT)
-        GA, cA = G[rows], c[rows]
-        failures: dict[str, dict[str, float] | str] = {}
-        for solver in (self.solver, self.fallback):
-            if solver is None:
-                break
-            if failures:  # the main solver failed: this is the fallback
-                self.n_fallbacks += 1
-                log.debug("step %d: %s failed (%s), falling back to %s", self.k, self.solver.name,
-                          failures[self.solver.name], solver.name)
-            try:
-                v, P = solver.solve(M, b, G, c, rows)
-                res = kkt_residuals(M, b, GA, cA, v, P, L=L)
-                if res.worst <= self.tol:
-                    if res.worst > self.worst_residual:
-                        self.worst_residual = res.worst
-                    return v, P
-                failures[solver.name] = res.as_dict()
-            except (SolveFailed, np.linalg.LinAlgError, ValueError) as exc:
-                failures[solver.name] = str(exc)
-        names = [self.scene.row_names[i] for i in rows]
-        raise SolverError(
-            f"{kind} solve failed at step {self.k} (t = {self.t:.9g}), active rows {names}: {failures}",
-            step=self.k, t=self.t, rows=names, residuals=failures,
-        )
-
-    def _solve_friction(self, M, b, G, c, T, rows, L, cT=None):
-        """The friction problem of :meth:`_solve_contact`: main solver, law check, fallback."""
-        GA, cA, TA, muA = G[rows], c[rows], T[rows], self._mu[rows]
-        cTA = None if cT is None else cT[rows]
-        failures: dict[str, dict[str, float] | str] = {}
-        for solver in (self.solver, self.fallback):
-            if solver is None:
-                break
-            if failures:
-                self.n_fallbacks += 1
-                log.debug("step %d: %s failed (%s), falling back to %s", self.k, self.solver.name,
-                          failures[self.solver.name], solver.name)
-            try:
-                v, PN, PT = solver.solve_friction(M, b, G, c, T, self._mu, rows, cT=cT)
-                res = friction_residuals(M, b, GA, cA, TA, muA, v, PN, PT, L=L, cT=cTA)
-                worst = float(res.max())
-                if worst <= self.tol:
-                    self.worst_residual = max(self.worst_residual, worst)
-                    self._PT_active = PT
-                    self._check_painleve(M, L, GA, TA, muA, PN, PT, v, rows, cTA)
-                    return v, PN
-                failures[solver.name] = dict(zip(FRICTION_RESIDUALS, res.tolist()))
-            except (SolveFailed, np.linalg.LinAlgError, ValueError) as exc:
-                failures[solver.name] = str(exc)
-        names = [self.scene.row_names[i] for i in rows]
-        raise SolverError(
-            f"contact solve with friction failed at step {self.k} (t = {self.t:.9g}), active rows {names}, "
-            f"mu = {muA.tolist()}: {failures}", step=self.k, t=self.t, rows=names, residuals=failures,
-        )
-
-    def _check_painleve(self, M, L, GA, TA, muA, PN, PT, v, rows, cTA=None) -> None:
-        """Count the steps with a sliding contact in Painlevé's region (see
-        :func:`moreau.contact.friction.painleve_rows`) and keep the first one's message."""
-        if L is None:
-            L = np.linalg.cholesky(M)
-        bad = painleve_rows(L, GA, TA, muA, PN, PT, TA @ v if cTA is None else TA @ v - cTA)
-        if bad.size:
-            self.n_painleve += 1
-            if self.painleve is None:
-                names = [self.scene.row_names[rows[j]] for j in bad]
-                self.painleve = painleve_message(self.t, self.k, names, muA[bad].tolist())
 
     def _mass_at(self, q, v) -> tuple[np.ndarray, np.ndarray]:
         """``(M(q), L)`` with L its Cholesky factor, factorized once as the compiled step

@@ -12,6 +12,7 @@ import pytest
 
 import moreau as mo
 from moreau.contact.testing import FaultInjectingSolver
+from moreau.model.chain import ChainGravity, Link, PendulumChain, PointLineBarrier, PointLineRow
 from moreau.problems.bouncing_ball import bouncing_ball
 from moreau.problems.piston import PistonParameters, piston_model
 
@@ -111,6 +112,55 @@ def test_faults_in_drift_control_projections_fall_back():
     assert faulty.calls > traj.stats.solves  # projections went through the same solver
     assert traj.stats.fallbacks == len(faulty.injected) > 0
     np.testing.assert_allclose(traj.q, exact.q, atol=Q_TOL, rtol=0)
+
+
+def falling_chain_run(solver, backend: str = "python", **kw) -> mo.Trajectory:
+    """Three rods released horizontally above a floor, with the energy-consistent step: its
+    velocity update iterates, every pass a contact solve in a contact step."""
+    chain = PendulumChain([Link.rod(m=1.0 / 3, l=1.0 / 3) for _ in range(3)])
+    rows = [PointLineRow(i, (1.0 / 3, 0.0), line_point=(0.0, -0.25), normal=(0.0, 1.0)) for i in range(3)]
+    scene = mo.Scene(chain, [ChainGravity(chain)], [mo.Contact(PointLineBarrier(chain, rows), 0.5, name="floor")])
+    return mo.simulate(scene, (0.0, 0.8), np.full(3, np.pi / 2), np.zeros(3), 1e-3, backend=backend, solver=solver,
+                       integrator=mo.MoreauJeanEnergyConsistent, **{"record_every": 10, **kw})
+
+
+# the two runs converge to the same fixed points along different iterates (the iteration
+# stops at a change of 1e-10 relative): measured 7e-13 and 1e-12 apart
+EC_TOL = 1e-10
+
+
+def test_the_energy_consistent_step_checks_the_answer_it_keeps():
+    """Its iterates' contact solves are checked in the converged pass only: a wrong answer
+    in an earlier pass only moves an iterate (no fallback, the same answer); a solver wrong
+    in every pass converges to a wrong fixed point, which the check of the kept answer
+    catches, and the step goes on with the check and the fallback in every pass."""
+    exact = falling_chain_run("enum")
+    assert exact.stats.contact_steps > 100 and len(exact.impacts) > 5
+    sometimes = FaultInjectingSolver("enum", fail_on=lambda k: k % 7 == 3, mode="wrong")
+    traj = falling_chain_run(sometimes, fallback="enum")
+    assert traj.completed and len(sometimes.injected) >= 100
+    assert traj.stats.fallbacks == 0
+    np.testing.assert_allclose(traj.q, exact.q, atol=EC_TOL, rtol=0)
+    always = FaultInjectingSolver("enum", fail_on=lambda k: True, mode="wrong")
+    traj = falling_chain_run(always, fallback="enum")
+    assert traj.completed
+    assert traj.stats.fallbacks >= exact.stats.contact_steps  # at least one per contact step
+    assert traj.stats.worst_residual <= 1e-6
+    np.testing.assert_allclose(traj.q, exact.q, atol=EC_TOL, rtol=0)
+
+
+@pytest.mark.parametrize("backend", ["python", "compiled"])
+def test_an_energy_consistent_answer_failing_its_check_stops_the_run_naming_its_rows(backend):
+    """With a tolerance no answer meets, the kept answer's check fails, the fallback's too:
+    the run stops at the first contact step, naming the rows the step closed (also those
+    closed ahead of the barrier), on both paths alike."""
+    with pytest.raises(mo.SolverError) as info:
+        falling_chain_run("exact", backend=backend, tol=1e-30)
+    exc = info.value
+    first = falling_chain_run("exact", backend=backend).impacts  # the first contact step is an impact
+    assert exc.step == first.step[0] > 100
+    assert exc.rows == [f"floor[{first.row[0]}]"]
+    assert len(exc.residuals) == 2  # the main solver's and the fallback's
 
 
 def test_fault_injector_rejects_bad_arguments():
