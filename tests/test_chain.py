@@ -132,6 +132,25 @@ def test_mass_matrix_spd_for_random_chains(rng, orientation, lateral):
                 assert np.linalg.eigvalsh(M - np.diag(chain.inertias))[0] > -1e-12 * np.abs(M).max()
 
 
+def test_point_line_gaps_from_the_joints_match_the_points_positions(rng):
+    """The O(n + m) gaps and Jacobian of points on a chain against lines
+    (``kernels.gaps_chain_point``, rows on any links in any order, points off the link's
+    axis, tilted lines) against the points' positions and Jacobians (PendulumChain), and
+    against the dense form g0 + A cos q + B sin q."""
+    chain = PendulumChain([Link.rod(m=0.1 * (i + 1), l=0.15 + 0.05 * i) for i in range(7)], pivot=(0.3, -0.2))
+    rows = [PointLineRow(int(k), tuple(rng.normal(size=2) * 0.1), tuple(rng.normal(size=2)), tuple(rng.normal(size=2)))
+            for k in (5, 0, 6, 2, 2, 0, 3)]
+    barrier = PointLineBarrier(chain, rows)
+    for q in rng.uniform(-np.pi, np.pi, size=(5, chain.ndof)):
+        want = [barrier.normals[i] @ (chain.point_position(q, r.link, r.local) - np.asarray(r.line_point))
+                for i, r in enumerate(rows)]
+        np.testing.assert_allclose(barrier.gap(q), want, rtol=0, atol=1e-14)
+        np.testing.assert_allclose(barrier.gap(q), barrier._g0 + barrier._A @ np.cos(q) + barrier._B @ np.sin(q),
+                                   rtol=0, atol=1e-14)
+        J = np.array([barrier.normals[i] @ chain.point_jacobian(q, r.link, r.local) for i, r in enumerate(rows)])
+        np.testing.assert_allclose(barrier.jacobian(q), J, rtol=0, atol=1e-14)
+
+
 @pytest.mark.parametrize("lateral", [False, True])
 def test_linear_time_chain_kernels_match_the_dense_matrix(rng, lateral):
     """M x, the centrifugal terms, the Cholesky factor and M⁻¹ b from the O(n) generators

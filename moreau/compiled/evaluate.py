@@ -120,6 +120,8 @@ def gaps(ints, bkind, boff, brow, bnrows, pool, user, q, c, s, g):
             _k.gaps_linear(pool, boff[ic], bnrows[ic], q, g, brow[ic])
         elif kind == _k.BAR_TRIG:
             _k.gaps_trig(pool, boff[ic], bnrows[ic], c, s, g, brow[ic])
+        elif kind == _k.BAR_CHAIN_POINT:
+            _k.gaps_chain_point(pool, boff[ic], bnrows[ic], c, s, g, brow[ic])
     if user[U_GAPS] != 0:
         st = call_user(user[U_GAPS], 0.0, q, q, g, ints[0], g.shape[0])
         return 0 if st == 0 else st * 8 + U_GAPS
@@ -136,6 +138,8 @@ def jacobian(ints, bkind, boff, brow, bnrows, pool, user, q, c, s, G):
             _k.jacobian_linear(pool, boff[ic], bnrows[ic], G, brow[ic])
         elif kind == _k.BAR_TRIG:
             _k.jacobian_trig(pool, boff[ic], bnrows[ic], c, s, G, brow[ic])
+        elif kind == _k.BAR_CHAIN_POINT:
+            _k.jacobian_chain_point(pool, boff[ic], bnrows[ic], c, s, G, brow[ic])
     if user[U_JACOBIANS] != 0:
         st = call_user(user[U_JACOBIANS], 0.0, q, q, G, ints[0], G.shape[0])
         return 0 if st == 0 else st * 8 + U_JACOBIANS

@@ -33,17 +33,18 @@ def energy_start(model, user, correct, q, v, cm, sm, M, ec, cnt):
     """``(status, s0)``: s0 = T(q_m, v_k) − T(q_k, v_k), the start's share of the step's
     kinetic-energy change (0 unless ``correct``: other steps make no call); ``M`` (n, n)
     holds M(q_m), ``cm, sm`` cos/sin of q_m; M(q_k) is evaluated into ``ec[0]``, cos/sin
-    of q_k into ``ec[1]``/``ec[2]`` (``ec``: the loop's work arrays of this step). Status
-    DONE or USER_FAILED."""
+    of q_k into ``ec[1]``/``ec[2]`` (``ec``: the loop's work arrays of this step), and a
+    chain's M_m v_k kept in ``ec[8]``. Status DONE or USER_FAILED."""
     if not correct:
         return DONE, 0.0
-    return _energy_start(model, user, q, v, cm, sm, M, ec[0], ec[1], ec[2], cnt)
+    return _energy_start(model, user, q, v, cm, sm, M, ec[0], ec[1], ec[2], ec[8], cnt)
 
 
 @_call
-def _energy_start(model, user, q, v, cm, sm, M, Ms, c2, s2, cnt):
+def _energy_start(model, user, q, v, cm, sm, M, Ms, c2, s2, mv, cnt):
     """:func:`energy_start`'s evaluation (a call, out of the loop's own code); the chain's
-    from two O(n) products M v (:func:`moreau.core.kernels.chain_product`), not from M."""
+    from two O(n) products M v (:func:`moreau.core.kernels.chain_product`), not from M,
+    M_m v_k kept in ``mv`` (n,)."""
     ints, pool = model[0], model[7]
     n = ints[0]
     if ints[8]:
@@ -51,9 +52,9 @@ def _energy_start(model, user, q, v, cm, sm, M, Ms, c2, s2, cnt):
     t = 0.0
     if ints[2] == _k.MASS_CHAIN:
         Mv = Ms[0]
-        _k.chain_product(pool, ints[4], cm, sm, v, Mv)
+        _k.chain_product(pool, ints[4], cm, sm, v, mv)
         for i in range(n):
-            t += v[i] * Mv[i]
+            t += v[i] * mv[i]
         _k.chain_product(pool, ints[4], c2, s2, v, Mv)
         for i in range(n):
             t -= v[i] * Mv[i]
@@ -69,13 +70,14 @@ def _energy_start(model, user, q, v, cm, sm, M, Ms, c2, s2, cnt):
 
 
 @_call
-def energy_correction(model, user, h, q, v, v_new, s0, cm, sm, M, Ms, c2, s2, qp, dq, f, fb, cnt):
+def energy_correction(model, user, h, q, v, v_new, s0, cm, sm, M, Ms, c2, s2, qp, dq, mv, f, fb, cnt):
     """Add κ M_m Δq to ``f`` and ``fb`` (n,), with Δq = h (v_k + v⁺)/2 for the iterate
     ``v_new`` and κ = (−s − Δqᵀ f_bias) / (Δqᵀ M_m Δq),
     s = T(q_k + Δq, v⁺) − T(q_m, v⁺) + s0 (nothing when Δq = 0). ``M`` holds M(q_m),
     ``cm, sm`` cos/sin of q_m; ``Ms``, ``c2``, ``s2``, ``qp``, ``dq`` are scratch. The
     chain's products are its O(n) ones (:func:`moreau.core.kernels.chain_product`), without
-    M(q_k + Δq). Returns DONE or USER_FAILED."""
+    M(q_k + Δq), and M_m Δq = h/2 (M_m v_k + M_m v⁺) with M_m v_k from the step's start
+    (``mv``). Returns DONE or USER_FAILED."""
     ints, pool = model[0], model[7]
     n = ints[0]
     for i in range(n):
@@ -92,8 +94,7 @@ def energy_correction(model, user, h, q, v, v_new, s0, cm, sm, M, Ms, c2, s2, qp
         _k.chain_product(pool, ints[4], cm, sm, v_new, qp)  # M_m v⁺
         for i in range(n):
             s += 0.5 * v_new[i] * (Mv[i] - qp[i])
-        _k.chain_product(pool, ints[4], cm, sm, dq, qp)  # M_m Δq
-        for i in range(n):
+            qp[i] = 0.5 * h * (mv[i] + qp[i])  # M_m Δq
             den += dq[i] * qp[i]
             along += dq[i] * fb[i]
     else:
@@ -167,7 +168,7 @@ def pass_forces(model, user, npass, correct, t, h, q, v, qm, cm, sm, v_new, s0, 
     if _user_failed(ev.force(ints, ekind, eoff, model[7], user, t + 0.5 * h, qm, cm, sm, vbar, f, fb), cnt):
         return USER_FAILED
     if correct:
-        return energy_correction(model, user, h, q, v, x, s0, cm, sm, M, Ms, c2, s2, qp, dq, f, fb, cnt)
+        return energy_correction(model, user, h, q, v, x, s0, cm, sm, M, Ms, c2, s2, qp, dq, ec[8], f, fb, cnt)
     return DONE
 
 

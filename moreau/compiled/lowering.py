@@ -206,7 +206,7 @@ def lower(scene: Scene) -> CompiledScene:
                             bar_names)
     i64 = lambda x: np.array(x, dtype=np.int64)  # noqa: E731
     needs_trig = (mass_kind == _k.MASS_CHAIN or any(k in (_k.TRIG, _k.FOURIER_PT) for k in ekind)
-                  or any(k == _k.BAR_TRIG for k in bkind))
+                  or any(k in (_k.BAR_TRIG, _k.BAR_CHAIN_POINT) for k in bkind))
     ints = i64([n, scene.nrows, mass_kind, int(has_bias), mass_off, len(ekind), len(scene.contacts),
                 int(scene.velocity_dependent), int(needs_trig), mf, me, first_eq])
     return CompiledScene(

@@ -63,11 +63,13 @@ def _count(flags, m):
 
 
 @_part
-def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail, ws, fresh=True, check=True):
+def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail, ws, fresh=True, check=True,
+                   prepared=False):
     """Main LCP method, KKT check, fallback; False when both fail (residuals in ``fail``).
     ``check=False``: an answer the method reports solved is taken unchecked (the
     energy-consistent step's passes; the loop checks the one it keeps,
-    :func:`moreau.compiled.implicit.checked`).
+    :func:`moreau.compiled.implicit.checked`). ``prepared``: ``ws`` holds the Delassus
+    matrix and M⁻¹ b already (:func:`_chain_prepare`).
     ``fresh=False``: ``ws`` holds the Delassus matrix of this M and GA (see
     :func:`~moreau.contact.one_step.solve_one_step`) and the KKT check's √(M⁻¹)_jj of
     this M; the fallback reuses the main's. A
@@ -84,7 +86,8 @@ def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail
             break
         if attempt == 1:
             cnt[C_FALLBACKS] += 1
-        st = solve_one_step(M, L, b, GA, cA, P_out, v_out, k, method, 1e-12, ws, fresh and attempt == 0)
+        st = solve_one_step(M, L, b, GA, cA, P_out, v_out, k, method, 1e-12, ws,
+                            fresh and attempt == 0 and not prepared, prepared)
         if st == 0 and not check:
             return True
         if st == 0:
@@ -104,6 +107,36 @@ def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail
             for i in range(4):
                 fail[attempt, i] = math.inf
     return False
+
+
+@_part
+def _chain_prepare(ints, pool, cm, sm, gen, GA, k, b, ws, fresh):
+    """A chain's contact problem (without friction or bilateral rows; True when prepared)
+    with its O(n) solve (:func:`moreau.core.kernels.chain_solve`, from the generators
+    ``gen`` of M's factor at q_m, cos/sin ``cm, sm``) instead of the dense factor's: M⁻¹ b
+    into ``ws[1]`` and, when ``fresh``, M⁻¹ G_jᵀ (rows of ``ws[0]``) and W = G M⁻¹ Gᵀ
+    (``ws[2]``, k x k, exactly symmetric) for the first k rows of ``GA``."""
+    n = ints[0]
+    if ints[2] != _k.MASS_CHAIN or ints[9] > 0 or ints[10] > 0:
+        return False
+    _k.chain_solve(pool, ints[4], cm, sm, gen, b, ws[1])
+    if not fresh:
+        return True
+    MinvGt, W, X = ws[0], ws[2], ws[17]
+    for j in range(k):
+        _k.chain_solve(pool, ints[4], cm, sm, gen, GA[j], MinvGt[j])
+        for i in range(n):
+            X[i, j] = MinvGt[j, i]
+    for i in range(k):  # as kernels.delassus: the k sums side by side (contiguous, they vectorize)
+        for j in range(i + 1):
+            W[i, j] = 0.0
+        for l in range(n):
+            a = GA[i, l]
+            for j in range(i + 1):
+                W[i, j] += a * X[l, j]
+        for j in range(i):
+            W[j, i] = W[i, j]
+    return True
 
 
 @_part
@@ -259,10 +292,10 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     if ints[9] > 0:  # friction: the tangent rows join (Lemke's method)
         solved = _friction_solve(n, m, Ms, Ls, bs, GA_all, GA, cA, active, na, v_new, PA, fset, acc, fail, fr, cnt,
                                  L, eqw, rank)
-    # a later pass closes the same rows at q_m: the last Delassus matrix stands (see _contact_solve)
+    fresh = not again or locate or me > 0 or ints[9] > 0  # else the last Delassus matrix stands (same rows)
+    chain = _chain_prepare(ints, pool, cm, sm, lw[9], GA, na, b, ws, fresh)
     if solved < 0 or (solved == 0 and not _contact_solve(Ms, Ls, bs, GA, cA, na, v_new, PA, iset, fset, cnt, acc,
-                                                          fail, ws, not again or locate or me > 0 or ints[9] > 0,
-                                                          check)):
+                                                          fail, ws, fresh, check, chain)):
         cnt[C_FAILKIND] = SOLVER_FAILED
         return -1
     j = 0

@@ -29,19 +29,21 @@ def workspace(n, m):
 
 
 @_jit
-def solve_one_step(M, L, b, G, c, P, v, k, method, tol, ws, fresh=True):
+def solve_one_step(M, L, b, G, c, P, v, k, method, tol, ws, fresh=True, vready=False):
     """v, P of the one-step QP on the first k rows of G with the LCP solver ``method``
     (0: dual active set, 1: enumeration); returns its status. ``L`` = chol(M), ``ws``
     from :func:`workspace`. ``fresh=False``: ``ws`` holds W = G M⁻¹ Gᵀ and M⁻¹ Gᵀ of
     this very M and G from the last call (a compiled step's later passes: only b
-    changes), and they are not formed again."""
+    changes), and they are not formed again. ``vready``: ``ws[1]`` holds M⁻¹ b (a
+    chain's, from its O(n) solve)."""
     n = M.shape[0]
     MinvGt = ws[0]  # row j: M⁻¹ G_jᵀ
     W = ws[2]
     if fresh:
         delassus(L, G, ws[17], MinvGt, W, k, n)  # W = G M⁻¹ Gᵀ, exactly symmetric
     vfree = ws[1]
-    cho_solve(L, b, vfree, n)
+    if not vready:
+        cho_solve(L, b, vfree, n)
     w = ws[3]
     scale = 1e-300
     for i in range(k):

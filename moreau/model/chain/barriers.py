@@ -45,8 +45,10 @@ class PointLineBarrier(Barrier):
 
     Row r: ``g_r(q) = n_r · (p_r(q) − a_r)`` (m), the signed distance of the point p_r
     from the line through a_r with unit normal n_r; ``G_r = n_rᵀ J_{p_r}(q)``. All rows
-    are evaluated together: ``g = g_0 + A cos q + B sin q``, ``G = B ∘ cos q − A ∘ sin q``
-    with constant (m, N) matrices A, B.
+    are ``g = g_0 + A cos q + B sin q``, ``G = B ∘ cos q − A ∘ sin q`` with constant (m, N)
+    matrices A, B, whose rows are the chain's lengths up to the point's link: evaluated
+    from the joints' positions, summed once for all rows, in O(N + m)
+    (:func:`moreau.core.kernels.gaps_chain_point`).
 
     Parameters
     ----------
@@ -75,11 +77,13 @@ class PointLineBarrier(Barrier):
         At = np.empty((m, n))  # the tangent rows: the same projection on the line's direction
         Bt = np.empty((m, n))
         g0 = np.empty(m)
+        kk = np.empty(m, dtype=int)  # each row's link
         self.normals = np.empty((m, 2))
         for r, row in enumerate(self.rows):
             where = f"PointLineBarrier row {r}"
             try:
-                C, S = chain.levers(chain.check_link(row.link, f"{where}: link"), row.local)
+                kk[r] = chain.check_link(row.link, f"{where}: link")
+                C, S = chain.levers(kk[r], row.local)
             except ValueError as exc:
                 msg = str(exc)
                 raise ValueError(msg if msg.startswith(where) else f"{where}: {msg}") from None
@@ -96,19 +100,23 @@ class PointLineBarrier(Barrier):
         self.nrows, self.ndof = m, n
         self._n = n
         self._A, self._B, self._g0 = A, B, g0
-        self._p = _k.flat(g0, A, B)  # layout of kernels.gaps_trig
+        du = self.normals @ chain.axis
+        dw = self.normals @ chain.lateral
+        # layout of kernels.gaps_chain_point: g0, k, du, dw, a, b, the rows in order of k, l
+        self._p = _k.flat(g0, kk.astype(float), du, dw, A[np.arange(m), kk], B[np.arange(m), kk],
+                          np.argsort(kk, kind="stable").astype(float), chain.lengths)
         self._pt = _k.flat(np.zeros(m), At, Bt)  # the tangent rows, same layout
         self.normals.setflags(write=False)
         self.has_tangents = True
 
     def gap(self, q):
         out = np.empty(self.nrows)
-        _k.gaps_trig(self._p, 0, self.nrows, *_k.cos_sin(q), out, 0)
+        _k.gaps_chain_point(self._p, 0, self.nrows, *_k.cos_sin(q), out, 0)
         return out
 
     def jacobian(self, q):
         out = np.empty((self.nrows, self._n))
-        _k.jacobian_trig(self._p, 0, self.nrows, *_k.cos_sin(q), out, 0)
+        _k.jacobian_chain_point(self._p, 0, self.nrows, *_k.cos_sin(q), out, 0)
         return out
 
     def tangent_jacobian(self, q):
@@ -119,7 +127,7 @@ class PointLineBarrier(Barrier):
         return out
 
     def kernel(self):
-        return _k.BAR_TRIG, (self._p,)
+        return _k.BAR_CHAIN_POINT, (self._p,)
 
     def tangent_kernel(self):
         return _k.BAR_TRIG, (self._pt,)
