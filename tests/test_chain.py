@@ -182,6 +182,10 @@ def test_linear_time_chain_kernels_match_the_dense_matrix(rng, lateral):
             k.chain_solve(chain._pm, 0, c, s, gen, sol, sol)  # in place, from the generators alone
             ref = np.linalg.solve(M, x)
             assert np.abs(sol - ref).max() <= 1e-14 * np.linalg.cond(M) * np.abs(ref).max()
+            rd = np.empty(n)  # √ of M⁻¹'s diagonal (the KKT check's round-off floor), O(n)
+            k.chain_inverse_diagonal_sqrt(chain._pm, 0, c, s, gen, rd)
+            ref = np.sqrt(np.diag(np.linalg.inv(M)))
+            assert np.abs(rd / ref - 1.0).max() <= 1e-14 * np.linalg.cond(M)
     broken = chain._pm.copy()
     broken[2 * n * n + 5] = -1.0  # M_55 < 0: the factor names the first non-positive pivot
     assert k.chain_factor(broken, 0, c, s, np.empty((4, n)), np.empty((n, n))) == 5

@@ -93,9 +93,9 @@ def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail
         if st == 0:
             # a later pass checks against the same M: the check's round-off floor keeps its
             # √(M⁻¹)_jj (O(n³)); not the fallback of a fresh pass (the main may have failed
-            # before any check of this M)
+            # before any check of this M), unless _chain_prepare formed them
             kkt_residuals_kernel(M, L, b, GA, cA, v_out, P_out, k, res, ws[11], ws[12], ws[13], ws[14], ws[15],
-                                 ws[18], ws[19], not fresh)
+                                 ws[18], ws[19], not fresh or prepared)
             worst = max(res[0], res[1], res[2], res[3])
             if worst <= tol:
                 if worst > acc[A_WORST]:
@@ -114,28 +114,26 @@ def _chain_prepare(ints, pool, cm, sm, gen, GA, k, b, ws, fresh):
     """A chain's contact problem (without friction or bilateral rows; True when prepared)
     with its O(n) solve (:func:`moreau.core.kernels.chain_solve`, from the generators
     ``gen`` of M's factor at q_m, cos/sin ``cm, sm``) instead of the dense factor's: M⁻¹ b
-    into ``ws[1]`` and, when ``fresh``, M⁻¹ G_jᵀ (rows of ``ws[0]``) and W = G M⁻¹ Gᵀ
-    (``ws[2]``, k x k, exactly symmetric) for the first k rows of ``GA``."""
+    into ``ws[1]`` and, when ``fresh``, M⁻¹ G_jᵀ (rows of ``ws[0]``), W = G M⁻¹ Gᵀ
+    (``ws[2]``, k x k, exactly symmetric) for the first k rows of ``GA``, and the KKT
+    check's √(M⁻¹)_jj (``ws[19]``, flagged kept; O(n) against O(n³)). Other scenes: a
+    fresh pass flags the check's kept √(M⁻¹)_jj stale (``implicit.checked`` keeps them)."""
     n = ints[0]
     if ints[2] != _k.MASS_CHAIN or ints[9] > 0 or ints[10] > 0:
+        if fresh:
+            ws[19][n] = 0.0
         return False
     _k.chain_solve(pool, ints[4], cm, sm, gen, b, ws[1])
     if not fresh:
         return True
+    _k.chain_inverse_diagonal_sqrt(pool, ints[4], cm, sm, gen, ws[19])
+    ws[19][n] = 1.0
     MinvGt, W, X = ws[0], ws[2], ws[17]
     for j in range(k):
         _k.chain_solve(pool, ints[4], cm, sm, gen, GA[j], MinvGt[j])
         for i in range(n):
             X[i, j] = MinvGt[j, i]
-    for i in range(k):  # as kernels.delassus: the k sums side by side (contiguous, they vectorize)
-        for j in range(i + 1):
-            W[i, j] = 0.0
-        for l in range(n):
-            a = GA[i, l]
-            for j in range(i + 1):
-                W[i, j] += a * X[l, j]
-        for j in range(i):
-            W[j, i] = W[i, j]
+    _k.delassus_product(GA, X, W, k, n)
     return True
 
 

@@ -21,7 +21,7 @@ import math
 from moreau.core.kernels.jit import jit as _jit
 
 __all__ = ["chain_mass", "add_chain_bias", "chain_product", "chain_generators", "chain_fill", "chain_factor",
-           "chain_solve"]
+           "chain_solve", "chain_inverse_diagonal_sqrt"]
 
 
 # -- the pendulum chain's mass matrix and centrifugal terms ------------------------------
@@ -172,3 +172,37 @@ def chain_solve(p, o, c, s, gen, b, out):
         be, ga = p[g + 2 * n + j], p[g + 3 * n + j]
         zx += (be * c[j] - ga * s[j]) * x
         zy += (be * s[j] + ga * c[j]) * x
+
+
+@_jit
+def chain_inverse_diagonal_sqrt(p, o, c, s, gen, out):
+    """out[j] = √(M⁻¹)_jj (n,) in O(n) from :func:`chain_generators` (the dense way, O(n³):
+    :func:`moreau.contact.kkt.inverse_diagonal_sqrt`). Column j of L⁻¹ is 1/d_j at j and
+    −w_i · Z_i / d_i below, with Z_{j+1} = a_j = p_j / d_j and Z_{i+1} = T_i Z_i,
+    T_i = I − a_i w_iᵀ; so (M⁻¹)_jj = 1/d_j² + a_jᵀ Q_{j+1} a_j with the 2 x 2 sums
+    Q_j = w_j w_jᵀ / d_j² + T_jᵀ Q_{j+1} T_j, Q_n = 0, summed from the tip."""
+    n = c.shape[0]
+    g = o + 2 * n * n
+    qxx = 0.0
+    qxy = 0.0
+    qyy = 0.0
+    for j in range(n - 1, -1, -1):
+        di = gen[3, j]
+        ax = gen[1, j] * di
+        ay = gen[2, j] * di
+        out[j] = math.sqrt(di * di + ax * (qxx * ax + qxy * ay) + ay * (qxy * ax + qyy * ay))
+        be, ga = p[g + 2 * n + j], p[g + 3 * n + j]
+        wx = be * c[j] - ga * s[j]
+        wy = be * s[j] + ga * c[j]
+        t00 = 1.0 - ax * wx
+        t01 = -ax * wy
+        t10 = -ay * wx
+        t11 = 1.0 - ay * wy
+        m00 = qxx * t00 + qxy * t10
+        m01 = qxx * t01 + qxy * t11
+        m10 = qxy * t00 + qyy * t10
+        m11 = qxy * t01 + qyy * t11
+        dd = di * di
+        qxx = t00 * m00 + t10 * m10 + wx * wx * dd
+        qxy = t00 * m01 + t10 * m11 + wx * wy * dd
+        qyy = t01 * m01 + t11 * m11 + wy * wy * dd

@@ -7,7 +7,8 @@ import math
 
 from moreau.core.kernels.jit import jit as _jit
 
-__all__ = ["cholesky", "lt_solve", "cho_solve", "sym_product", "delassus", "symmetry_defect", "expm_taylor"]
+__all__ = ["cholesky", "lt_solve", "cho_solve", "sym_product", "delassus", "delassus_product", "symmetry_defect",
+           "expm_taylor"]
 
 
 # -- dense linear algebra for small SPD systems (leading k x k blocks, no views) -----------
@@ -94,7 +95,17 @@ def delassus(L, G, X, MinvGt, W, k, n):
         a = L[i, i]
         for j in range(k):
             X[i, j] = X[i, j] / a
-    for i in range(k):  # W_ij = Σ_l G_il X_lj, j <= i, mirrored
+    delassus_product(G, X, W, k, n)
+    for j in range(k):
+        for i in range(n):
+            MinvGt[j, i] = X[i, j]
+
+
+@_jit
+def delassus_product(G, X, W, k, n):
+    """W[:k, :k] = G X for X = M⁻¹ Gᵀ (n x >= k), exactly symmetric: W_ij = Σ_l G_il X_lj
+    for j <= i, mirrored; the k sums of a row side by side (contiguous, they vectorize)."""
+    for i in range(k):
         for j in range(i + 1):
             W[i, j] = 0.0
         for l in range(n):
@@ -103,9 +114,6 @@ def delassus(L, G, X, MinvGt, W, k, n):
                 W[i, j] += a * X[l, j]
         for j in range(i):
             W[j, i] = W[i, j]
-    for j in range(k):
-        for i in range(n):
-            MinvGt[j, i] = X[i, j]
 
 
 @_jit
