@@ -73,6 +73,17 @@ def chain_momentum(ints, pool, h, c, s, v, f, b):
         b[i] += h * f[i]
 
 
+@_apart
+def chain_kinetic(ints, pool, c, s, v, Mv):
+    """½ vᵀ M v for the chain, M v in O(n) into ``Mv`` (n,) (a call: inlined into the
+    record, it made the steps of the piston and the 3-link chain 15-20 % slower)."""
+    _k.chain_product(pool, ints[4], c, s, v, Mv)
+    ke = 0.0
+    for i in range(ints[0]):
+        ke += v[i] * Mv[i]
+    return 0.5 * ke
+
+
 @_internal
 def force(ints, ekind, eoff, pool, user, t, q, c, s, v, f, fb):
     """f(t, q, v) into ``f`` (n,): the bias terms and exactly the scene's effects; the bias
