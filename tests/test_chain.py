@@ -132,15 +132,18 @@ def test_mass_matrix_spd_for_random_chains(rng, orientation, lateral):
                 assert np.linalg.eigvalsh(M - np.diag(chain.inertias))[0] > -1e-12 * np.abs(M).max()
 
 
-def test_point_line_gaps_from_the_joints_match_the_points_positions(rng):
-    """The O(n + m) gaps and Jacobian of points on a chain against lines
-    (``kernels.gaps_chain_point``, rows on any links in any order, points off the link's
-    axis, tilted lines) against the points' positions and Jacobians (PendulumChain), and
-    against the dense form g0 + A cos q + B sin q."""
-    chain = PendulumChain([Link.rod(m=0.1 * (i + 1), l=0.15 + 0.05 * i) for i in range(7)], pivot=(0.3, -0.2))
+@pytest.mark.parametrize("n", [3, 9])
+def test_point_line_gaps_from_the_joints_match_the_points_positions(rng, n):
+    """The gaps and Jacobian of points on a chain against lines (from the joints' positions
+    in O(n + m), ``kernels.gaps_chain_point``, on 8 links or more; else from A and B; rows
+    on any links in any order, points off the link's axis, tilted lines) against the
+    points' positions and Jacobians (PendulumChain), and against the dense form
+    g0 + A cos q + B sin q."""
+    chain = PendulumChain([Link.rod(m=0.1 * (i + 1), l=0.15 + 0.05 * i) for i in range(n)], pivot=(0.3, -0.2))
     rows = [PointLineRow(int(k), tuple(rng.normal(size=2) * 0.1), tuple(rng.normal(size=2)), tuple(rng.normal(size=2)))
-            for k in (5, 0, 6, 2, 2, 0, 3)]
+            for k in rng.permutation(np.arange(7) % n)]
     barrier = PointLineBarrier(chain, rows)
+    assert barrier.kernel()[0] == (mo.kernels.BAR_CHAIN_POINT if n >= 8 else mo.kernels.BAR_TRIG)
     for q in rng.uniform(-np.pi, np.pi, size=(5, chain.ndof)):
         want = [barrier.normals[i] @ (chain.point_position(q, r.link, r.local) - np.asarray(r.line_point))
                 for i, r in enumerate(rows)]

@@ -131,7 +131,7 @@ def test_a_scene_compiles_to_exactly_its_effects():
     model = piston_model(effects=("gas", "brake"))
     cs = lower(model.scene)
     assert sorted(cs.ekind.tolist()) == sorted([K.FOURIER_PT, K.CONST])  # no gravity, no damping
-    assert cs.ints[1] == 4 and cs.bkind.tolist() == [K.BAR_CHAIN_POINT]  # the cylinder: points of the chain
+    assert cs.ints[1] == 4 and cs.bkind.tolist() == [K.BAR_TRIG]
     free = lower(mo.Scene(mo.FunctionSystem(np.eye(2)), [mo.ConstantForce([0.0, -9.81])]))
     assert free.ints[1] == 0 and free.bkind.size == 0 and free.ekind.tolist() == [K.CONST]
     assert free.ints[8] == 0  # no kernel needs cos q, sin q: none evaluated

@@ -46,9 +46,11 @@ class PointLineBarrier(Barrier):
     Row r: ``g_r(q) = n_r · (p_r(q) − a_r)`` (m), the signed distance of the point p_r
     from the line through a_r with unit normal n_r; ``G_r = n_rᵀ J_{p_r}(q)``. All rows
     are ``g = g_0 + A cos q + B sin q``, ``G = B ∘ cos q − A ∘ sin q`` with constant (m, N)
-    matrices A, B, whose rows are the chain's lengths up to the point's link: evaluated
-    from the joints' positions, summed once for all rows, in O(N + m)
-    (:func:`moreau.core.kernels.gaps_chain_point`).
+    matrices A, B, whose rows are the chain's lengths up to the point's link: on a chain of
+    8 links or more evaluated from the joints' positions, summed once for all rows, in
+    O(N + m) (:func:`moreau.core.kernels.gaps_chain_point`); on a shorter one from A and B
+    (:func:`moreau.core.kernels.gaps_trig`: the piston's drift-controlled steps, which
+    evaluate the gaps several times a step, were 12-18 % slower with the other).
 
     Parameters
     ----------
@@ -102,21 +104,26 @@ class PointLineBarrier(Barrier):
         self._A, self._B, self._g0 = A, B, g0
         du = self.normals @ chain.axis
         dw = self.normals @ chain.lateral
-        # layout of kernels.gaps_chain_point: g0, k, du, dw, a, b, the rows in order of k, l
-        self._p = _k.flat(g0, kk.astype(float), du, dw, A[np.arange(m), kk], B[np.arange(m), kk],
-                          np.argsort(kk, kind="stable").astype(float), chain.lengths)
+        self._structured = n >= 8
+        if self._structured:  # layout of kernels.gaps_chain_point: g0, k, du, dw, a, b, the rows by k, l
+            self._p = _k.flat(g0, kk.astype(float), du, dw, A[np.arange(m), kk], B[np.arange(m), kk],
+                              np.argsort(kk, kind="stable").astype(float), chain.lengths)
+        else:
+            self._p = _k.flat(g0, A, B)  # layout of kernels.gaps_trig
         self._pt = _k.flat(np.zeros(m), At, Bt)  # the tangent rows, same layout
         self.normals.setflags(write=False)
         self.has_tangents = True
 
     def gap(self, q):
         out = np.empty(self.nrows)
-        _k.gaps_chain_point(self._p, 0, self.nrows, *_k.cos_sin(q), out, 0)
+        gaps = _k.gaps_chain_point if self._structured else _k.gaps_trig
+        gaps(self._p, 0, self.nrows, *_k.cos_sin(q), out, 0)
         return out
 
     def jacobian(self, q):
         out = np.empty((self.nrows, self._n))
-        _k.jacobian_chain_point(self._p, 0, self.nrows, *_k.cos_sin(q), out, 0)
+        jacobian = _k.jacobian_chain_point if self._structured else _k.jacobian_trig
+        jacobian(self._p, 0, self.nrows, *_k.cos_sin(q), out, 0)
         return out
 
     def tangent_jacobian(self, q):
@@ -127,7 +134,7 @@ class PointLineBarrier(Barrier):
         return out
 
     def kernel(self):
-        return _k.BAR_CHAIN_POINT, (self._p,)
+        return (_k.BAR_CHAIN_POINT if self._structured else _k.BAR_TRIG), (self._p,)
 
     def tangent_kernel(self):
         return _k.BAR_TRIG, (self._pt,)
