@@ -48,8 +48,8 @@ class PointLineBarrier(Barrier):
     are ``g = g_0 + A cos q + B sin q``, ``G = B ∘ cos q − A ∘ sin q`` with constant (m, N)
     matrices A, B, whose rows are the chain's lengths up to the point's link: on a chain of
     8 links or more evaluated from the joints' positions, summed once for all rows, in
-    O(N + m) (:func:`moreau.core.kernels.gaps_chain_point`); on a shorter one from A and B
-    (:func:`moreau.core.kernels.gaps_trig`: the piston's drift-controlled steps, which
+    O(N + m) (``moreau.core.kernels.gaps_chain_point``); on a shorter one from A and B
+    (``moreau.core.kernels.gaps_trig``: the piston's drift-controlled steps, which
     evaluate the gaps several times a step, were 12-18 % slower with the other).
 
     Parameters
