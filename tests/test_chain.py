@@ -171,6 +171,12 @@ def test_linear_time_chain_kernels_match_the_dense_matrix(rng, lateral):
             Mx = np.empty(n)
             k.chain_product(chain._pm, 0, c, s, x, Mx)
             np.testing.assert_allclose(Mx, M @ x, rtol=0, atol=1e-13 * np.abs(M).sum(axis=1).max() * np.abs(x).max())
+            q2 = q + rng.normal(scale=0.1, size=n)  # two configurations in one sweep: each as chain_product
+            c2, s2 = k.cos_sin(q2)
+            Mx2, pair, pair2 = np.empty(n), np.empty(n), np.empty(n)
+            k.chain_product(chain._pm, 0, c2, s2, x, Mx2)
+            k.chain_product_pair(chain._pm, 0, c, s, c2, s2, x, pair, pair2)
+            assert np.array_equal(pair, Mx) and np.array_equal(pair2, Mx2)
             bias = chain.bias_force(q, x)
             ref = -chain.n_matrix(q) @ x**2
             np.testing.assert_allclose(bias, ref, rtol=0, atol=1e-13 * np.abs(chain.n_matrix(q)).sum(axis=1).max()

@@ -43,7 +43,7 @@ def energy_start(model, user, correct, q, v, cm, sm, M, ec, cnt):
 @_call
 def _energy_start(model, user, q, v, cm, sm, M, Ms, c2, s2, mv, cnt):
     """:func:`energy_start`'s evaluation (a call, out of the loop's own code); the chain's
-    from two O(n) products M v (:func:`moreau.core.kernels.chain_product`), not from M,
+    from two O(n) products M v in one sweep (:func:`moreau.core.kernels.chain_product_pair`), not from M,
     M_m v_k kept in ``mv`` (n,)."""
     ints, pool = model[0], model[7]
     n = ints[0]
@@ -52,10 +52,9 @@ def _energy_start(model, user, q, v, cm, sm, M, Ms, c2, s2, mv, cnt):
     t = 0.0
     if ints[2] == _k.MASS_CHAIN:
         Mv = Ms[0]
-        _k.chain_product(pool, ints[4], cm, sm, v, mv)
+        _k.chain_product_pair(pool, ints[4], cm, sm, c2, s2, v, mv, Mv)
         for i in range(n):
             t += v[i] * mv[i]
-        _k.chain_product(pool, ints[4], c2, s2, v, Mv)
         for i in range(n):
             t -= v[i] * Mv[i]
         return DONE, 0.5 * t
@@ -75,7 +74,7 @@ def energy_correction(model, user, h, q, v, v_new, s0, cm, sm, M, Ms, c2, s2, qp
     ``v_new`` and κ = (−s − Δqᵀ f_bias) / (Δqᵀ M_m Δq),
     s = T(q_k + Δq, v⁺) − T(q_m, v⁺) + s0 (nothing when Δq = 0). ``M`` holds M(q_m),
     ``cm, sm`` cos/sin of q_m; ``Ms``, ``c2``, ``s2``, ``qp``, ``dq`` are scratch. The
-    chain's products are its O(n) ones (:func:`moreau.core.kernels.chain_product`), without
+    chain's products are its O(n) ones, both in one sweep (:func:`moreau.core.kernels.chain_product_pair`), without
     M(q_k + Δq), and M_m Δq = h/2 (M_m v_k + M_m v⁺) with M_m v_k from the step's start
     (``mv``). Returns DONE or USER_FAILED."""
     ints, pool = model[0], model[7]
@@ -90,8 +89,7 @@ def energy_correction(model, user, h, q, v, v_new, s0, cm, sm, M, Ms, c2, s2, qp
     along = 0.0
     if ints[2] == _k.MASS_CHAIN:
         Mv = Ms[0]
-        _k.chain_product(pool, ints[4], c2, s2, v_new, Mv)  # M(q⁺) v⁺
-        _k.chain_product(pool, ints[4], cm, sm, v_new, qp)  # M_m v⁺
+        _k.chain_product_pair(pool, ints[4], c2, s2, cm, sm, v_new, Mv, qp)  # M(q⁺) v⁺, M_m v⁺
         for i in range(n):
             s += 0.5 * v_new[i] * (Mv[i] - qp[i])
             qp[i] = 0.5 * h * (mv[i] + qp[i])  # M_m Δq

@@ -20,8 +20,8 @@ import math
 
 from moreau.core.kernels.jit import jit as _jit
 
-__all__ = ["chain_mass", "add_chain_bias", "chain_product", "chain_generators", "chain_fill", "chain_factor",
-           "chain_solve", "chain_inverse_diagonal_sqrt"]
+__all__ = ["chain_mass", "add_chain_bias", "chain_product", "chain_product_pair", "chain_generators", "chain_fill",
+           "chain_factor", "chain_solve", "chain_inverse_diagonal_sqrt"]
 
 
 # -- the pendulum chain's mass matrix and centrifugal terms ------------------------------
@@ -86,6 +86,42 @@ def chain_product(p, o, c, s, x, out):
         lx = p[g + n + i] * x[i]
         bx += c[i] * lx
         by += s[i] * lx
+
+
+@_jit
+def chain_product_pair(p, o, c, s, c2, s2, x, out, out2):
+    """out = M(q) x and out2 = M(q₂) x (n,) in one sweep, each exactly as
+    :func:`chain_product` computes it (``c, s``, ``c2, s2``: cos/sin of q and q₂; ``x``
+    must alias neither output). The two running sums are independent, so the sweep costs
+    little more than one product (the energy-consistent step's T(q⁺, v⁺) − T(q_m, v⁺))."""
+    n = c.shape[0]
+    g = o + 2 * n * n
+    ax = 0.0
+    ay = 0.0
+    ax2 = 0.0
+    ay2 = 0.0
+    for i in range(n - 1, -1, -1):
+        di, li, xi = p[g + i], p[g + n + i], x[i]
+        out[i] = di * xi + li * (c[i] * ax + s[i] * ay)
+        out2[i] = di * xi + li * (c2[i] * ax2 + s2[i] * ay2)
+        be, ga = p[g + 2 * n + i], p[g + 3 * n + i]
+        ax += (be * c[i] - ga * s[i]) * xi
+        ay += (be * s[i] + ga * c[i]) * xi
+        ax2 += (be * c2[i] - ga * s2[i]) * xi
+        ay2 += (be * s2[i] + ga * c2[i]) * xi
+    bx = 0.0
+    by = 0.0
+    bx2 = 0.0
+    by2 = 0.0
+    for i in range(n):
+        be, ga = p[g + 2 * n + i], p[g + 3 * n + i]
+        out[i] += (be * c[i] - ga * s[i]) * bx + (be * s[i] + ga * c[i]) * by
+        out2[i] += (be * c2[i] - ga * s2[i]) * bx2 + (be * s2[i] + ga * c2[i]) * by2
+        lx = p[g + n + i] * x[i]
+        bx += c[i] * lx
+        by += s[i] * lx
+        bx2 += c2[i] * lx
+        by2 += s2[i] * lx
 
 
 @_jit
