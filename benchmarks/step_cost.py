@@ -228,6 +228,16 @@ def main(argv=None) -> None:
     lying = cost["chain N = 40, on the floor"] / cost["chain N =  3, on the floor"]
     print(f"the 40-link chain lying on the floor (40 rows in contact) costs {lying:.0f}x the 3-link chain's step "
           "(midpoint step both)")
+    from moreau.problems.piston.pressure import calibrated_pressure
+
+    fp = calibrated_pressure()
+    fp(0.0)  # its kernel compiled or loaded
+    calls = 20_000
+    t0 = time.perf_counter()
+    for i in range(calls):
+        fp(0.001 * i)
+    print(f"the piston's gas pressure, one scalar evaluation (the Python path's force, once a step): "
+          f"{(time.perf_counter() - t0) / calls * 1e6:.2f} µs")
     imp, load = startup_times(fresh=False)
     print(f"\nnew process: import moreau {imp:.2f} s; first piston run, loop loaded from the cache {load:.2f} s")
     if not args.quick:

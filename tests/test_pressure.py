@@ -1,7 +1,6 @@
 """Tests of the synthetic four-stroke pressure curve and its calibration."""
 
 import math
-import time
 
 import numpy as np
 import pytest
@@ -178,13 +177,16 @@ def test_scalar_and_array_evaluation(fp):
     assert fp.derivative(xs)[4, 9] == pytest.approx(fp.derivative(float(xs[4, 9])), rel=1e-9, abs=1e-3)
 
 
-def test_scalar_evaluation_is_fast(fp):
-    n = 20000
-    t0 = time.perf_counter()
-    for i in range(n):
-        fp(0.001 * i)
-    dt = (time.perf_counter() - t0) / n
-    assert dt < 50e-6  # typically ~1.5 us
+def test_scalar_evaluation_by_horner_agrees_with_the_array_path(fp):
+    # a float goes through Horner's rule in z = exp(i phi/2), not numpy's outer product
+    # (its cost per call is printed by benchmarks/step_cost.py, not asserted here); it
+    # agrees with the array path over two cycles
+    xs = np.linspace(-0.5, 2 * FOUR_PI, 301)
+    ref, dref = fp(xs), fp.derivative(xs)
+    scale = np.abs(ref).max()
+    for x, r, d in zip(xs, ref, dref):
+        assert abs(fp(float(x)) - r) <= 1e-12 * scale
+        assert abs(fp.derivative(float(x)) - d) <= 1e-11 * np.abs(dref).max()
 
 
 def test_fit_fourier_recovers_trig_polynomial():
