@@ -47,9 +47,9 @@ def _energy_check(model, user, iset, fset, k, q, v, cq, sq, M, cnt, acc):
     row the run stops (ENERGY_GROWTH). Returns DONE, ENERGY_GROWTH or USER_FAILED. A
     chain's T from its O(n) product M v (:func:`moreau.compiled.evaluate.chain_kinetic`,
     into ``M[0]``: no reader expects M(q) in ``M`` after the step, a chain's M being formed
-    where a step needs it), for chains of 8 links or more (the 3-link chain's and the
+    where a step needs it), for chains of ``CHAIN_STRUCTURED_MIN`` (8) links or more (the 3-link chain's and the
     piston's steps were 13-15 % slower with it, measured interleaved)."""
-    if model[0][2] == _k.MASS_CHAIN and model[0][0] >= 8:
+    if model[0][2] == _k.MASS_CHAIN and model[0][0] >= _k.CHAIN_STRUCTURED_MIN:
         status, ke = DONE, ev.chain_kinetic(model[0], model[7], cq, sq, v, M[0])
     else:
         status, ke = _kinetic_energy(model, user, q, v, cq, sq, M, cnt)

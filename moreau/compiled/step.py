@@ -118,11 +118,11 @@ def _chain_prepare(ints, pool, cm, sm, gen, GA, k, b, ws, fresh):
     (``ws[2]``, k x k, exactly symmetric) for the first k rows of ``GA``, and the KKT
     check's √(M⁻¹)_jj (``ws[19]``, flagged kept; O(n) against O(n³)). Other scenes: a
     fresh pass flags the check's kept √(M⁻¹)_jj stale (``implicit.checked`` keeps them), and
-    so do chains under 8 links: the dense solves cost as little there, and the dense floor,
+    so do chains under ``CHAIN_STRUCTURED_MIN`` (8) links: the dense solves cost as little there, and the dense floor,
     formed only when a check needs it, less (the 3-link chain's step on a floor was 5-7 %
     slower with these)."""
     n = ints[0]
-    if ints[2] != _k.MASS_CHAIN or ints[9] > 0 or ints[10] > 0 or n < 8:
+    if ints[2] != _k.MASS_CHAIN or ints[9] > 0 or ints[10] > 0 or n < _k.CHAIN_STRUCTURED_MIN:
         if fresh:
             ws[19][n] = 0.0
         return False

@@ -21,7 +21,14 @@ import math
 from moreau.core.kernels.jit import jit as _jit
 
 __all__ = ["chain_mass", "add_chain_bias", "chain_product", "chain_product_pair", "chain_generators", "chain_fill",
-           "chain_factor", "chain_solve", "chain_inverse_diagonal_sqrt"]
+           "chain_factor", "chain_solve", "chain_inverse_diagonal_sqrt", "CHAIN_STRUCTURED_MIN"]
+
+#: Chains of at least this many links take the O(n) forms where a step could also use
+#: dense ones (the contact problem from the chain's solve, points against lines, the energy
+#: check's kinetic energy); shorter chains keep the dense forms, as cheap at that size (with
+#: the O(n) forms the 3-link chain's and the piston's steps were 5-18 % slower, measured
+#: interleaved, 2026-11-27). One number for both paths and every such choice.
+CHAIN_STRUCTURED_MIN = 8
 
 
 # -- the pendulum chain's mass matrix and centrifugal terms ------------------------------

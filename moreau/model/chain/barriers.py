@@ -47,7 +47,7 @@ class PointLineBarrier(Barrier):
     from the line through a_r with unit normal n_r; ``G_r = n_rᵀ J_{p_r}(q)``. All rows
     are ``g = g_0 + A cos q + B sin q``, ``G = B ∘ cos q − A ∘ sin q`` with constant (m, N)
     matrices A, B, whose rows are the chain's lengths up to the point's link: on a chain of
-    8 links or more evaluated from the joints' positions, summed once for all rows, in
+    ``CHAIN_STRUCTURED_MIN`` (8) links or more evaluated from the joints' positions, summed once for all rows, in
     O(N + m) (``moreau.core.kernels.gaps_chain_point``); on a shorter one from A and B
     (``moreau.core.kernels.gaps_trig``: the piston's drift-controlled steps, which
     evaluate the gaps several times a step, were 12-18 % slower with the other).
@@ -104,7 +104,7 @@ class PointLineBarrier(Barrier):
         self._A, self._B, self._g0 = A, B, g0
         du = self.normals @ chain.axis
         dw = self.normals @ chain.lateral
-        self._structured = n >= 8
+        self._structured = n >= _k.CHAIN_STRUCTURED_MIN
         if self._structured:  # layout of kernels.gaps_chain_point: g0, k, du, dw, a, b, the rows by k, l
             self._p = _k.flat(g0, kk.astype(float), du, dw, A[np.arange(m), kk], B[np.arange(m), kk],
                               np.argsort(kk, kind="stable").astype(float), chain.lengths)
