@@ -11,12 +11,12 @@ from moreau.compiled.layout import (  # the loop's layout
     DRIFT_COMBINED,
     F_DRIFT_TOL,
     NOT_SPD,
+    PROJECTION_FAILED,
     R_BOUNCED,
     R_PINGAP,
     R_PINNED,
     S_DRIFT,
     S_DRIFT_ITER,
-    SOLVER_FAILED,
 )
 from moreau.compiled.layout import call as _call
 from moreau.compiled.layout import part as _part
@@ -100,7 +100,7 @@ def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc
             _eq_contact_rows(L, G, m + ints[9], me, Qe, Re, pive, xe, ye, keep, GA, na, cA)
             Ms, Ls = eye, eye
         if not _contact_solve(Ms, Ls, zero, GA, cA, na, dq, PA, iset, fset, cnt, acc, fail, ws):
-            cnt[C_FAILKIND] = SOLVER_FAILED
+            cnt[C_FAILKIND] = PROJECTION_FAILED  # its rows: ``sel`` (lw[8])
             return False
         if me > 0:
             _eq_back(L, Qe, yv, dq)

@@ -9,6 +9,8 @@ DONE, IMPACTS_FULL, SOLVER_FAILED, NONFINITE, NOT_SPD, NONFINITE_GAP, USER_FAILE
 CONSTRAINTS_INCONSISTENT, CONSTRAINTS_NOT_HELD = 8, 9
 # (the energy-consistent step's iteration did not converge)
 NOT_CONVERGED = 10
+# (drift control's position projection: its contact solve failed, main and fallback)
+PROJECTION_FAILED = 11
 # settings (int array)
 S_STEP, S_DRIFT, S_DRIFT_ITER, S_STRIDE, S_NSTEPS, S_METHOD, S_FALLBACK, S_ENERGY, S_MEMORY, S_LOCATE = range(10)
 # (S_ECHECK: the energy check's interval in steps, 0 = off; see moreau.run.energy)

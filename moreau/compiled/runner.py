@@ -170,7 +170,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
             traj, error = _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE, IMP,
                                     q, v, P_acc, act_acc, pen, cnt, acc, fail, cs, t0, h, stride, solver,
                                     fallback, energy, wall, PTS if mf else None, work[3][3], tol, work[4][10],
-                                    int(iset[lay.S_ITER]), work[0][14])
+                                    int(iset[lay.S_ITER]), work[0][14], work[2][8])
             break
         except KeyboardInterrupt as exc:
             if interrupt is None:
@@ -195,10 +195,10 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
 
 def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE, IMP, q, v, P_acc, act_acc,
               pen, cnt, acc, fail, cs, t0, h, stride, solver, fallback, energy, wall, PTS=None, PT_acc=None,
-              tol=float("nan"), PE_acc=None, max_iter=0, active=None):
+              tol=float("nan"), PE_acc=None, max_iter=0, active=None, projected=None):
     """The Trajectory (and the error to raise, if any) from the loop's buffers (``PTS``:
     the tangential impulses of a scene with friction, else None; ``active``: the rows the
-    last step closed)."""
+    last step closed; ``projected``: the rows of drift control's last projection)."""
     m = scene.nrows
     me = scene.nconstraints
     error = None
@@ -207,7 +207,7 @@ def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE,
     if code != lay.DONE and status == "completed":
         status = "failed"
         error = _error(code, scene, k, t_now, q, v, h, fail, cs, int(cnt[lay.C_USER]), acc, tol,
-                       cnt[lay.C_EQROW:lay.C_EQROW + 1], max_iter, active)
+                       cnt[lay.C_EQROW:lay.C_EQROW + 1], max_iter, active, projected)
         message = str(error)
     rec = int(cnt[lay.C_REC])
     if status != "completed" and T[rec - 1] != t_now and rec < n_rec + 1:
@@ -257,7 +257,7 @@ def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE,
 
 
 def _error(code, scene, k, t, q, v, h, fail, cs, user_status, acc, tol=float("nan"), cnt_row=None, max_iter=0,
-           active=None):
+           active=None, projected=None):
     where = f"at step {k} (t = {t:.9g})"
     if code == lay.ENERGY_GROWTH:
         return SimulationError(energy_growth_message(scene, t, q, v, float(acc[lay.A_DU]), float(acc[lay.A_KEMAX]), h),
@@ -266,9 +266,13 @@ def _error(code, scene, k, t, q, v, h, fail, cs, user_status, acc, tol=float("na
         return SimulationError(not_converged_message(scene, t, q, v, h, where, int(max_iter)), None, k)
     if code == lay.USER_FAILED:
         return _user_error(scene, cs, user_status, where, k, t, q, v, h)
-    if code == lay.SOLVER_FAILED:
+    if code in (lay.SOLVER_FAILED, lay.PROJECTION_FAILED):
         # the rows the step closed (also those closed ahead of the barrier: the
-        # energy-consistent step, CombinedProjection), else the rows closed at q_m
+        # energy-consistent step, CombinedProjection), else the rows closed at q_m; a
+        # projection's own rows (as the Python path's "projection solve failed")
+        kind = "contact"
+        if code == lay.PROJECTION_FAILED:
+            kind, active = "projection", projected
         if active is not None:
             closed = np.flatnonzero(active[:scene.nrows])
         else:
@@ -286,7 +290,7 @@ def _error(code, scene, k, t, q, v, h, fail, cs, user_status, acc, tol=float("na
                                f"{why}: {residuals}", step=k, t=t, rows=rows, residuals=residuals)
         residuals = {names[i]: dict(zip(("primal", "dual", "complementarity", "stationarity"),
                                         fail[i, :4].tolist())) for i in range(2)}
-        return SolverError(f"contact solve failed {where}, active rows {rows}: {residuals}",
+        return SolverError(f"{kind} solve failed {where}, active rows {rows}: {residuals}",
                            step=k, t=t, rows=rows, residuals=residuals)
     if code in (lay.CONSTRAINTS_INCONSISTENT, lay.CONSTRAINTS_NOT_HELD):
         row = scene.constraint_names[int(cnt_row[0])] if cnt_row is not None else "?"

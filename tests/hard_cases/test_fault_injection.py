@@ -170,3 +170,21 @@ def test_fault_injector_rejects_bad_arguments():
         FaultInjectingSolver("enum", fail_on={-1})
     with pytest.raises(ValueError, match="unknown solver 'nope'"):
         FaultInjectingSolver("nope")
+
+
+@pytest.mark.parametrize("backend", ["python", "compiled"])
+def test_a_failing_drift_projection_names_itself_and_its_rows(backend):
+    """The 3-link chain at h = 1e-2 with PositionProjection: its first contact is a tip that
+    reaches the floor within a free step, so the first solve is the projection's; with a
+    tolerance no answer meets it fails, and the error says so and names that row on both
+    paths (the compiled path said "contact solve failed", naming the step's rows: none)."""
+    chain = PendulumChain([Link.rod(m=1.0 / 3, l=1.0 / 3) for _ in range(3)])
+    rows = [PointLineRow(i, (1.0 / 3, 0.0), line_point=(0.0, -0.25), normal=(0.0, 1.0)) for i in range(3)]
+    scene = mo.Scene(chain, [ChainGravity(chain)], [mo.Contact(PointLineBarrier(chain, rows), 0.0, name="floor")])
+    with pytest.raises(mo.SolverError) as info:
+        mo.simulate(scene, (0.0, 0.8), np.full(3, np.pi / 2), np.zeros(3), 1e-2, backend=backend, solver="exact",
+                    tol=1e-30, drift_control=mo.PositionProjection())
+    exc = info.value
+    assert str(exc).startswith("projection solve failed at step 21 (t = 0.21), active rows ['floor[1]']")
+    assert exc.rows == ["floor[1]"] and exc.step == 21
+    assert exc.trajectory.status == "failed" and len(exc.trajectory) > 1
