@@ -89,7 +89,44 @@ def force(ints, ekind, eoff, pool, user, t, q, c, s, v, f, fb):
     """f(t, q, v) into ``f`` (n,): the bias terms and exactly the scene's effects; the bias
     terms alone also into ``fb`` (n,) (for the energy ledger: they do no work); ``c, s`` =
     cos q, sin q."""
+    st = _bias(ints, pool, user, t, q, c, s, v, fb)
+    if st != 0:
+        return st
     for i in range(f.shape[0]):
+        f[i] = fb[i]
+    _add_effects(ints, ekind, eoff, pool, t, q, c, s, v, f, True, True)
+    return _user_forces(ints, user, t, q, v, f)
+
+
+@_internal
+def position_forces(ints, ekind, eoff, pool, t, q, c, s, v, fq):
+    """The sum of the scene's effects that do not depend on v into ``fq`` (n,): every
+    built-in kind but ``LINEAR_V``. The later passes of a step (same t and q, another v)
+    add it to theirs (:func:`velocity_forces`) instead of evaluating it again."""
+    for i in range(fq.shape[0]):
+        fq[i] = 0.0
+    _add_effects(ints, ekind, eoff, pool, t, q, c, s, v, fq, True, False)
+
+
+@_internal
+def velocity_forces(ints, ekind, eoff, pool, user, t, q, c, s, v, fq, f, fb):
+    """f(t, q, v) into ``f`` (n,) from ``fq`` (:func:`position_forces` at this t and q):
+    f_bias(q, v) + fq + the effects that depend on v (``LINEAR_V``) + the user's forces
+    (which may); the bias terms alone into ``fb`` (n,). Equal to :func:`force` up to the
+    order of the sum (round-off). Returns 0 or the failed user callable's status."""
+    st = _bias(ints, pool, user, t, q, c, s, v, fb)
+    if st != 0:
+        return st
+    for i in range(f.shape[0]):
+        f[i] = fb[i] + fq[i]
+    _add_effects(ints, ekind, eoff, pool, t, q, c, s, v, f, False, True)
+    return _user_forces(ints, user, t, q, v, f)
+
+
+@_internal
+def _bias(ints, pool, user, t, q, c, s, v, fb):
+    """The bias terms f_bias(q, v) into ``fb`` (n,); 0 or the user callable's status."""
+    for i in range(fb.shape[0]):
         fb[i] = 0.0
     if ints[3]:
         if ints[2] == _k.MASS_CHAIN:  # inlined (as a call the piston's step was 5-10 % slower)
@@ -98,14 +135,22 @@ def force(ints, ekind, eoff, pool, user, t, q, c, s, v, f, fb):
             st = call_user(user[U_BIAS], t, q, v, fb, ints[0], ints[1])
             if st != 0:
                 return st * 8 + U_BIAS
-    for i in range(f.shape[0]):
-        f[i] = fb[i]
+    return 0
+
+
+@_internal
+def _add_effects(ints, ekind, eoff, pool, t, q, c, s, v, f, position, velocity):
+    """Add the scene's built-in effects to ``f`` (n,), in the scene's order: those that do
+    not depend on v if ``position``, those that do (``LINEAR_V``) if ``velocity``."""
     for e in range(ints[5]):
         kind, o = ekind[e], eoff[e]
-        if kind == _k.CONST:
+        if kind == _k.LINEAR_V:
+            if velocity:
+                _k.add_linear_v(pool, o, v, f)
+        elif not position:
+            continue
+        elif kind == _k.CONST:
             _k.add_constant(pool, o, f)
-        elif kind == _k.LINEAR_V:
-            _k.add_linear_v(pool, o, v, f)
         elif kind == _k.AFFINE_Q:
             _k.add_affine_q(pool, o, q, f)
         elif kind == _k.TRIG:
@@ -114,6 +159,11 @@ def force(ints, ekind, eoff, pool, user, t, q, c, s, v, f, fb):
             _k.add_harmonic(pool, o, t, f)
         elif kind == _k.FOURIER_PT:
             _k.add_point_fourier(pool, o, q, c, s, f)
+
+
+@_internal
+def _user_forces(ints, user, t, q, v, f):
+    """Add the user's forces to ``f`` (n,); 0 or the callable's status."""
     if user[U_FORCES] != 0:
         st = call_user(user[U_FORCES], t, q, v, f, ints[0], ints[1])
         return 0 if st == 0 else st * 8 + U_FORCES

@@ -159,11 +159,14 @@ def next_iterate(n, y, x, ylast, rlast, mixed, tol):
 def pass_forces(model, user, npass, correct, t, h, q, v, qm, cm, sm, v_new, s0, M, ec, vbar, f, fb, cnt):
     """The forces of pass ``npass`` >= 1 into ``f`` (bias share ``fb``): f(t + h/2, q_m,
     (v_k + x)/2) at the iterate x (``ec[5]``; the first is the first pass's answer
-    ``v_new``), plus the inertial correction when ``correct``. Returns DONE or USER_FAILED."""
+    ``v_new``), plus the inertial correction when ``correct``; the part that does not
+    depend on v is the first pass's (``ec[9]``). Returns DONE or USER_FAILED."""
     ints, ekind, eoff = model[0], model[1], model[2]
     Ms, c2, s2, qp, dq, x = ec[0], ec[1], ec[2], ec[3], ec[4], ec[5]
     iterate_from(ints[0], npass, v, v_new, x, vbar)
-    if _user_failed(ev.force(ints, ekind, eoff, model[7], user, t + 0.5 * h, qm, cm, sm, vbar, f, fb), cnt):
+    # the forces that do not depend on v are the first pass's (``ec[9]``, same t and q_m)
+    if _user_failed(ev.velocity_forces(ints, ekind, eoff, model[7], user, t + 0.5 * h, qm, cm, sm, vbar, ec[9], f, fb),
+                    cnt):
         return USER_FAILED
     if correct:
         return energy_correction(model, user, h, q, v, x, s0, cm, sm, M, Ms, c2, s2, qp, dq, ec[8], f, fb, cnt)

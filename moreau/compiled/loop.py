@@ -75,18 +75,19 @@ def loop_workspace(n: int, m: int, mf: int, mu: np.ndarray, tangent_row: np.ndar
            np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.zeros(mt), np.zeros(mt),
            np.zeros(m), np.zeros(m, dtype=np.bool_), np.empty((mt, n)), np.empty(n), np.empty(n),
            np.empty((n, n)), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.zeros(n), np.zeros(n),
-           np.empty(n))
+           np.empty(n), np.zeros(n))
     lw = (np.empty((ma, n)), np.empty(ma), np.empty(n), np.empty(n), np.empty(ma),
           np.empty((ma, n)), np.empty(n), np.zeros(n), np.zeros(mm, dtype=np.bool_), np.empty((4, n)))
     return own, workspace(n, m), lw, friction_work(n, m, mf, mu, tangent_row), equality_work(n, me, m + mf)
 
 
 @_part
-def _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, gen, f, fb, gm, cnt):
+def _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, gen, f, fb, fq, again, gm, cnt):
     """The midpoint q_m = q + h/2 v and the model there: M(q_m) factorized (unless
     constant; a chain's only as the O(n) generators ``gen`` of its factor, M and L are
-    formed by the velocity update when a row closes), f(t + h/2, q_m, v) and the gaps g(q_m);
-    returns DONE or why not."""
+    formed by the velocity update when a row closes), f(t + h/2, q_m, v) (with ``again``,
+    a step with later passes, its part that does not depend on v also into ``fq``) and
+    the gaps g(q_m); returns DONE or why not."""
     ints, ekind, eoff, bkind, boff, brow, bnrows, pool, _, _ = model
     n, m = ints[0], ints[1]
     for i in range(n):
@@ -105,6 +106,8 @@ def _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, gen, 
             return NOT_SPD
     if _user_failed(ev.force(ints, ekind, eoff, pool, user, t + 0.5 * h, qm, cm, sm, v, f, fb), cnt):
         return USER_FAILED
+    if again:
+        ev.position_forces(ints, ekind, eoff, pool, t + 0.5 * h, qm, cm, sm, v, fq)
     if m > 0:
         if _user_failed(ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, gm), cnt):
             return USER_FAILED
@@ -257,7 +260,8 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
         k = cnt[C_K]
         t = t0 + k * h
         nimp = cnt[C_NIMP]
-        status = _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, lw[9], f, fb, gm, cnt)
+        status = _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, lw[9], f, fb, ec[9], passes > 1,
+                                 gm, cnt)
         if status != DONE:
             return status
         status, s0 = energy_start(model, user, correct, q, v, cm, sm, M, ec, cnt)
