@@ -37,7 +37,7 @@ def release(phi_deg=31.0, speed=30.0):
     return [L * np.cos(phi), L * np.sin(phi), phi], [-speed, 0.0, 0.0]
 
 
-@pytest.mark.parametrize("h", [1e-3, 3e-5])
+@pytest.mark.parametrize("h", [1e-3, pytest.param(3e-5, marks=pytest.mark.slow)])  # 3e-5: 17 s, slow suite
 def test_painleve_rod_tangential_impact(h):
     """The rod slides with |P_T| = mu P_N until 45°; there one step carries a finite
     impulse (3.5–3.8 N s, against 1e-2 per step before) strictly inside the cone: the
