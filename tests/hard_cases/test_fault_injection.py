@@ -117,11 +117,17 @@ def test_faults_in_drift_control_projections_fall_back():
 def falling_chain_run(solver, backend: str = "python", **kw) -> mo.Trajectory:
     """Three rods released horizontally above a floor, with the energy-consistent step: its
     velocity update iterates, every pass a contact solve in a contact step."""
+    return mo.simulate(three_rods_over_a_floor(0.5), (0.0, 0.8), np.full(3, np.pi / 2), np.zeros(3), 1e-3,
+                       backend=backend, solver=solver, integrator=mo.MoreauJeanEnergyConsistent,
+                       **{"record_every": 10, **kw})
+
+
+def three_rods_over_a_floor(e: float) -> mo.Scene:
+    """Three rods of 1/3 kg and 1/3 m hanging from the origin, a floor 0.25 m below it with
+    a row per rod tip (restitution ``e``)."""
     chain = PendulumChain([Link.rod(m=1.0 / 3, l=1.0 / 3) for _ in range(3)])
     rows = [PointLineRow(i, (1.0 / 3, 0.0), line_point=(0.0, -0.25), normal=(0.0, 1.0)) for i in range(3)]
-    scene = mo.Scene(chain, [ChainGravity(chain)], [mo.Contact(PointLineBarrier(chain, rows), 0.5, name="floor")])
-    return mo.simulate(scene, (0.0, 0.8), np.full(3, np.pi / 2), np.zeros(3), 1e-3, backend=backend, solver=solver,
-                       integrator=mo.MoreauJeanEnergyConsistent, **{"record_every": 10, **kw})
+    return mo.Scene(chain, [ChainGravity(chain)], [mo.Contact(PointLineBarrier(chain, rows), e, name="floor")])
 
 
 # the two runs converge to the same fixed points along different iterates (the iteration
@@ -178,12 +184,9 @@ def test_a_failing_drift_projection_names_itself_and_its_rows(backend):
     reaches the floor within a free step, so the first solve is the projection's; with a
     tolerance no answer meets it fails, and the error says so and names that row on both
     paths (the compiled path said "contact solve failed", naming the step's rows: none)."""
-    chain = PendulumChain([Link.rod(m=1.0 / 3, l=1.0 / 3) for _ in range(3)])
-    rows = [PointLineRow(i, (1.0 / 3, 0.0), line_point=(0.0, -0.25), normal=(0.0, 1.0)) for i in range(3)]
-    scene = mo.Scene(chain, [ChainGravity(chain)], [mo.Contact(PointLineBarrier(chain, rows), 0.0, name="floor")])
     with pytest.raises(mo.SolverError) as info:
-        mo.simulate(scene, (0.0, 0.8), np.full(3, np.pi / 2), np.zeros(3), 1e-2, backend=backend, solver="exact",
-                    tol=1e-30, drift_control=mo.PositionProjection())
+        mo.simulate(three_rods_over_a_floor(0.0), (0.0, 0.8), np.full(3, np.pi / 2), np.zeros(3), 1e-2,
+                    backend=backend, solver="exact", tol=1e-30, drift_control=mo.PositionProjection())
     exc = info.value
     assert str(exc).startswith("projection solve failed at step 21 (t = 0.21), active rows ['floor[1]']")
     assert exc.rows == ["floor[1]"] and exc.step == 21
