@@ -14,6 +14,9 @@ measured side by side):
    floor (mu = 0.5: N normal and N tangential rows every step); N = 3, 24 on the floor and
    issue 26's 40-link chain falling onto a floor with the energy-consistent step; the four-bar linkage
    (``moreau.problems.four_bar``: two bilateral rows every step), free and with a stop;
+   the README's first example as written (plain numpy lambdas), with ``@njit`` callables and
+   with a gap numba cannot compile (a Python callback); the woodpecker's whole
+   ``simulate()`` call recording every step against every 100th;
 3. the compile time of the loop (a fresh numba cache, in a new process) and the time a
    new process takes to load it from the cache;
 4. (full mode) the contact backends of the Python path: OSQP updated against OSQP
@@ -162,6 +165,58 @@ def chain_table(quick: bool) -> list[tuple]:
     return rows
 
 
+def _inclined(gap, jac):
+    """The README's first example: a point mass bouncing on an inclined floor (e = 0.7)."""
+    system = mo.FunctionSystem(2.0 * np.eye(2))
+    floor = mo.FunctionBarrier(gap=gap, jacobian=jac)
+    return mo.Scene(system, [mo.ConstantForce([0.0, -9.81 * 2.0], name="gravity")],
+                    [mo.Contact(floor, mo.NewtonImpact(0.7), name="floor")])
+
+
+def user_scene_table(quick: bool) -> list[tuple]:
+    """The README's first example as a user writes it (plain numpy lambdas, compiled by numba
+    as they are), with ``@njit`` callables, and with a gap numba cannot compile (a dict
+    lookup: a Python callback from the loop); h = 1e-3."""
+    import numba
+
+    offsets = {"floor": 0.0}
+
+    def dict_gap(q):
+        return np.array([q[1] - 0.2 * q[0] + offsets["floor"]])
+
+    scenes = {
+        "README example, plain lambdas": _inclined(lambda q: np.array([q[1] - 0.2 * q[0]]),
+                                                   lambda q: np.array([[-0.2, 1.0]])),
+        "README example, @njit callables": _inclined(numba.njit(lambda q: np.array([q[1] - 0.2 * q[0]])),
+                                                     numba.njit(lambda q: np.array([[-0.2, 1.0]]))),
+        "README example, gap a Python callback": _inclined(dict_gap, lambda q: np.array([[-0.2, 1.0]])),
+    }
+    steps, py_steps = (20_000, 1_000) if quick else (200_000, 20_000)
+    rows = []
+    for name, scene in scenes.items():
+        comp = us_per_step(scene, [0.0, 1.0], [1.0, 0.0], steps, h=1e-3, repeat=2)
+        py = us_per_step(scene, [0.0, 1.0], [1.0, 0.0], py_steps, h=1e-3, backend="python")
+        rows.append((name, steps, comp, py_steps, py))
+    return rows
+
+
+def woodpecker_call(quick: bool) -> tuple[float, float, int]:
+    """Seconds of the whole ``simulate()`` call of the woodpecker (h = 2e-5, 1.5 s; 0.3 s in
+    quick mode), recording every step and every 100th: the result's cost beside the loop's."""
+    from moreau.problems.woodpecker import GLOCKER_STATE, woodpecker
+
+    scene = woodpecker()
+    (q0, v0), t_end, h = GLOCKER_STATE, (0.3 if quick else 1.5), 2e-5
+    mo.simulate(scene, (0.0, 100 * h), q0, v0, h, progress=False)  # its kernels loaded first
+    secs = [np.inf, np.inf]
+    for _ in range(2):  # best of 2
+        for i, every in enumerate((1, 100)):
+            t0 = time.perf_counter()
+            mo.simulate(scene, (0.0, t_end), q0, v0, h, record_every=every, progress=False)
+            secs[i] = min(secs[i], time.perf_counter() - t0)
+    return secs[0], secs[1], int(round(t_end / h))
+
+
 _PROBE = """
 import time
 t0 = time.perf_counter()
@@ -212,7 +267,7 @@ def main(argv=None) -> None:
     print("\nµs per step, compiled loop vs Python path (ratio = python / compiled; piston compiled: best of 3)")
     print(f"{'case':40s} {'steps':>8s} {'compiled':>9s} {'steps':>7s} {'python':>9s} {'ratio':>7s}")
     table = piston_table(args.quick) + chain_table(args.quick) + stable_chain_table(args.quick) + \
-        four_bar_table(args.quick)
+        four_bar_table(args.quick) + user_scene_table(args.quick)
     for name, cs, comp, ps, py in table:
         print(f"{name:40s} {cs:8d} {comp:9.3f} {ps:7d} {py:9.1f} {py / comp:7.0f}")
     cost = {name: comp for name, _, comp, _, _ in table}
@@ -228,6 +283,13 @@ def main(argv=None) -> None:
     lying = cost["chain N = 40, on the floor"] / cost["chain N =  3, on the floor"]
     print(f"the 40-link chain lying on the floor (40 rows in contact) costs {lying:.0f}x the 3-link chain's step "
           "(midpoint step both)")
+    readme = cost["README example, plain lambdas"] / cost["README example, @njit callables"]
+    callback = cost["README example, gap a Python callback"] / cost["README example, @njit callables"]
+    print(f"a user's scene: the README example as written costs {readme:.2f}x the same with @njit callables "
+          f"(issue 41 asks <= 2x); with its gap a Python callback {callback:.0f}x (<= 50x)")
+    every, sparse, wsteps = woodpecker_call(args.quick)
+    print(f"the woodpecker's whole simulate() call, {wsteps} steps: every step recorded {every:.3f} s, every 100th "
+          f"{sparse:.3f} s ({every / sparse:.2f}x; issue 41 asks <= 1.5x)")
     from moreau.problems.piston.pressure import calibrated_pressure
 
     fp = calibrated_pressure()

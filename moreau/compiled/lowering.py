@@ -6,9 +6,9 @@ parameters in one flat float pool — and nothing else. The compiled loop walks 
 records, so a scene without damping never evaluates damping and a scene without
 barriers never builds a contact problem, in machine code as on the Python path. Every
 scene lowers to arrays only, so one loop, compiled once per machine and loaded from
-numba's cache by every later process, serves them all; numba-compiled user callables
-(``@numba.njit``) are called through the addresses of small wrappers compiled for the
-scene alone (:mod:`moreau.compiled.usercalls`).
+numba's cache by every later process, serves them all; user callables are called through
+the addresses of small wrappers compiled for the scene alone, or of callbacks into Python
+where numba cannot compile them (:mod:`moreau.compiled.usercalls`).
 """
 
 from __future__ import annotations
@@ -26,7 +26,8 @@ __all__ = ["CompiledScene", "NotCompilable", "lower"]
 
 
 class NotCompilable(ValueError):
-    """A part of the scene has no compiled form; the message names it."""
+    """A part of the scene has no compiled form; the message names it. (Every scene lowers
+    now: kept for code that catches it.)"""
 
 
 @dataclass
@@ -65,6 +66,9 @@ class CompiledScene:
     user_callables : dict
         Per slot (``usercalls.SLOTS``), ``(name, callable)`` of each of its user
         callables in order: what an error message names, and reruns to show what it raised.
+    python_potentials : bool
+        Some effect evaluated by a user callable has a potential (evaluated in Python at
+        the records).
     """
 
     ints: np.ndarray
@@ -81,6 +85,7 @@ class CompiledScene:
     tangent_row: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     user: UserKernels = field(default_factory=lambda: UserKernels(np.zeros(5, dtype=np.int64), (None,) * 5))
     user_callables: dict = field(default_factory=dict)
+    python_potentials: bool = False
 
     def arrays(self) -> tuple:
         return (self.ints, self.ekind, self.eoff, self.bkind, self.boff, self.brow, self.bnrows,
@@ -107,23 +112,17 @@ class _Pool:
 def lower(scene: Scene) -> CompiledScene:
     """The compiled form of ``scene``.
 
-    Raises
-    ------
-    NotCompilable
-        Naming the system, effect or contact (and its callable) that has no compiled
-        kernel: plain Python callables run on the Python path only; wrap them with
-        ``numba.njit`` to run compiled.
+    Every scene lowers: a callable numba compiles runs as machine code, any other part is
+    called back into Python (:mod:`moreau.compiled.callbacks`).
     """
     if not isinstance(scene, Scene):
         raise ValueError(f"scene must be a Scene, got {scene!r}")
     n = scene.ndof
     pool = _Pool()
     sysm = scene.system
-    mk = sysm.mass_kernel()
-    if mk is None:
-        raise NotCompilable(
-            f"system {type(sysm).__name__} has no compiled mass matrix (a plain Python callable "
-            "for mass or bias: decorate it with @numba.njit to run compiled)")
+    # a part without a kernel of its own is called through its Python methods
+    mk: tuple[Any, Any] = sysm.mass_kernel() or ("user", (sysm.mass_matrix,
+                                                            sysm.bias_force if sysm.has_bias else None))
     mass_fun = bias_fun = None
     if mk[0] == "user":
         mass_fun, bias_fun = mk[1]
@@ -138,14 +137,12 @@ def lower(scene: Scene) -> CompiledScene:
     eoff: list[int] = []
     force_fns: list[Any] = []
     force_names: list[str] = []
+    python_potentials = False
     for e in scene.effects:
-        spec = e.kernel()
-        if spec is None:
-            raise NotCompilable(
-                f"effect {e.name!r} ({type(e).__name__}) has no compiled kernel: its force is a plain "
-                "Python callable; decorate it with @numba.njit to run compiled")
-        kind, params = spec
+        kind: Any
+        kind, params = e.kernel() or ("user", e.force)
         if kind == "user":
+            python_potentials = python_potentials or bool(e.has_potential)
             ekind.append(_k.USER)
             eoff.append(len(force_fns))
             force_fns.append(params)
@@ -154,69 +151,48 @@ def lower(scene: Scene) -> CompiledScene:
             ekind.append(kind)
             eoff.append(pool.add(*params))
 
-    bkind: list[int] = []
-    boff: list[int] = []
-    brow: list[int] = []
-    bnrows: list[int] = []
-    bar_fns: list[Any] = []
-    bar_rows: list[int] = []
-    bar_nrows: list[int] = []
-    bar_names: list[str] = []
+    bars = _Barriers(pool)
     row = 0
     for c in scene.contacts:
-        spec = c.barrier.kernel()
-        if spec is None:
-            raise NotCompilable(
-                f"contact {c.name!r} ({type(c.barrier).__name__}) has no compiled kernel: its gap or "
-                "Jacobian is a plain Python callable; decorate both with @numba.njit to run compiled")
-        kind, params = spec
-        if kind == "user":
-            bkind.append(_k.BAR_USER)
-            boff.append(len(bar_fns))
-            bar_fns.append(tuple(params))
-            bar_rows.append(row)
-            bar_nrows.append(c.barrier.nrows)
-            bar_names.append(c.name)
-        else:
-            bkind.append(kind)
-            boff.append(pool.add(*params))
-        brow.append(row)
-        bnrows.append(c.barrier.nrows)
+        bars.add(c.barrier.kernel() or ("user", (c.barrier.gap, c.barrier.jacobian)), row, c.barrier.nrows, c.name)
         row += c.barrier.nrows
-
     # friction: each frictional contact's tangent rows as one more barrier whose Jacobian
     # (rows m, m + 1, ... of G) the same evaluation computes; its gaps are never evaluated
     tmap = np.full(scene.nrows, -1, dtype=np.int64)
     mf = 0
-    for c, first in zip(scene.contacts, brow[:len(scene.contacts)]):
+    for c, first in zip(scene.contacts, bars.brow[:len(scene.contacts)]):
         if not np.any(c.friction > 0.0):
             continue
-        spec = c.barrier.tangent_kernel()
-        if spec is None:
-            raise NotCompilable(f"contact {c.name!r} ({type(c.barrier).__name__}): its tangent rows have no "
-                                "compiled kernel, so friction on it runs on the Python path")
-        bkind.append(spec[0])
-        boff.append(pool.add(*spec[1]))
-        brow.append(scene.nrows + mf)
-        bnrows.append(c.barrier.nrows)
+        spec = c.barrier.tangent_kernel() or ("user", (None, c.barrier.tangent_jacobian))
+        bars.add(spec, scene.nrows + mf, c.barrier.nrows, f"{c.name} (tangent rows)")
         tmap[first:first + c.barrier.nrows] = scene.nrows + mf + np.arange(c.barrier.nrows)
         mf += c.barrier.nrows
-    first_eq = len(bkind)
-    me = _lower_constraints(scene, scene.nrows + mf, pool, bkind, boff, brow, bnrows, bar_fns, bar_rows, bar_nrows,
-                            bar_names)
+    # the bilateral constraints after the contact and the tangent rows (rows m + mf, ...)
+    first_eq = len(bars.bkind)
+    me = 0
+    for bc in scene.constraints:
+        bars.add(bc.geometry.kernel() or ("user", (bc.geometry.gap, bc.geometry.jacobian)), scene.nrows + mf + me,
+                 bc.nrows, bc.name)
+        me += bc.nrows
+    bkind, bar_fns, bar_names = bars.bkind, bars.fns, bars.names
     i64 = lambda x: np.array(x, dtype=np.int64)  # noqa: E731
     needs_trig = (mass_kind == _k.MASS_CHAIN or any(k in (_k.TRIG, _k.FOURIER_PT) for k in ekind)
                   or any(k in (_k.BAR_TRIG, _k.BAR_CHAIN_POINT) for k in bkind))
     ints = i64([n, scene.nrows, mass_kind, int(has_bias), mass_off, len(ekind), len(scene.contacts),
                 int(scene.velocity_dependent), int(needs_trig), mf, me, first_eq])
     return CompiledScene(
-        ints=ints, ekind=i64(ekind), eoff=i64(eoff), bkind=i64(bkind), boff=i64(boff),
-        brow=i64(brow), bnrows=i64(bnrows), pool=pool.array(),
+        ints=ints, ekind=i64(ekind), eoff=i64(eoff), bkind=i64(bkind), boff=i64(bars.boff),
+        brow=i64(bars.brow), bnrows=i64(bars.bnrows), pool=pool.array(),
         restitution=np.ascontiguousarray(scene.restitution, dtype=float),
         activation_tol=np.ascontiguousarray(np.concatenate([scene.activation_tol, scene.constraint_hold_tol]),
                                             dtype=float),
         friction=np.ascontiguousarray(scene.friction, dtype=float), tangent_row=tmap,
-        user=_user(scene, mass_fun, bias_fun, force_fns, force_names, bar_fns, bar_rows, bar_nrows, bar_names),
+        user=user_kernels(mass_fun, bias_fun, tuple(force_fns), tuple(bar_fns), tuple(bars.rows), tuple(bars.nrows),
+                          {"mass": (f"{type(sysm).__name__}.mass",), "bias": (f"{type(sysm).__name__}.bias",),
+                           "forces": tuple(f"effect {x!r}" for x in force_names),
+                           "gaps": tuple(f"barrier {x!r}" for x in bar_names),
+                           "jacobians": tuple(f"barrier {x!r} Jacobian" for x in bar_names)}),
+        python_potentials=python_potentials,
         user_callables={"mass": [(type(sysm).__name__ + ".mass", mass_fun)],
                         "bias": [(type(sysm).__name__ + ".bias", bias_fun)],
                         "forces": list(zip(force_names, force_fns)),
@@ -225,51 +201,37 @@ def lower(scene: Scene) -> CompiledScene:
     )
 
 
-def _lower_constraints(scene: Scene, row0: int, pool: _Pool, bkind: list, boff: list, brow: list, bnrows: list,
-                       bar_fns: list, bar_rows: list, bar_nrows: list, bar_names: list) -> int:
-    """Append each bilateral constraint as one more barrier record, its rows from ``row0``
-    (= m + mf: after the contact and the tangent rows of the gaps and the Jacobian);
-    returns the number of bilateral rows."""
-    me = 0
-    for bc in scene.constraints:
-        spec = bc.geometry.kernel()
-        rows_at = row0 + me
-        if spec is None:
-            raise NotCompilable(
-                f"constraint {bc.name!r} ({type(bc.geometry).__name__}) has no compiled kernel: its gap or "
-                "Jacobian is a plain Python callable; decorate both with @numba.njit to run compiled")
+class _Barriers:
+    """The barrier records of a scene being lowered: kernel code, pool offset, first row and
+    rows of each; for user callables their index in ``fns`` and their rows and names."""
+
+    def __init__(self, pool: _Pool) -> None:
+        self.pool = pool
+        self.bkind: list[int] = []
+        self.boff: list[int] = []
+        self.brow: list[int] = []
+        self.bnrows: list[int] = []
+        self.fns: list[tuple] = []
+        self.rows: list[int] = []
+        self.nrows: list[int] = []
+        self.names: list[str] = []
+
+    def add(self, spec: tuple[Any, Any], row: int, nrows: int, name: str) -> None:
+        """One record at Jacobian rows ``row ... row + nrows``; ``spec`` = ``(kind, params)``
+        or ``("user", (gap or None, jacobian))``."""
         kind, params = spec
         if kind == "user":
-            bkind.append(_k.BAR_USER)
-            boff.append(len(bar_fns))
-            bar_fns.append(tuple(params))
-            bar_rows.append(rows_at)
-            bar_nrows.append(bc.nrows)
-            bar_names.append(bc.name)
+            self.bkind.append(_k.BAR_USER)
+            self.boff.append(len(self.fns))
+            self.fns.append(tuple(params))
+            self.rows.append(row)
+            self.nrows.append(nrows)
+            self.names.append(name)
         else:
-            bkind.append(kind)
-            boff.append(pool.add(*params))
-        brow.append(rows_at)
-        bnrows.append(bc.nrows)
-        me += bc.nrows
-    return me
-
-
-def _user(scene, mass_fun, bias_fun, force_fns, force_names, bar_fns, bar_rows, bar_nrows, bar_names) -> UserKernels:
-    """The slot wrappers of the scene's user callables; a callable numba cannot compile
-    (a typing error) is refused by name."""
-    from numba.core.errors import NumbaError
-
-    try:
-        return user_kernels(mass_fun, bias_fun, tuple(force_fns), tuple(bar_fns), tuple(bar_rows),
-                            tuple(bar_nrows))
-    except NumbaError as exc:
-        names = [f"effect {x!r}" for x in force_names] + [f"contact {x!r}" for x in bar_names]
-        if mass_fun is not None or bias_fun is not None:
-            names.insert(0, f"system {type(scene.system).__name__}")
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise NotCompilable(f"the @njit callables of {', '.join(names)} do not compile with the "
-                            f"signatures the compiled loop calls them with ({first})") from exc
+            self.bkind.append(kind)
+            self.boff.append(self.pool.add(*params))
+        self.brow.append(row)
+        self.bnrows.append(nrows)
 
 
 def compiles(scene: Scene) -> tuple[bool, str]:

@@ -87,9 +87,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     iset, fset, eligible = _settings(scene, t0, h, n_steps, step, solver, fallback, stride, energy, tol,
                                      drift_control, energy_growth, iteration)
     n_rec = n_steps // stride + 1 + (1 if n_steps % stride else 0)
-    T = np.empty(n_rec)
-    Q = np.empty((n_rec, n))
-    V = np.empty((n_rec, n))
+    T, Q, V = np.empty(n_rec), np.empty((n_rec, n)), np.empty((n_rec, n))
     me = scene.nconstraints
     # the bilateral rows' impulses and residuals are recorded after the contact rows
     PS = np.zeros((n_rec, m + me))
@@ -150,6 +148,8 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
                            fgap, rs, work, PTS)
                 if bar is not None:
                     bar.update(int(cnt[lay.C_K]) - k_before)
+                if code == lay.USER_FAILED and _interrupted(cs):  # Ctrl-C inside a Python callback
+                    raise KeyboardInterrupt
                 if code == lay.IMPACTS_FULL:
                     IMP = np.concatenate([IMP, np.empty_like(IMP)])
                     continue
@@ -224,8 +224,7 @@ def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE,
         if energy:
             KE[rec], PE[rec] = scene.kinetic_energy(q, v), scene.potential_energy(q)
         rec += 1
-    if energy and any(e.has_potential and isinstance(e.kernel(), tuple) and e.kernel()[0] == "user"
-                      for e in scene.effects):  # user potentials are Python callables
+    if energy and cs.python_potentials:  # user potentials are Python callables
         PE[:rec] = [scene.potential_energy(Q[i]) for i in range(rec)]
     nimp = int(cnt[lay.C_NIMP])
     I = IMP[:nimp]
@@ -250,6 +249,7 @@ def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE,
         gaps=np.ascontiguousarray(GP[:rec, :m]), kinetic=KE[:rec] if energy else None,
         potential=PE[:rec] if energy else None,
         tangential_impulses=PTS[:rec] if PTS is not None else None,
+        slip=_slips(cs, Q[:rec], V[:rec]) if PTS is not None else None,
         constraint_impulses=np.ascontiguousarray(PS[:rec, m:]) if me else None,
         constraint_residuals=np.ascontiguousarray(GP[:rec, m:]) if me else None,
     )
@@ -321,6 +321,33 @@ def _potential_offset(scene, cs: CompiledScene, q0: np.ndarray) -> float:
     return float(scene.potential_energy(q0) - ev.potential(ints, ekind, eoff, cs.pool, q0, *cos_sin(q0)))
 
 
+def _slips(cs: CompiledScene, Q: np.ndarray, V: np.ndarray) -> np.ndarray:
+    """The slip velocities T(q) v at the records (N, m), in one compiled pass; NaN and a
+    logged warning when a user callable fails there (the trajectory is kept)."""
+    from moreau.compiled.at_records import slip_velocities
+
+    n, m, mf, me = (int(x) for x in cs.ints[[0, 1, 9, 10]])
+    Q, V = np.ascontiguousarray(Q), np.ascontiguousarray(V)
+    out = np.zeros((Q.shape[0], m))
+    st = slip_velocities(cs.ints, cs.bkind, cs.boff, cs.brow, cs.bnrows, cs.pool, cs.user.addresses, cs.tangent_row,
+                         Q, V, np.zeros(n), np.zeros(n), np.zeros((m + mf + me, n)), out)
+    if st != 0:
+        slot, index, what = decode(int(st))
+        log.warning("could not evaluate the slip velocities on the recorded states: %s callable %d %s",
+                    slot, index, what)
+        out[:] = np.nan
+    return out
+
+
+def _interrupted(cs: CompiledScene) -> bool:
+    """A Ctrl-C (or SIGTERM) arrived inside one of the scene's Python callbacks (the flag
+    is cleared: the scene may run again)."""
+    hit = False
+    for cb in cs.user.callbacks:
+        hit, cb.interrupted = hit or cb.interrupted, False
+    return hit
+
+
 def _experimental_warning():
     from numba.core.errors import NumbaExperimentalFeatureWarning
 
@@ -336,14 +363,24 @@ def _user_error(scene, cs: CompiledScene, status: int, where: str, k: int, t: fl
     kind = {"mass": "mass matrix", "bias": "bias", "forces": "force", "gaps": "gap function",
             "jacobians": "Jacobian"}[slot]
     error = SimulationError(f"user {kind} {name!r} {what} {where}", None, k)
-    if what.startswith("raised") and fun is not None:
-        qm = q + 0.5 * h * v  # where the step evaluates it
-        args = {"forces": (t + 0.5 * h, qm, v), "bias": (qm, v)}.get(slot, (qm,))
-        try:
-            fun(*args)
-        except Exception as exc:  # noqa: BLE001 - the user's own exception, named in the message
-            error = SimulationError(f"user {kind} {name!r} raised {type(exc).__name__}: {exc} {where}", None, k)
-            error.__cause__ = exc
+    if not what.startswith("raised") or fun is None:
+        return error
+    kept = [w.error for w in cs.user.callbacks if w.slot == slot and w.error is not None]
+    if kept:  # a Python callback kept what it raised
+        exc = kept[0]
+        for w in cs.user.callbacks:
+            w.error = None
+    else:  # compiled: call it again where the step evaluates it (the midpoint, the end, the start)
+        exc = None
+        for x in (q + 0.5 * h * v, q + h * v, q):
+            try:
+                fun(*{"forces": (t + 0.5 * h, x, v), "bias": (x, v)}.get(slot, (x,)))
+            except Exception as e:  # noqa: BLE001 - the user's own exception, named in the message
+                exc = e
+                break
+    if exc is not None:
+        error = SimulationError(f"user {kind} {name!r} raised {type(exc).__name__}: {exc} {where}", None, k)
+        error.__cause__ = exc
     return error
 
 

@@ -1,12 +1,14 @@
 """User callables in the compiled loop: one fixed C signature, called through an address.
 
 The compiled time loop (:mod:`moreau.compiled.loop`) is compiled once per machine and version and
-loaded from numba's cache by every scene. A scene's own ``@numba.njit`` callables (the
-mass matrix and bias of a :class:`~moreau.FunctionSystem`, :class:`~moreau.FunctionForce`,
-:class:`~moreau.FunctionBarrier`) do not specialize that loop: each *slot* (mass, bias,
-forces, gaps, Jacobians) becomes one small C function (a numba ``cfunc``) of the
-signature ``SIGNATURE``, compiled for the scene alone (well under a second per slot),
-and the loop calls it through its address with ``call_user``. An address of 0 means
+loaded from numba's cache by every scene. A scene's own callables (the mass matrix and bias
+of a :class:`~moreau.FunctionSystem`, :class:`~moreau.FunctionForce`,
+:class:`~moreau.FunctionBarrier`, ``@numba.njit`` or plain) do not specialize that loop:
+each *slot* (mass, bias, forces, gaps, Jacobians) becomes one small C function (a numba
+``cfunc``) of the signature ``SIGNATURE``, compiled for the scene alone (well under a
+second per slot), and the loop calls it through its address with ``call_user``. Plain
+functions are compiled by numba as they are; a slot with a callable numba cannot compile is
+a C callback into Python instead (:mod:`moreau.compiled.callbacks`). An address of 0 means
 the slot is empty (a built-in scene has five zeros).
 
 Each wrapper checks what the user's function returns, every call, as the Python path
@@ -23,6 +25,7 @@ G (m x n, rows of the slot's barriers written).
 
 from __future__ import annotations
 
+import logging
 import math
 import threading
 from dataclasses import dataclass
@@ -33,16 +36,29 @@ from llvmlite import ir  # type: ignore[import-untyped]
 from numba import carray, cfunc, types
 from numba.extending import intrinsic
 
+from moreau.compiled.callbacks import (
+    INTERRUPTED,
+    NONFINITE,
+    RAISED,
+    WRONG_SHAPE,
+    SlotCallback,
+    compile_or_reason,
+    fingerprint,
+    first_reason,
+)
+
 __all__ = ["SIGNATURE", "U_MASS", "U_BIAS", "U_FORCES", "U_GAPS", "U_JACOBIANS", "SLOTS", "UserKernels",
            "call_user", "user_kernels", "decode"]
 
 #: the slots of the ``user`` address array
 U_MASS, U_BIAS, U_FORCES, U_GAPS, U_JACOBIANS = range(5)
 SLOTS = ("mass", "bias", "forces", "gaps", "jacobians")
-#: what a wrapper reports (the low 3 bits of its code; the callable's index above them)
-RAISED, WRONG_SHAPE, NONFINITE = 1, 2, 3
+#: what a wrapper reports (the low 3 bits of its code, from moreau.compiled.callbacks; the
+#: callable's index above them)
 _KINDS = {RAISED: "raised an exception", WRONG_SHAPE: "returned an array of the wrong shape",
-          NONFINITE: "returned a non-finite value"}
+          NONFINITE: "is non-finite", INTERRUPTED: "was interrupted"}
+
+log = logging.getLogger("moreau.run.simulation")
 
 _P = types.CPointer(types.float64)
 #: the C signature of every slot
@@ -138,16 +154,18 @@ _JAC = _CALL + """
 """
 
 
-def _source(slot: str, count: int, rows: tuple[int, ...], nrows: tuple[int, ...]) -> str:
+def _source(slot: str, fns: tuple, rows: tuple[int, ...], nrows: tuple[int, ...]) -> str:
     if slot in _BODY:
         return _BODY[slot]
     if slot == "forces":
         src = _HEAD + "    out = carray(outp, (n,))\n"
-        for i in range(count):
+        for i in range(len(fns)):
             src += _FORCE.format(fn=f"f{i}", args="t, q, v", code=8 * (i + 1))
     else:
         src = _HEAD + ("    out = carray(outp, (m,))\n" if slot == "gaps" else "    out = carray(outp, (m, n))\n")
-        for i in range(count):
+        for i in range(len(fns)):
+            if fns[i] is None:  # tangent rows: no gaps
+                continue
             src += (_GAP if slot == "gaps" else _JAC).format(fn=f"f{i}", args="q", code=8 * (i + 1),
                                                              k=nrows[i], r0=rows[i])
     return src + "    return 0\n"
@@ -157,17 +175,52 @@ def _compile(slot: str, fns: tuple, rows: tuple[int, ...] = (), nrows: tuple[int
     names = {"carray": carray, "isfinite": math.isfinite, "RAISED": RAISED, "WRONG_SHAPE": WRONG_SHAPE,
              "NONFINITE": NONFINITE}
     names.update({f"f{i}": f for i, f in enumerate(fns)})
-    exec(_source(slot, len(fns), rows, nrows), names)  # noqa: S102 - our own template
+    exec(_source(slot, fns, rows, nrows), names)  # noqa: S102 - our own template
     return cfunc(SIGNATURE)(names["slot"])
+
+
+_ARRAY = types.Array(types.float64, 1, "C")
+#: the arguments each slot's callables are called with
+_ARGTYPES = {"mass": (_ARRAY,), "bias": (_ARRAY, _ARRAY), "forces": (types.float64, _ARRAY, _ARRAY),
+             "gaps": (_ARRAY,), "jacobians": (_ARRAY,)}
+
+
+def _slot(slot: str, fns: tuple, names: tuple[str, ...], rows: tuple[int, ...] = (),
+          nrows: tuple[int, ...] = ()) -> Any:
+    """The slot's wrapper: one ``cfunc`` when numba compiles every callable in it (plain
+    functions are compiled as they are), else a :class:`SlotCallback` (logged, one line per
+    callable, with numba's reason)."""
+    from numba.core.errors import NumbaError
+
+    jitted, reasons = [], []
+    for f in fns:
+        jit, why = (None, "") if f is None else compile_or_reason(f, _ARGTYPES[slot])
+        jitted.append(jit)
+        reasons.append(why)
+    if all(f is None or j is not None for f, j in zip(fns, jitted)):
+        try:
+            return _compile(slot, tuple(jitted), rows, nrows)
+        except NumbaError as exc:  # the callables compile, the slot does not (e.g. a list returned)
+            reasons = [first_reason(exc) if f is not None else "" for f in fns]
+    for name, f, why in zip(names, fns, reasons):
+        if f is not None:
+            log.warning("%s runs as a Python callback in the compiled loop (%s), several µs a call; "
+                        "numba could not compile it: %s", name, slot, why or "another callable of its slot")
+    return SlotCallback(slot, fns, rows, nrows)
 
 
 @dataclass(frozen=True)
 class UserKernels:
     """A scene's user slots: ``addresses`` (5,) int64 for the loop, and the compiled
-    wrappers kept alive with them."""
+    wrappers (or callbacks) kept alive with them."""
 
     addresses: np.ndarray
     wrappers: tuple
+
+    @property
+    def callbacks(self) -> tuple[SlotCallback, ...]:
+        """The slots that call back into Python."""
+        return tuple(w for w in self.wrappers if isinstance(w, SlotCallback))
 
 
 _lock = threading.Lock()
@@ -175,34 +228,45 @@ _memo: dict[tuple, UserKernels] = {}
 
 
 def user_kernels(mass: Any, bias: Any, forces: tuple, barriers: tuple, rows: tuple[int, ...],
-                 nrows: tuple[int, ...]) -> UserKernels:
-    """The slot wrappers of a scene's ``@njit`` callables (compiled once per process for
-    each combination: a scene simulated again reuses them).
+                 nrows: tuple[int, ...], names: dict[str, tuple[str, ...]] | None = None) -> UserKernels:
+    """The slot wrappers of a scene's callables (built once per process for each
+    combination and each value of what a plain callable reads: a scene simulated again
+    reuses them).
 
     Parameters
     ----------
-    mass, bias : numba dispatcher or None
+    mass, bias : callable or None
         ``M(q) -> (n, n)`` and ``b(q, v) -> (n,)``.
-    forces : tuple of dispatchers
+    forces : tuple of callables
         Each ``f(t, q, v) -> (n,)``, added.
     barriers : tuple of (gap, jacobian) pairs
-        ``g(q) -> (k,)``, ``G(q) -> (k, n)`` written at rows ``rows[i]`` ... ``+ nrows[i]``.
+        ``g(q) -> (k,)``, ``G(q) -> (k, n)`` written at rows ``rows[i]`` ... ``+ nrows[i]``;
+        a gap of None (tangent rows) is not evaluated.
+    names : dict, optional
+        Per slot, the callables' names for the log.
     """
-    key = (mass, bias, forces, barriers, rows, nrows)
+    names = names or {}
+    key = (fingerprint(mass), fingerprint(bias), tuple(map(fingerprint, forces)),
+           tuple((fingerprint(g), fingerprint(j)) for g, j in barriers), rows, nrows)
     with _lock:
         got = _memo.get(key)
         if got is not None:
             return got
+
+        def label(slot: str, count: int) -> tuple[str, ...]:
+            return tuple(names.get(slot, ())) + tuple(f"{slot}[{i}]" for i in range(len(names.get(slot, ())), count))
+
         wrappers: list[Any] = [None] * 5
         if mass is not None:
-            wrappers[U_MASS] = _compile("mass", (mass,))
+            wrappers[U_MASS] = _slot("mass", (mass,), label("mass", 1))
         if bias is not None:
-            wrappers[U_BIAS] = _compile("bias", (bias,))
+            wrappers[U_BIAS] = _slot("bias", (bias,), label("bias", 1))
         if forces:
-            wrappers[U_FORCES] = _compile("forces", forces)
+            wrappers[U_FORCES] = _slot("forces", forces, label("forces", len(forces)))
         if barriers:
-            wrappers[U_GAPS] = _compile("gaps", tuple(b[0] for b in barriers), rows, nrows)
-            wrappers[U_JACOBIANS] = _compile("jacobians", tuple(b[1] for b in barriers), rows, nrows)
+            wrappers[U_GAPS] = _slot("gaps", tuple(b[0] for b in barriers), label("gaps", len(barriers)), rows, nrows)
+            wrappers[U_JACOBIANS] = _slot("jacobians", tuple(b[1] for b in barriers),
+                                          label("jacobians", len(barriers)), rows, nrows)
         addresses = np.array([0 if w is None else w.address for w in wrappers], dtype=np.int64)
         got = UserKernels(addresses, tuple(wrappers))
         _memo[key] = got

@@ -70,8 +70,8 @@ class Barrier(ABC):
 
     def tangent_kernel(self):
         """``(kind, params)`` of the compiled kernel whose Jacobian is :meth:`tangent_jacobian`
-        (the barrier kernels' layout, gaps unused), or None (friction on this barrier then
-        runs on the Python path)."""
+        (the barrier kernels' layout, gaps unused), ``("user", (None, tangent_jacobian))``, or
+        None: the compiled loop then calls :meth:`tangent_jacobian` back."""
         return None
 
     def row_names(self, prefix: str) -> list[str]:
@@ -91,8 +91,9 @@ class Barrier(ABC):
 
     def kernel(self):
         """``(kind, params)`` of the compiled gap and Jacobian kernels (see
-        :mod:`moreau.core.kernels`), ``("user", (gap, jacobian))`` for numba-compiled user
-        callables, or None (the scene then runs on the Python path)."""
+        :mod:`moreau.core.kernels`), ``("user", (gap, jacobian))`` for user callables
+        (compiled by numba when they can be), or None: the compiled loop then calls
+        :meth:`gap` and :meth:`jacobian` back."""
         return None
 
 
@@ -213,11 +214,10 @@ class FunctionBarrier(Barrier):
         raise NotImplementedError
 
     def kernel(self):
-        from moreau.model.forces import _is_compiled
+        return "user", (self.gap, self.jacobian)
 
-        if _is_compiled(self.gap) and _is_compiled(self.jacobian):
-            return "user", (self.gap, self.jacobian)
-        return None
+    def tangent_kernel(self):
+        return ("user", (None, self.tangent_jacobian)) if self.has_tangents else None
 
 
 def finite_difference_jacobian(fun: Callable[[np.ndarray], np.ndarray], q: np.ndarray, eps: float = 1e-6, *,

@@ -65,9 +65,8 @@ class Effect(ABC):
 
     def kernel(self):
         """``(kind, params)`` of the compiled kernel that evaluates this effect (see
-        :mod:`moreau.core.kernels`), ``("user", fun)`` for a numba-compiled user callable, or
-        None when the effect has no compiled form (the scene then runs on the Python
-        path)."""
+        :mod:`moreau.core.kernels`), ``("user", fun)`` for a user callable (compiled by numba
+        when it can be), or None: the compiled loop then calls :meth:`force` back."""
         return None
 
 
@@ -211,19 +210,12 @@ class FunctionForce(Effect):
         raise NotImplementedError
 
     def kernel(self):
-        return ("user", self.force) if _is_compiled(self.force) else None
+        return "user", self.force
 
     def potential(self, q):
         if self._potential is None:
             return super().potential(q)
         return float(self._potential(q))
-
-
-def _is_compiled(fun) -> bool:
-    """True for a numba ``@njit`` dispatcher (it can be called from compiled code)."""
-    from numba.core.registry import CPUDispatcher
-
-    return isinstance(fun, CPUDispatcher)
 
 
 class FourierLoad:

@@ -67,7 +67,8 @@ class MechanicalSystem(ABC):
 
     def mass_kernel(self) -> tuple[Any, Any] | None:
         """``(kind, params)`` of the compiled mass matrix (see :mod:`moreau.core.kernels`),
-        ``("user", (mass, bias))`` for numba-compiled callables, or None (Python path)."""
+        ``("user", (mass, bias))`` for callables, or None: the compiled loop then calls
+        :meth:`mass_matrix` and :meth:`bias_force` back (:mod:`moreau.compiled.callbacks`)."""
         return None
 
 
@@ -140,14 +141,10 @@ class FunctionSystem(MechanicalSystem):
 
     def mass_kernel(self) -> tuple[Any, Any] | None:
         from moreau.core import kernels as _k
-        from moreau.model.forces import _is_compiled
 
         if self._mass is not None and self._bias is None:
             return _k.MASS_CONST, (self._mass,)
-        fns = (self._mass_fun, self._bias)
-        if all(f is None or _is_compiled(f) for f in fns):
-            return "user", fns
-        return None
+        return "user", (self._mass_fun, self._bias)
 
     def describe(self) -> dict[str, Any]:
         d = super().describe()

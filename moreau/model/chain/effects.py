@@ -7,7 +7,7 @@ import numpy as np
 from moreau.core import kernels as _k
 from moreau.core.validation import as_vector
 from moreau.model.chain.links import PendulumChain, _require_chain
-from moreau.model.forces import Effect, FourierLoad, _is_compiled
+from moreau.model.forces import Effect, FourierLoad
 
 
 # ----------------------------------------------------------------------------------------
@@ -195,7 +195,7 @@ class LinkTorque(Effect):
     def kernel(self):
         if self.tau is not None:
             return _k.CONST, (self.tau,)
-        return ("user", self.force) if _is_compiled(self.force) else None
+        return "user", self.force
 
     def potential(self, q):
         if self.tau is None:

@@ -1,0 +1,185 @@
+"""Plain Python callables in the compiled loop: compiled by numba when it can, else called back.
+
+A scene's callables (a :class:`~moreau.FunctionSystem`'s mass and bias, a
+:class:`~moreau.FunctionForce`, a :class:`~moreau.FunctionBarrier`'s gaps and Jacobians, or the
+Python methods of a system, effect or barrier with no kernel) fill the slots of
+:mod:`moreau.compiled.usercalls`. A slot is one numba ``cfunc`` when numba compiles every
+callable in it (the README's numpy lambdas do, as they are); otherwise it is a C callback into
+the interpreter (:class:`SlotCallback`, a ``ctypes.CFUNCTYPE`` of the slot signature), which the
+loop calls through its address like any other slot. A callback costs a few µs a call
+against well under one for compiled code; :func:`compile_or_reason` says why numba refused.
+
+numba freezes the globals and closure variables a function reads when it compiles it; a
+compiled plain callable is therefore kept per *value* of those variables
+(:func:`fingerprint`): change one and the next run compiles it again.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import math
+import re
+import types as pytypes
+import warnings
+from typing import Any
+
+import numpy as np
+
+__all__ = ["SlotCallback", "compile_or_reason", "fingerprint", "first_reason", "is_dispatcher"]
+
+#: codes a slot returns (the low 3 bits; the callable's index above them), as usercalls'
+RAISED, WRONG_SHAPE, NONFINITE, INTERRUPTED = 1, 2, 3, 4
+
+_CFUNC = ctypes.CFUNCTYPE(ctypes.c_int64, ctypes.c_double, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p,
+                          ctypes.c_int64, ctypes.c_int64)
+
+
+def is_dispatcher(fun: Any) -> bool:
+    """True for a numba ``@njit`` dispatcher (callable from compiled code)."""
+    from numba.core.registry import CPUDispatcher
+
+    return isinstance(fun, CPUDispatcher)
+
+
+def _value_key(x: Any) -> Any:
+    """A hashable stand-in for the value of a global or closure variable."""
+    if isinstance(x, (bool, int, float, complex, str, bytes, type(None))):
+        return (type(x).__name__, x)
+    if isinstance(x, np.ndarray) and x.size <= 1 << 16:
+        return ("ndarray", x.shape, x.dtype.str, hashlib.sha1(np.ascontiguousarray(x).tobytes()).hexdigest())
+    if isinstance(x, np.generic):
+        return ("scalar", x.dtype.str, x.item())
+    if isinstance(x, tuple) and len(x) <= 64:
+        return ("tuple",) + tuple(_value_key(y) for y in x)
+    return ("id", id(x))
+
+
+def fingerprint(fun: Any) -> Any:
+    """The key of a callable's compiled form: the function and the values of the globals
+    and closure variables it reads (what numba freezes), or the object itself."""
+    if not isinstance(fun, pytypes.FunctionType):
+        return fun
+    cells = tuple(_value_key(c.cell_contents) for c in (fun.__closure__ or ()))
+    names = tuple((nm, _value_key(fun.__globals__[nm])) for nm in fun.__code__.co_names if nm in fun.__globals__)
+    return (fun, cells, names)
+
+
+def compile_or_reason(fun: Any, argtypes: tuple) -> tuple[Any, str]:
+    """``(dispatcher, "")`` when numba compiles ``fun`` for ``argtypes``, else ``(None,
+    reason)``: the first line of numba's message (or of the exception)."""
+    import numba
+    from numba.core.errors import NumbaWarning
+
+    if is_dispatcher(fun):
+        jit = fun
+    elif isinstance(fun, pytypes.FunctionType):
+        jit = numba.njit(fun)
+    else:
+        return None, f"a {type(fun).__name__}, not a plain function"
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", category=NumbaWarning)
+            jit.compile(argtypes)
+    except Exception as exc:  # noqa: BLE001 - any failure means: call it back
+        return None, first_reason(exc)
+    return jit, ""
+
+
+def first_reason(exc: BaseException) -> str:
+    """The line of numba's message that says why (its colour codes and the pipeline's
+    heading dropped), at most 200 characters."""
+    text = re.sub(r"\x1b\[[0-9;]*m", "", str(exc))
+    lines = [ln.strip() for ln in text.splitlines() if ln.strip() and not ln.strip().startswith("Failed in ")]
+    return (lines[0] if lines else type(exc).__name__)[:200]
+
+
+class SlotCallback:
+    """One slot as a C callback into Python: ``address`` for the loop, the callables in
+    order, the rows of a gap or Jacobian slot's barriers.
+
+    ``interrupted`` is set when a Ctrl-C (or SIGTERM as an interrupt) arrived during a
+    call: the loop then stops with the code ``INTERRUPTED`` and the runner raises it.
+    """
+
+    def __init__(self, slot: str, fns: tuple, rows: tuple[int, ...] = (), nrows: tuple[int, ...] = ()) -> None:
+        self.slot, self.fns, self.rows, self.nrows = slot, fns, rows, nrows
+        self.interrupted = False
+        #: the exception the last failing call raised (named in the run's error)
+        self.error: BaseException | None = None
+        self._views: dict[tuple[int, int], np.ndarray] = {}
+        self._c = _CFUNC(self._call)  # kept alive with the slot: the loop holds only its address
+        self.address = int(ctypes.cast(self._c, ctypes.c_void_p).value or 0)
+
+    def _view(self, ptr: int, size: int) -> np.ndarray:
+        """The loop's array at ``ptr`` as numpy (views kept per address: the loop's work
+        arrays live through a run)."""
+        key = (ptr, size)
+        a = self._views.get(key)
+        if a is None:
+            if len(self._views) > 64:
+                self._views.clear()
+            a = np.ctypeslib.as_array((ctypes.c_double * max(size, 1)).from_address(ptr))[:size]
+            self._views[key] = a
+        return a
+
+    def _call(self, t: float, qp: int, vp: int, outp: int, n: int, m: int) -> int:
+        try:
+            return self._run(t, qp, vp, outp, n, m)
+        except KeyboardInterrupt:
+            self.interrupted = True
+            return 8 + INTERRUPTED
+        except BaseException:  # noqa: BLE001 - a callback must not raise into C
+            return 8 + RAISED
+
+    def _run(self, t: float, qp: int, vp: int, outp: int, n: int, m: int) -> int:
+        q = self._view(qp, n).copy()  # the user may keep what it is given
+        slot = self.slot
+        if slot == "mass":
+            return self._put(self.fns[0], (q,), self._view(outp, n * n), (n, n), 8, False)
+        if slot == "bias":
+            return self._put(self.fns[0], (q, self._view(vp, n).copy()), self._view(outp, n), (n,), 8, True)
+        if slot == "forces":
+            v, out = self._view(vp, n).copy(), self._view(outp, n)
+            for i, f in enumerate(self.fns):
+                st = self._put(f, (t, q, v), out, (n,), 8 * (i + 1), True)
+                if st:
+                    return st
+            return 0
+        out = self._view(outp, m if slot == "gaps" else m * n)
+        for i, f in enumerate(self.fns):
+            if f is None:  # tangent rows have no gaps
+                continue
+            r0, k = self.rows[i], self.nrows[i]
+            part = out[r0:r0 + k] if slot == "gaps" else out[r0 * n:(r0 + k) * n]
+            st = self._put(f, (q,), part, (k,) if slot == "gaps" else (k, n), 8 * (i + 1), False)
+            if st:
+                return st
+        return 0
+
+    def _put(self, f: Any, args: tuple, out: np.ndarray, shape: tuple[int, ...], code: int, add: bool) -> int:
+        """Call ``f(*args)`` and write (or add) its result of ``shape`` into the flat ``out``;
+        0, or ``code`` plus what went wrong (an exception kept in ``error``)."""
+        try:
+            r = np.asarray(f(*args), dtype=float)
+        except KeyboardInterrupt:
+            raise
+        except Exception as exc:  # noqa: BLE001 - reported by code, kept to be named
+            self.error = exc
+            return code + RAISED
+        return _write(r, out, shape, code, add)
+
+
+def _write(r: np.ndarray, out: np.ndarray, shape: tuple[int, ...], code: int, add: bool) -> int:
+    """Write (or add) ``r`` of ``shape`` into the flat ``out``; 0 or ``code`` plus what is wrong."""
+    if r.shape != shape:
+        return code + WRONG_SHAPE
+    flat = r.ravel()
+    finite = all(map(math.isfinite, flat)) if flat.size < 16 else bool(np.isfinite(flat).all())  # small: faster
+    if not finite:
+        return code + NONFINITE
+    if add:
+        out += flat
+    else:
+        out[:] = flat
+    return 0

@@ -1,0 +1,147 @@
+"""A user's own scene in the compiled loop (issue 41): plain numpy callables compiled by numba as
+they are, callables numba cannot compile called back into Python, friction on a user barrier,
+and the result's slip velocities computed in one compiled pass."""
+
+import logging
+
+import numba
+import numpy as np
+import pytest
+
+import moreau as mo
+from moreau.compiled.lowering import lower
+
+G0 = 9.81
+
+
+def inclined(gap, jac):
+    """The README's first example: a point mass bouncing on the floor y >= 0.2 x."""
+    m = 2.0
+    system = mo.FunctionSystem(m * np.eye(2))
+    gravity = mo.ConstantForce([0.0, -G0 * m], name="gravity")
+    floor = mo.FunctionBarrier(gap=gap, jacobian=jac)
+    return mo.Scene(system, [gravity], [mo.Contact(floor, mo.NewtonImpact(0.7), name="floor")])
+
+
+def plain_gap(q):
+    return np.array([q[1] - 0.2 * q[0]])
+
+
+def plain_jac(q):
+    return np.array([[-0.2, 1.0]])
+
+
+def run(scene, t_end=2.0, **kw):
+    return mo.simulate(scene, (0.0, t_end), q0=[0.0, 1.0], v0=[1.0, 0.0], h=1e-3, progress=False, **kw)
+
+
+def test_the_readme_example_compiles_its_lambdas_and_equals_the_njit_scene():
+    scene = inclined(lambda q: np.array([q[1] - 0.2 * q[0]]), lambda q: np.array([[-0.2, 1.0]]))
+    assert lower(scene).user.callbacks == ()  # numba compiled both lambdas: no callback
+    plain = run(scene)
+    jit = run(inclined(numba.njit(plain_gap), numba.njit(plain_jac)))
+    assert plain.stats.backend == "compiled" and plain.completed
+    assert len(plain.impacts) == len(jit.impacts) >= 3
+    np.testing.assert_array_equal(plain.q, jit.q)  # the same machine code path: bit for bit
+    np.testing.assert_array_equal(plain.impacts.t, jit.impacts.t)
+
+
+def test_a_gap_numba_cannot_compile_is_called_back_logged_by_name_with_the_same_answers(caplog):
+    offsets = {"floor": 0.0}
+
+    def gap(q):  # a dict lookup: numba cannot type it
+        return np.array([q[1] - 0.2 * q[0] + offsets["floor"]])
+
+    with caplog.at_level(logging.WARNING, logger="moreau.run.simulation"):
+        back = run(inclined(gap, plain_jac))
+    lines = [r.getMessage() for r in caplog.records if "Python callback" in r.getMessage()]
+    assert len(lines) == 1 and "barrier 'floor'" in lines[0] and "dict" in lines[0]
+    jit = run(inclined(numba.njit(plain_gap), numba.njit(plain_jac)))
+    assert back.stats.backend == "compiled" and len(back.impacts) == len(jit.impacts) >= 3
+    np.testing.assert_allclose(back.q, jit.q, rtol=0, atol=1e-12)
+
+
+def test_a_plain_callable_is_compiled_again_when_a_value_it_reads_changes():
+    shift = 0.0  # a closure cell holding a float: numba freezes its value
+
+    def gap(q):
+        return np.array([q[1] - 0.2 * q[0] - shift])
+
+    first = run(inclined(gap, plain_jac), t_end=0.6)
+    shift = 0.3  # noqa: F841 - read by gap through its closure
+    second = run(inclined(gap, plain_jac), t_end=0.6)
+    assert second.impacts.t[0] < first.impacts.t[0]  # the floor moved up: the first impact comes earlier
+
+
+def test_a_callback_that_raises_stops_the_run_naming_it_and_keeps_the_states():
+    calls = {"n": 0}
+
+    def gap(q):
+        calls["n"] += 1
+        if calls["n"] > 300:
+            raise RuntimeError("sensor offline")
+        return np.array([q[1] - 0.2 * q[0]])
+
+    with pytest.raises(mo.SimulationError, match="barrier 'floor'|'floor'") as info:
+        run(inclined(gap, plain_jac), check_jacobian=False)
+    assert "sensor offline" in str(info.value) or "raised" in str(info.value)
+    traj = info.value.trajectory
+    assert traj.status == "failed" and traj.stats.backend == "compiled" and len(traj) > 1
+
+
+def test_ctrl_c_inside_a_callback_interrupts_the_run_and_keeps_what_was_computed():
+    calls = {"n": 0}
+
+    def gap(q):
+        calls["n"] += 1
+        if calls["n"] == 500:
+            raise KeyboardInterrupt
+        return np.array([q[1] - 0.2 * q[0]])
+
+    with pytest.raises(KeyboardInterrupt) as info:
+        run(inclined(gap, plain_jac), check_jacobian=False)
+    traj = info.value.trajectory
+    assert traj.status == "interrupted" and 0.0 < traj.t[-1] < 2.0
+    again = run(inclined(gap, plain_jac), check_jacobian=False)  # the flag was cleared
+    assert again.completed
+
+
+def sliding_rod(mu=(0.1, 0.9), L=1.0, m=1.0):
+    """A rod (x, y, φ) lying on the floor y = 0 on its two ends, friction per end."""
+    h2 = 0.5 * L
+
+    def gap(q):
+        return np.array([q[1] - h2 * np.sin(q[2]), q[1] + h2 * np.sin(q[2])])
+
+    def jac(q):
+        c = h2 * np.cos(q[2])
+        return np.array([[0.0, 1.0, -c], [0.0, 1.0, c]])
+
+    def tangent(q):  # the ends' velocities along the floor
+        s = h2 * np.sin(q[2])
+        return np.array([[1.0, 0.0, s], [1.0, 0.0, -s]])
+
+    ends = mo.FunctionBarrier(gap, jac, nrows=2, tangent_jacobian=tangent)
+    system = mo.FunctionSystem(np.diag([m, m, m * L * L / 12.0]))
+    return mo.Scene(system, [mo.ConstantForce([0.0, -m * G0, 0.0], name="gravity")],
+                    [mo.Contact(ends, mo.NewtonImpactFriction(0.0, mu), name="ends")])
+
+
+def test_friction_on_a_user_barrier_runs_compiled_and_stops_where_coulomb_says():
+    mu, v0 = (0.1, 0.9), 2.0
+    scene = sliding_rod(mu)
+    traj = mo.simulate(scene, (0.0, 0.6), [0.0, 0.0, 0.0], [v0, 0.0, 0.0], 1e-4, progress=False)
+    assert traj.stats.backend == "compiled" and traj.completed
+    # equal normal loads m g / 2 at the ends: deceleration g (mu1 + mu2) / 2
+    expected = v0 ** 2 / (G0 * sum(mu))
+    assert abs(traj.q[-1, 0] - expected) <= 5e-3 * expected
+    assert abs(traj.v[-1, 0]) < 1e-9 and abs(traj.q[-1, 2]) < 1e-9
+    # the slip velocities are the ends' tangential velocities T(q) v at every record
+    T = np.array([np.array([[1.0, 0.0, 0.5 * np.sin(x[2])], [1.0, 0.0, -0.5 * np.sin(x[2])]]) @ v
+                  for x, v in zip(traj.q, traj.v)])
+    np.testing.assert_allclose(traj.slip_velocity, T, rtol=0, atol=1e-12)
+    # sliding, each end on its cone's edge; at rest the net tangential impulse vanishes (its
+    # split between the ends of a rigid rod is not unique: Coulomb's law admits any that fits)
+    i = len(traj) // 4
+    np.testing.assert_allclose(np.abs(traj.tangential_impulses[i]), np.array(mu) * traj.impulses[i], rtol=1e-9)
+    assert not traj.sticking[i].any() and abs(traj.tangential_impulses[-1].sum()) < 1e-15
