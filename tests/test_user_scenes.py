@@ -145,3 +145,21 @@ def test_friction_on_a_user_barrier_runs_compiled_and_stops_where_coulomb_says()
     i = len(traj) // 4
     np.testing.assert_allclose(np.abs(traj.tangential_impulses[i]), np.array(mu) * traj.impulses[i], rtol=1e-9)
     assert not traj.sticking[i].any() and abs(traj.tangential_impulses[-1].sum()) < 1e-15
+
+
+def test_the_free_velocity_of_a_frictional_contact_step_leaves_out_the_friction_impulses():
+    """The impact log's 'faster than the smooth forces' rule compares U⁻ with the free
+    normal velocity G (v_k + h M⁻¹ f): a tilted rod sliding on one end, whose friction
+    turns it (the tangential impulse changes the end's normal velocity)."""
+    phi, h = 0.05, 1e-3
+    scene = sliding_rod((0.5, 0.5))
+    integ = mo.MoreauJeanMidpoint(scene, h, solver="exact")
+    integ.init(0.0, [0.0, 0.5 * np.sin(phi), phi], [2.0, 0.0, 0.0])
+    integ.step()
+    assert integ.active[0] and integ.PT[0] != 0.0
+    q_m = integ.q - 0.5 * h * integ.v
+    G = scene.jacobian(q_m)[[0]]
+    v_free = np.array([2.0, 0.0, 0.0]) + h * np.linalg.solve(scene.system.mass_matrix(q_m),
+                                                               scene.force(0.5 * h, q_m, np.zeros(3)))
+    details = integ.last_contact_details(np.array([0]))
+    np.testing.assert_allclose(details.U_free, G @ v_free, rtol=0, atol=1e-14)

@@ -276,7 +276,10 @@ class OneStepIntegrator(NonsmoothSolve, ABC):
             raise ValueError("no contact step has been taken yet")
         M, G, v_old, v_new, P_all = self._last
         act = self.active
-        dv = np.linalg.solve(M, G[act].T @ P_all[act])  # M⁻¹ Gᵀ P
+        impulse = G[act].T @ P_all[act]
+        if self._T is not None:  # friction: the tangential impulses are not in the free velocity either
+            impulse = impulse + self._T[act].T @ self.PT[act]
+        dv = np.linalg.solve(M, impulse)  # M⁻¹ (Gᵀ P + Tᵀ P_T)
         Gr = G[rows]
         U_before = Gr @ v_old
         U_after = Gr @ v_new
