@@ -88,9 +88,38 @@ def test_a_corrupt_cache_warns_and_the_run_works(tmp_path):
     assert out.stdout.split() == ["0", "1"]  # the filled cache is loaded
     files = list((tmp_path / "cache").glob("*/loop.run_chunk-*.nbc"))
     assert files
-    for f in files:
-        f.write_bytes(b"\x80\x04 not a pickle")
+    for f in files:  # damaged in place: random bytes, the same size
+        f.write_bytes(os.urandom(f.stat().st_size))
     out = subprocess.run(run, env=env, capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr[-2000:]
-    assert "could not be read" in out.stderr and "compiling the time loop again" in out.stderr
+    assert "could not be read" in out.stderr and "loop.run_chunk" in out.stderr
     assert out.stdout.split() == ["1", "0"]  # compiled afresh
+
+
+_DAMAGED = textwrap.dedent("""
+    import sys
+    sys.path.insert(0, sys.argv[1])
+    import tiny
+    from moreau.core.jitcache import call_recovering
+    print(call_recovering(tiny.twice, 21.0) if sys.argv[2] == "recover" else tiny.twice(21.0))
+""")
+
+
+def test_a_cache_file_overwritten_with_random_bytes_is_removed_and_compiled_again(tmp_path):
+    (tmp_path / "tiny.py").write_text("from numba import njit\n\n@njit(cache=True)\ndef twice(x):\n    return 2 * x\n")
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}  # its cache beside it
+
+    def run(mode):
+        return subprocess.run([sys.executable, "-c", _DAMAGED, str(tmp_path), mode], env=env, capture_output=True,
+                              text=True, timeout=300)
+
+    assert run("plain").stdout.split() == ["42.0"]  # compiled and cached
+    data = list((tmp_path / "__pycache__").glob("tiny.twice-*.nbc"))
+    assert len(data) == 1
+    data[0].write_bytes(os.urandom(data[0].stat().st_size))
+    assert run("plain").returncode != 0  # numba itself fails on the damaged file, on every run
+    out = run("recover")
+    assert out.returncode == 0 and out.stdout.split() == ["42.0"], out.stderr[-2000:]
+    assert "could not be read" in out.stderr and "tiny.twice" in out.stderr
+    again = run("plain")  # the file was replaced by a good one
+    assert again.returncode == 0 and again.stdout.split() == ["42.0"]

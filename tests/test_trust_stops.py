@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import csv
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -74,6 +75,21 @@ def wait_for(err, text: bytes, proc, timeout=120.0):
         time.sleep(0.05)
 
 
+def wait_for_progress(err, labels, steps: int, proc, timeout=240.0):
+    """Wait until the progress bar of every case in ``labels`` has passed ``steps`` steps
+    (the state the test needs, not a time: a loaded machine starts a worker late)."""
+    t0 = time.monotonic()
+    while True:
+        text = b"".join(err).decode(errors="replace")
+        done = [max([int(n) for n in re.findall(re.escape(label) + r":[^|]*\|[^|]*\| (\d+)/", text)] or [0])
+                for label in labels]
+        if min(done) > steps:
+            return
+        if proc.poll() is not None or time.monotonic() - t0 > timeout:
+            raise AssertionError(f"progress of {labels} past {steps} not seen: {text[-800:]}")
+        time.sleep(0.05)
+
+
 def finish(proc, timeout=60.0) -> int:
     try:
         return proc.wait(timeout=timeout)
@@ -93,8 +109,7 @@ def test_sigterm_to_piston_saves_partials_lists_every_case_and_leaves_no_worker(
     # three cases on two workers: the third has not started when SIGTERM arrives
     proc, err = start_command(["piston", "--cycles", "400", "--transient", "0", "--h", "1e-3", "--workers", "2",
                                "--out", "out"], tmp_path)
-    wait_for(err, b"step/s]", proc)
-    time.sleep(1.0)
+    wait_for_progress(err, ["e0_D80.04mm", "e0.9_D80.04mm"], 20_000, proc)  # both workers recording
     workers = children(proc.pid)
     assert len(workers) >= 2
     os.kill(proc.pid, signal.SIGTERM)  # the parent only, as a scheduler or systemd does
@@ -279,10 +294,27 @@ def test_failed_save_leaves_no_temporary_file_and_the_old_file_intact(tmp_path, 
         raise OSError(28, "No space left on device")
 
     monkeypatch.setattr(np, "savez_compressed", disk_full)
-    with pytest.raises(OSError, match="No space left"):
+    with pytest.raises(OSError, match="No space left on device: .*run.npz") as info:
         traj.save(path)
+    assert info.value.errno == 28
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run.npz"]
     assert open(path, "rb").read() == before
+
+
+def test_ball_command_on_a_full_disk_names_the_file_in_one_line(tmp_path, monkeypatch, capsys):
+    from matplotlib.figure import Figure
+
+    def disk_full(self, fname, *args, **kw):
+        with open(fname, "wb") as fh:
+            fh.write(b"partial png")
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(Figure, "savefig", disk_full)
+    rc = main(["ball", "--t-end", "0.2", "--no-progress", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 1 and err[-1].startswith("moreau ball: error: [Errno 28] No space left on device: ")
+    assert err[-1].endswith("ball.png'")
+    assert not list((tmp_path / "o").glob("*.tmp*"))  # no temporary file left
 
 
 # -- the command's answers to bad input (F) ------------------------------------------------------

@@ -18,7 +18,7 @@ import numpy as np
 
 from moreau.compiled.layout import STEP_MIDPOINT
 from moreau.compiled.runner import run_compiled
-from moreau.core.jitcache import cache_dir, clear, compile_lock
+from moreau.core.jitcache import cache_dir, call_recovering, clear, compile_lock
 
 __all__ = ["COMPILE_SECONDS", "ensure_compiled"]
 
@@ -61,9 +61,9 @@ def ensure_compiled() -> float:
                     # raised inside one aborted the process (seen: exit -6), so during a load
                     # (0.3 s) they wait and are acted on right after it
                     with (contextlib.nullcontext() if cold else _signals_deferred()):
-                        _warm_up()
+                        call_recovering(_warm_up)  # a damaged file: that function compiled again
                 except (pickle.UnpicklingError, EOFError, ValueError, TypeError, AttributeError,
-                        ImportError, OSError) as exc:  # what an unreadable cache file raises
+                        ImportError, OSError) as exc:  # an unreadable cache file not found in the traceback
                     removed = clear()
                     log.warning("moreau: numba's cache in %s could not be read (%s: %s); removed %d files of it "
                                 "and compiling the time loop again (about %d s)", d, type(exc).__name__, exc,

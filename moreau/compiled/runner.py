@@ -22,6 +22,7 @@ from moreau.compiled.lowering import CompiledScene, lower
 from moreau.compiled.usercalls import decode
 from moreau.contact.friction import FRICTION_RESIDUALS, painleve_message
 from moreau.core.errors import SimulationError, SolverError, attach_trajectory
+from moreau.core.jitcache import call_recovering
 from moreau.model.stability import ENERGY_CHECK_EVERY, energy_growth_message, not_converged_message
 from moreau.results.assemble import assemble
 from moreau.results.impacts import ImpactLog, SolverStats
@@ -329,8 +330,8 @@ def _slips(cs: CompiledScene, Q: np.ndarray, V: np.ndarray) -> np.ndarray:
     n, m, mf, me = (int(x) for x in cs.ints[[0, 1, 9, 10]])
     Q, V = np.ascontiguousarray(Q), np.ascontiguousarray(V)
     out = np.zeros((Q.shape[0], m))
-    st = slip_velocities(cs.ints, cs.bkind, cs.boff, cs.brow, cs.bnrows, cs.pool, cs.user.addresses, cs.tangent_row,
-                         Q, V, np.zeros(n), np.zeros(n), np.zeros((m + mf + me, n)), out)
+    st = call_recovering(slip_velocities, cs.ints, cs.bkind, cs.boff, cs.brow, cs.bnrows, cs.pool, cs.user.addresses,
+                         cs.tangent_row, Q, V, np.zeros(n), np.zeros(n), np.zeros((m + mf + me, n)), out)
     if st != 0:
         slot, index, what = decode(int(st))
         log.warning("could not evaluate the slip velocities on the recorded states: %s callable %d %s",

@@ -94,6 +94,37 @@ def _cached_files() -> list[str]:
     return found
 
 
+def damaged_files(exc: BaseException) -> list[str]:
+    """The cache files of the function whose cached machine code numba was loading when
+    ``exc`` was raised (its index and data files, found in the traceback), or []."""
+    tb = exc.__traceback__
+    while tb is not None:
+        owner = tb.tb_frame.f_locals.get("self")
+        index = getattr(owner, "_index_path", None)
+        if isinstance(index, str) and index.endswith(".nbi"):
+            return [index] + sorted(glob.glob(glob.escape(index[:-4]) + ".*.nbc"))
+        tb = tb.tb_next
+    return []
+
+
+def call_recovering(fun, *args):
+    """``fun(*args)``; when it fails while numba loads a cache file (damaged, truncated,
+    from another build), that function's cache files are removed with a warning and the
+    call is made again (numba then compiles the function afresh)."""
+    try:
+        return fun(*args)
+    except Exception as exc:
+        files = damaged_files(exc)
+        if not files:
+            raise
+        for p in files:
+            with contextlib.suppress(OSError):
+                os.remove(p)
+        log.warning("moreau: a numba cache file could not be read (%s: %s); removed %s and compiling that "
+                    "function again", type(exc).__name__, str(exc)[:200], ", ".join(map(os.path.basename, files)))
+    return fun(*args)
+
+
 def clear() -> int:
     """Delete moreau's cached machine code; returns the number of files removed."""
     removed = 0
