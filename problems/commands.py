@@ -99,8 +99,16 @@ def run_ball(args: argparse.Namespace) -> int:
     ax.legend()
     fig.tight_layout()
     fig_path = os.path.join(args.out, "ball.png")
-    fig.savefig(fig_path, dpi=120)
-    plt.close(fig)
+    tmp = f"{fig_path}.{os.getpid()}.tmp.png"  # a unique name, renamed into place
+    try:
+        fig.savefig(tmp, dpi=120)
+        os.replace(tmp, fig_path)
+    except OSError as exc:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        raise OSError(exc.errno, exc.strerror or str(exc), fig_path) from exc
+    finally:
+        plt.close(fig)
     row = {
         "e": args.e, "h": args.h, "impacts": len(traj.impacts),
         "zeno_time_analytic": sol.zeno_time,

@@ -53,3 +53,48 @@ def test_missing_and_inconsistent_fields_are_named(saved, tmp_path):
     np.savez(tmp_path / "energy.npz", **energy)
     with pytest.raises(ValueError, match="inconsistent: kinetic_energy has 3 records"):
         mo.load(tmp_path / "energy.npz")
+
+
+@pytest.fixture(scope="module")
+def saved_friction(tmp_path_factory):
+    from moreau.problems.woodpecker import GLOCKER_STATE, woodpecker
+
+    path = tmp_path_factory.mktemp("load") / "woodpecker.npz"
+    q0, v0 = GLOCKER_STATE
+    mo.simulate(woodpecker(), (0.0, 0.02), q0, v0, 1e-4, progress=False).save(path)
+    with np.load(path) as z:
+        return {k: z[k] for k in z.files}
+
+
+@pytest.mark.parametrize("change, field", [
+    ({"t": "nan"}, "t must be a non-empty, finite"),
+    ({"meta": {"h": -1e-3}}, "h must be a positive number, got -0.001"),
+    ({"meta": {"status": "splendid"}}, "status 'splendid' is not one of"),
+    ({"meta": {"row_names": ["floor", "wall"]}}, "gaps has shape"),
+    ({"meta": {"record_every": 0}}, "record_every must be a positive integer"),
+])
+def test_a_file_no_run_could_write_is_refused_naming_the_field(saved, tmp_path, change, field):
+    data = dict(saved)
+    if change.get("t") == "nan":
+        data["t"] = saved["t"].copy()
+        data["t"][5] = np.nan
+    path = write(tmp_path / "bad.npz", data, **change.get("meta", {}))
+    with pytest.raises(ValueError, match=field):
+        mo.load(path)
+
+
+def test_inconsistent_friction_fields_are_refused_naming_them(saved, saved_friction, tmp_path):
+    assert mo.load(write(tmp_path / "good.npz", saved_friction)).tangential_impulses is not None
+    two = dict(saved_friction, tangential_impulses=np.repeat(saved_friction["tangential_impulses"], 2, axis=1))
+    with pytest.raises(ValueError, match="tangential_impulses has shape"):
+        mo.load(write(tmp_path / "two.npz", two))
+    missing = {k: v for k, v in saved_friction.items() if k != "sticking"}
+    with pytest.raises(ValueError, match=r"friction fields .* without \['sticking'\]"):
+        mo.load(write(tmp_path / "missing.npz", missing))
+    floats = dict(saved_friction, sticking=saved_friction["sticking"].astype(float))
+    with pytest.raises(ValueError, match="sticking must be boolean"):
+        mo.load(write(tmp_path / "floats.npz", floats))
+    meta = json.loads(str(saved["meta"]))
+    ledger = write(tmp_path / "ledger.npz", saved, work=dict(meta["work"], friction=-1.0))
+    with pytest.raises(ValueError, match=r"work\['friction'\] without the friction fields"):
+        mo.load(ledger)

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from moreau.model.units import complete_units, unit_suffix
+from moreau.results.file_checks import check_loaded
 from moreau.results.impacts import ImpactLog, SolverStats, _impact_arrays
 
 if TYPE_CHECKING:
@@ -243,9 +244,11 @@ class Trajectory:
             with open(tmp, "xb") as fh:
                 np.savez_compressed(fh, meta=np.array(json.dumps(meta, default=_json_default)), **arrays)
             os.replace(tmp, path)
-        except BaseException:
+        except BaseException as exc:
             with contextlib.suppress(OSError):
                 os.remove(tmp)
+            if isinstance(exc, OSError) and not exc.filename:  # "[Errno 28] ...": name the file
+                raise OSError(exc.errno, exc.strerror or str(exc), path) from exc
             raise
         return path
 
@@ -312,19 +315,7 @@ class Trajectory:
             raise ValueError(f"trajectory file {path!r} is incomplete: missing {exc}") from None
         except ValueError as exc:  # malformed units
             raise ValueError(f"trajectory file {path!r}: {exc}") from None
-        N = traj.t.shape[0]
-        for name in ("q", "v", "gaps", "impulses", "active", "energy", "kinetic_energy", "potential_energy",
-                     "tangential_impulses", "slip_velocity", "sticking", "constraint_impulses",
-                     "constraint_residuals"):
-            a = getattr(traj, name)
-            if a is not None and a.shape[0] != N:
-                raise ValueError(f"trajectory file {path!r} is inconsistent: {name} has "
-                                 f"{a.shape[0]} records, t has {N}")
-        for name in _impact_arrays():
-            a = getattr(onsets, name)
-            if a.shape[0] != n_on:
-                raise ValueError(f"trajectory file {path!r} is inconsistent: impacts_{name} has "
-                                 f"{a.shape[0]} entries, impacts_t has {n_on}")
+        check_loaded(path, traj, n_on)
         return traj
 
 
