@@ -163,3 +163,45 @@ def test_the_free_velocity_of_a_frictional_contact_step_leaves_out_the_friction_
                                                                scene.force(0.5 * h, q_m, np.zeros(3)))
     details = integ.last_contact_details(np.array([0]))
     np.testing.assert_allclose(details.U_free, G @ v_free, rtol=0, atol=1e-14)
+
+
+def block_on_floor(tangent):
+    floor = mo.FunctionBarrier(lambda q: np.array([q[1]]), lambda q: np.array([[0.0, 1.0]]),
+                               tangent_jacobian=tangent)
+    return mo.Scene(mo.FunctionSystem(np.eye(2)), [mo.ConstantForce([5.0, -G0], name="push and gravity")],
+                    [mo.Contact(floor, mo.NewtonImpactFriction(0.0, 0.3), name="floor")])
+
+
+def test_a_zero_tangent_row_on_the_osqp_route_prints_nothing(capfd):
+    scene = block_on_floor(lambda q: np.array([[0.0, 0.0]]))  # a frictionless floor written as a zero row
+    traj = mo.simulate(scene, (0.0, 0.2), [0.0, 0.0], [0.0, 0.0], 1e-3, backend="python", solver="osqp",
+                       progress=False)
+    assert traj.completed and "Polishing" not in capfd.readouterr().out
+    assert traj.v[-1, 0] == pytest.approx(1.0, rel=1e-9)  # no friction force: x'' = 5
+
+
+@pytest.mark.parametrize("backend", ["compiled", "python"])
+def test_a_non_finite_tangent_jacobian_is_named_with_the_step(backend):
+    def tangent(q):
+        return np.array([[np.nan if q[0] > 0.05 else 1.0, 0.0]])
+
+    kw = {"solver": "osqp"} if backend == "python" else {}
+    with pytest.raises(mo.SimulationError, match=r"floor.*(tangent|non-finite|not finite).* at step \d+") as info:
+        mo.simulate(block_on_floor(tangent), (0.0, 1.0), [0.0, 0.0], [0.0, 0.0], 1e-3, backend=backend,
+                    progress=False, **kw)
+    assert "OSQPException" not in str(info.value)
+    assert info.value.trajectory.q[-1, 0] <= 0.06
+
+
+@pytest.mark.parametrize("backend", ["compiled", "python"])
+def test_a_row_that_penetrates_without_any_impulse_warns_naming_it(backend):
+    """A Jacobian that vanishes near the floor (g = q, G = 0 below 0.01): the ball falls
+    through, and the run says so although the row never logged an impact."""
+    floor = mo.FunctionBarrier(lambda q: np.array([q[0]]),
+                               lambda q: np.array([[1.0 if q[0] >= 0.01 else 0.0]]))
+    scene = mo.Scene(mo.FunctionSystem(np.eye(1)), [mo.ConstantForce([-G0])],
+                     [mo.Contact(floor, 0.5, name="floor")])
+    with pytest.warns(RuntimeWarning, match="row 'floor' penetrated .* without any contact impulse"):
+        traj = mo.simulate(scene, (0.0, 2.0), [1.0], [0.0], 1e-3, backend=backend, progress=False)
+    assert len(traj.impacts) == 0 and traj.max_penetration[0] > 10.0
+    assert any("never enforced" in w for w in traj.warnings)

@@ -176,9 +176,11 @@ class _BoxQP:
         import scipy.sparse as sp
 
         try:  # the unconstrained minimum when it is inside the box (OSQP's polishing
-            # would only print that it found no active bound)
-            p = np.linalg.solve(W, -w)
-            if np.all(p >= lower) and np.all(p <= upper):
+            # would only print that it found no active bound); the least-norm one when W is
+            # singular (a zero tangent row)
+            p = np.linalg.lstsq(W, -w, rcond=None)[0]
+            scale = float(np.abs(w).sum() + np.abs(W).sum() * np.abs(p).max(initial=0.0))
+            if np.all(p >= lower) and np.all(p <= upper) and np.abs(W @ p + w).max(initial=0.0) <= 1e-12 * scale:
                 return p
         except np.linalg.LinAlgError:
             pass

@@ -6,8 +6,10 @@
 * After the run, the largest penetration of every row over every step is compared with a
   limit: the scheme's own scale ``h·|U⁻|`` (the distance a contact approaching at the normal
   speed U⁻ of its impacts travels in one step) unless the caller gives one (the piston
-  passes its clearance). A run beyond it warns once and records the warning in
-  ``traj.warnings``, which ``save``/``load`` keep.
+  passes its clearance). A row that penetrated without ever carrying an impulse was never
+  enforced (a Jacobian that vanishes near the barrier, say): it warns beyond its
+  activation tolerance, impact or not. A run beyond it warns once and records the warning
+  in ``traj.warnings``, which ``save``/``load`` keep.
 """
 
 from __future__ import annotations
@@ -55,9 +57,19 @@ def penetration_warnings(scene, traj, h: float, limit: float | None) -> list[str
     if pen is None or not np.size(pen):
         return []
     out = []
+    carried = np.asarray(traj.impulses).sum(axis=0) > 0.0 if len(traj) else np.zeros(len(pen), dtype=bool)
+    # round-off: the row's activation tolerance, or its gap's round-off over the run
+    gap_size = np.nanmax(np.abs(traj.gaps), axis=0, initial=0.0) if len(traj) else np.zeros(len(pen))
+    tol = np.maximum(np.asarray(getattr(scene, "activation_tol", np.zeros(len(pen))), dtype=float),
+                     8.0 * np.finfo(float).eps * gap_size)
     for r in np.flatnonzero(pen > 0.0):
         if limit is not None:
             lim, why = float(limit), "the given limit"
+        elif not carried[r]:  # never an impulse: the row was never enforced (a vanishing Jacobian?)
+            if pen[r] > tol[r]:
+                out.append(f"row {traj.row_names[r]!r} penetrated {pen[r]:.3g} (gap units) without any contact "
+                           "impulse: the contact was never enforced (does its Jacobian vanish there?)")
+            continue
         else:
             U = np.abs(traj.impacts.U_before[traj.impacts.row == r])
             if U.size == 0:

@@ -240,8 +240,15 @@ class OneStepIntegrator(NonsmoothSolve, ABC):
         return self._evaluate(self.scene.gaps, (q,), self._shape_g, "gaps", self.t, q, v)
 
     def tangent_at(self, q, v=None) -> np.ndarray:
-        """The scene's tangent rows T(q) (friction), their shape checked (``BadModelOutput``)."""
-        return self._evaluate(self.scene.tangent_jacobian, (q,), self._shape_G, "tangent", self.t, q, v)
+        """The scene's tangent rows T(q) (friction), their shape and finiteness checked
+        (``BadModelOutput`` naming the contact)."""
+        T = self._evaluate(self.scene.tangent_jacobian, (q,), self._shape_G, "tangent", self.t, q, v)
+        if not np.isfinite(T).all():
+            bad = [c.name for c in self.scene.contacts if np.any(c.friction > 0.0)
+                   and not np.isfinite(np.asarray(c.barrier.tangent_jacobian(q), dtype=float)).all()]
+            raise BadModelOutput(f"the tangent rows (tangent_jacobian) of contact {', '.join(map(repr, bad))} are "
+                                 f"not finite{self._where()}, at q = {np.asarray(q).tolist()}", self.k, self.t)
+        return T
 
     def jacobian_at(self, q, v=None) -> np.ndarray:
         """The scene's Jacobian G(q), its shape checked (``BadModelOutput``)."""
