@@ -6,6 +6,7 @@ from __future__ import annotations
 from numba import njit
 
 from moreau.compiled import evaluate as ev
+from moreau.compiled.layout import SC_M, SC_N
 from moreau.core import kernels as _k
 
 
@@ -14,7 +15,7 @@ def slip_velocities(ints, bkind, boff, brow, bnrows, pool, user, tangent_row, Q,
     """The slip velocities ``T(q_i) v_i`` of records ``Q, V`` (N, n) into ``out`` (N, m):
     row r's from the Jacobian row ``tangent_row[r]`` of ``G`` (m + mf + me, n, work), 0 for a
     row without friction; ``c, s`` (n,) work. Returns 0, or a user callable's status."""
-    n, m = ints[0], ints[1]
+    n, m = ints[SC_N], ints[SC_M]
     for i in range(Q.shape[0]):
         q = Q[i]
         _k.trig(q, c, s)

@@ -1,7 +1,7 @@
 """Bilateral rows in the compiled step: the velocity update in the null space of the
 equality rows, their impulses and work, and the projection that holds positions on
 g_E(q) = 0 — the twin of :mod:`moreau.step.bilateral`, with the kernels of
-:mod:`moreau.contact.equality`. Called only by scenes with constraints (``ints[10] > 0``).
+:mod:`moreau.contact.equality`. Called only by scenes with constraints (``ints[SC_ME] > 0``).
 
 These parts are calls, compiled once each, not inlined into the loop: inlined (numba's IR
 inlining, as the loop's other parts), they doubled the loop's own cold compile (59 s
@@ -23,6 +23,11 @@ from moreau.compiled.layout import (
     CONSTRAINTS_INCONSISTENT,
     CONSTRAINTS_NOT_HELD,
     DONE,
+    SC_M,
+    SC_ME,
+    SC_MF,
+    SC_N,
+    SC_TRIG,
     USER_FAILED,
 )
 from moreau.compiled.layout import call as _part  # calls from the loop, not inlined
@@ -141,9 +146,9 @@ def _eq_hold(ints, bkind, boff, brow, bnrows, pool, tol, user, q, cq, sq, g, G, 
     of O(h) times the correction, the next ones with the Jacobian at q); returns DONE,
     USER_FAILED or CONSTRAINTS_NOT_HELD (the row in ``cnt[C_EQROW]``). ``tol``: the
     lowered scene's activation_tol, whose rows m ... are the bilateral rows' tolerances."""
-    n, m = ints[0], ints[1]
-    m0 = m + ints[9]
-    me = ints[10]
+    n, m = ints[SC_N], ints[SC_M]
+    m0 = m + ints[SC_MF]
+    me = ints[SC_ME]
     rank = keep[0]  # the first correction with the step's basis (at q_m), then Newton's
     worst = 0.0
     bad = 0
@@ -176,7 +181,7 @@ def _eq_hold(ints, bkind, boff, brow, bnrows, pool, tol, user, q, cq, sq, g, G, 
         eq_velocity(L, Q, yv, F)
         for i in range(n):
             q[i] += F[i]
-        if ints[8]:
+        if ints[SC_TRIG]:
             _k.trig(q, cq, sq)
     if not worst <= 100.0:
         cnt[C_EQROW] = bad
@@ -196,9 +201,9 @@ def _eq_project_velocity(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq,
     ``EqualityRows.project_velocity`` (the same rows in the same order,
     :func:`moreau.contact.equality.eq_project`); returns the kinetic
     energy that removes (<= 0), or NaN when a user callable failed (the status in ``cnt``)."""
-    n, m = ints[0], ints[1]
-    m0 = m + ints[9]
-    me = ints[10]
+    n, m = ints[SC_N], ints[SC_M]
+    m0 = m + ints[SC_MF]
+    me = ints[SC_ME]
     st = ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, G)
     if st != 0:
         cnt[C_FAILKIND] = USER_FAILED
@@ -211,7 +216,7 @@ def _eq_project_velocity(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq,
             t -= G[m0 + j, i] * v[i]
         cE[j] = t
     k = me
-    if contact and ints[9] > 0:
+    if contact and ints[SC_MF] > 0:
         for r in range(m):
             if P[r] > 0.0 and mu[r] > 0.0 and abs(PT[r]) < mu[r] * P[r]:  # sticking: slip held at 0
                 for i in range(n):

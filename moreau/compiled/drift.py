@@ -17,6 +17,11 @@ from moreau.compiled.layout import (  # the loop's layout
     R_PINNED,
     S_DRIFT,
     S_DRIFT_ITER,
+    SC_M,
+    SC_ME,
+    SC_MF,
+    SC_N,
+    SC_TRIG,
 )
 from moreau.compiled.layout import call as _call
 from moreau.compiled.layout import part as _part
@@ -35,7 +40,7 @@ def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fai
     stay pinned while they carry an impulse without bouncing and their gap does not grow
     beyond where the projection left them.
 
-    With bilateral rows (``ints[10] > 0``) the QP is solved in their null space at q
+    With bilateral rows (``ints[SC_ME] > 0``) the QP is solved in their null space at q
     (``G_E dq = 0``, :mod:`moreau.contact.equality`; ``eqw`` their work arrays), as
     ``EqualityRows.project_contacts`` does: the contacts are projected along the
     constraints, and the hold after it restores them to second order."""
@@ -66,7 +71,7 @@ def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc
     from the loop, not inlined into it (it runs in few steps; compiled once, apart, it
     keeps its contact solve and model evaluations out of the loop's own compile)."""
     ints, _, _, bkind, boff, brow, bnrows, pool, _, _ = model
-    n, m = ints[0], ints[1]
+    n, m = ints[SC_N], ints[SC_M]
     sel = lw[8]
     G = lw[5]
     dq = lw[6]
@@ -95,9 +100,9 @@ def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc
                 j += 1
         PA = lw[4]
         Ms, Ls = M, L
-        me = ints[10]
+        me = ints[SC_ME]
         if me > 0:  # along the bilateral rows: the QP in their null space at q (M = I there)
-            _eq_contact_rows(L, G, m + ints[9], me, Qe, Re, pive, xe, ye, keep, GA, na, cA)
+            _eq_contact_rows(L, G, m + ints[SC_MF], me, Qe, Re, pive, xe, ye, keep, GA, na, cA)
             Ms, Ls = eye, eye
         if not _contact_solve(Ms, Ls, zero, GA, cA, na, dq, PA, iset, fset, cnt, acc, fail, ws):
             cnt[C_FAILKIND] = PROJECTION_FAILED  # its rows: ``sel`` (lw[8])
@@ -106,7 +111,7 @@ def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc
             _eq_back(L, Qe, yv, dq)
         for i in range(n):
             q[i] += dq[i]
-        if ints[8]:
+        if ints[SC_TRIG]:
             _k.trig(q, cq, sq)
         if _user_failed(ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, gq), cnt):
             return False

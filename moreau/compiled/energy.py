@@ -15,6 +15,7 @@ from moreau.compiled.layout import (  # the loop's layout
     ENERGY_GROWTH,
     F_ESTOP,
     F_EWARN,
+    SC_N,
     USER_FAILED,
 )
 from moreau.compiled.layout import call as _call
@@ -28,7 +29,7 @@ def _kinetic_energy(model, user, q, v, cq, sq, M, cnt):
     """``(status, T)``: T = ½ vᵀ M(q) v with M(q) evaluated into ``M``; status DONE, or
     USER_FAILED when a user mass matrix failed."""
     ints = model[0]
-    n = ints[0]
+    n = ints[SC_N]
     if _user_failed(ev.mass(ints, model[7], user, q, cq, sq, M), cnt):
         return USER_FAILED, 0.0
     ke = 0.0

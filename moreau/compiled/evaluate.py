@@ -12,6 +12,16 @@ from __future__ import annotations
 
 from numba import njit
 
+from moreau.compiled.layout import (
+    SC_FIRST_EQ,
+    SC_HAS_BIAS,
+    SC_M,
+    SC_MASS_KIND,
+    SC_MASS_OFF,
+    SC_N,
+    SC_N_CONTACTS,
+    SC_N_EFFECTS,
+)
 from moreau.compiled.usercalls import U_BIAS, U_FORCES, U_GAPS, U_JACOBIANS, U_MASS, call_user
 from moreau.core import kernels as _k
 
@@ -34,7 +44,7 @@ _apart = njit(cache=True, nogil=True, _nrt=False,  # type: ignore[call-overload]
 @_internal
 def mass(ints, pool, user, q, c, s, M):
     """M(q) into ``M`` (n x n); ``c, s`` = cos q, sin q."""
-    n, kind, off = ints[0], ints[2], ints[4]
+    n, kind, off = ints[SC_N], ints[SC_MASS_KIND], ints[SC_MASS_OFF]
     if kind == _k.MASS_CHAIN:
         _k.chain_mass(pool, off, c, s, M)
     elif kind == _k.MASS_CONST:
@@ -42,7 +52,7 @@ def mass(ints, pool, user, q, c, s, M):
             for j in range(n):
                 M[i, j] = pool[off + i * n + j]
     else:
-        st = call_user(user[U_MASS], 0.0, q, q, M, n, ints[1])
+        st = call_user(user[U_MASS], 0.0, q, q, M, n, ints[SC_M])
         return 0 if st == 0 else st * 8 + U_MASS
     return 0
 
@@ -53,23 +63,23 @@ def factor(ints, pool, M, c, s, L, gen):
     cos/sin are ``c, s``) into ``L``: the chain's from its O(n) generators, kept in ``gen``
     (4, n) (:func:`moreau.core.kernels.chain_factor`, O(n²) against O(n³)), others from M.
     Returns the index of the first non-positive pivot, or −1."""
-    if ints[2] == _k.MASS_CHAIN:
-        return _k.chain_factor(pool, ints[4], c, s, gen, L)
-    return _k.cholesky(M, L, ints[0])
+    if ints[SC_MASS_KIND] == _k.MASS_CHAIN:
+        return _k.chain_factor(pool, ints[SC_MASS_OFF], c, s, gen, L)
+    return _k.cholesky(M, L, ints[SC_N])
 
 
 @_apart
 def chain_dense(ints, pool, c, s, gen, M, L):
     """The chain's M (n x n) and its dense factor L from the generators ``gen``."""
-    _k.chain_mass(pool, ints[4], c, s, M)
-    _k.chain_fill(pool, ints[4], c, s, gen, L)
+    _k.chain_mass(pool, ints[SC_MASS_OFF], c, s, M)
+    _k.chain_fill(pool, ints[SC_MASS_OFF], c, s, gen, L)
 
 
 @_apart
 def chain_momentum(ints, pool, h, c, s, v, f, b):
     """b = M v + h f (n,) for the chain, M v in O(n)."""
-    _k.chain_product(pool, ints[4], c, s, v, b)
-    for i in range(ints[0]):
+    _k.chain_product(pool, ints[SC_MASS_OFF], c, s, v, b)
+    for i in range(ints[SC_N]):
         b[i] += h * f[i]
 
 
@@ -77,9 +87,9 @@ def chain_momentum(ints, pool, h, c, s, v, f, b):
 def chain_kinetic(ints, pool, c, s, v, Mv):
     """½ vᵀ M v for the chain, M v in O(n) into ``Mv`` (n,) (a call: inlined into the
     record, it made the steps of the piston and the 3-link chain 15-20 % slower)."""
-    _k.chain_product(pool, ints[4], c, s, v, Mv)
+    _k.chain_product(pool, ints[SC_MASS_OFF], c, s, v, Mv)
     ke = 0.0
-    for i in range(ints[0]):
+    for i in range(ints[SC_N]):
         ke += v[i] * Mv[i]
     return 0.5 * ke
 
@@ -128,11 +138,11 @@ def _bias(ints, pool, user, t, q, c, s, v, fb):
     """The bias terms f_bias(q, v) into ``fb`` (n,); 0 or the user callable's status."""
     for i in range(fb.shape[0]):
         fb[i] = 0.0
-    if ints[3]:
-        if ints[2] == _k.MASS_CHAIN:  # inlined (as a call the piston's step was 5-10 % slower)
-            _k.add_chain_bias(pool, ints[4], c, s, v, fb)
+    if ints[SC_HAS_BIAS]:
+        if ints[SC_MASS_KIND] == _k.MASS_CHAIN:  # inlined (as a call the piston's step was 5-10 % slower)
+            _k.add_chain_bias(pool, ints[SC_MASS_OFF], c, s, v, fb)
         else:
-            st = call_user(user[U_BIAS], t, q, v, fb, ints[0], ints[1])
+            st = call_user(user[U_BIAS], t, q, v, fb, ints[SC_N], ints[SC_M])
             if st != 0:
                 return st * 8 + U_BIAS
     return 0
@@ -142,7 +152,7 @@ def _bias(ints, pool, user, t, q, c, s, v, fb):
 def _add_effects(ints, ekind, eoff, pool, t, q, c, s, v, f, position, velocity):
     """Add the scene's built-in effects to ``f`` (n,), in the scene's order: those that do
     not depend on v if ``position``, those that do (``LINEAR_V``) if ``velocity``."""
-    for e in range(ints[5]):
+    for e in range(ints[SC_N_EFFECTS]):
         kind, o = ekind[e], eoff[e]
         if kind == _k.LINEAR_V:
             if velocity:
@@ -165,7 +175,7 @@ def _add_effects(ints, ekind, eoff, pool, t, q, c, s, v, f, position, velocity):
 def _user_forces(ints, user, t, q, v, f):
     """Add the user's forces to ``f`` (n,); 0 or the callable's status."""
     if user[U_FORCES] != 0:
-        st = call_user(user[U_FORCES], t, q, v, f, ints[0], ints[1])
+        st = call_user(user[U_FORCES], t, q, v, f, ints[SC_N], ints[SC_M])
         return 0 if st == 0 else st * 8 + U_FORCES
     return 0
 
@@ -174,7 +184,7 @@ def _user_forces(ints, user, t, q, v, f):
 def gaps(ints, bkind, boff, brow, bnrows, pool, user, q, c, s, g):
     """g(q) into ``g`` (m, then the bilateral rows at m + mf ...); ``c, s`` = cos q, sin q."""
     for ic in range(bkind.shape[0]):
-        if ints[6] <= ic < ints[11]:  # tangent rows: no gaps
+        if ints[SC_N_CONTACTS] <= ic < ints[SC_FIRST_EQ]:  # tangent rows: no gaps
             continue
         kind = bkind[ic]
         if kind == _k.BAR_LINEAR:
@@ -184,7 +194,7 @@ def gaps(ints, bkind, boff, brow, bnrows, pool, user, q, c, s, g):
         elif kind == _k.BAR_CHAIN_POINT:
             _k.gaps_chain_point(pool, boff[ic], bnrows[ic], c, s, g, brow[ic])
     if user[U_GAPS] != 0:
-        st = call_user(user[U_GAPS], 0.0, q, q, g, ints[0], g.shape[0])
+        st = call_user(user[U_GAPS], 0.0, q, q, g, ints[SC_N], g.shape[0])
         return 0 if st == 0 else st * 8 + U_GAPS
     return 0
 
@@ -202,7 +212,7 @@ def jacobian(ints, bkind, boff, brow, bnrows, pool, user, q, c, s, G):
         elif kind == _k.BAR_CHAIN_POINT:
             _k.jacobian_chain_point(pool, boff[ic], bnrows[ic], c, s, G, brow[ic])
     if user[U_JACOBIANS] != 0:
-        st = call_user(user[U_JACOBIANS], 0.0, q, q, G, ints[0], G.shape[0])
+        st = call_user(user[U_JACOBIANS], 0.0, q, q, G, ints[SC_N], G.shape[0])
         return 0 if st == 0 else st * 8 + U_JACOBIANS
     return 0
 
@@ -210,10 +220,10 @@ def jacobian(ints, bkind, boff, brow, bnrows, pool, user, q, c, s, G):
 @_jit
 def potential(ints, ekind, eoff, pool, q, c, s):
     """Potential energy of the built-in conservative effects, up to a constant (J)."""
-    n = ints[0]
+    n = ints[SC_N]
     nn = n * n
     V = 0.0
-    for e in range(ints[5]):
+    for e in range(ints[SC_N_EFFECTS]):
         kind, o = ekind[e], eoff[e]
         if kind == _k.CONST:
             for i in range(n):

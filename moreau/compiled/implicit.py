@@ -9,7 +9,22 @@ bookkeeping is inlined.
 """
 
 from moreau.compiled import evaluate as ev
-from moreau.compiled.layout import A_WORST, DONE, F_ITOL, F_TOL, S_ITER, S_STEP, STEP_ENERGY, STEP_THETA, USER_FAILED
+from moreau.compiled.layout import (
+    A_WORST,
+    DONE,
+    F_ITOL,
+    F_TOL,
+    S_ITER,
+    S_STEP,
+    SC_MASS_KIND,
+    SC_MASS_OFF,
+    SC_N,
+    SC_TRIG,
+    SC_VELOCITY_DEPENDENT,
+    STEP_ENERGY,
+    STEP_THETA,
+    USER_FAILED,
+)
 from moreau.compiled.layout import call as _call
 from moreau.compiled.layout import part as _part
 from moreau.compiled.step import _user_failed
@@ -22,9 +37,10 @@ def velocity_passes(iset, ints):
     """``(passes, iterate, correct)``: the velocity update's passes in a step (the
     predictor-corrector's two, or the energy-consistent step's first pass and iterates),
     whether they iterate, and whether with the inertial correction (M depends on q)."""
-    const_mass = ints[2] == _k.MASS_CONST
-    iterate = iset[S_STEP] == STEP_ENERGY and (ints[7] == 1 or not const_mass)
-    passes = 2 if iset[S_STEP] == STEP_THETA and ints[7] == 1 else (iset[S_ITER] + 1 if iterate else 1)
+    const_mass = ints[SC_MASS_KIND] == _k.MASS_CONST
+    iterate = iset[S_STEP] == STEP_ENERGY and (ints[SC_VELOCITY_DEPENDENT] == 1 or not const_mass)
+    theta = iset[S_STEP] == STEP_THETA and ints[SC_VELOCITY_DEPENDENT] == 1
+    passes = 2 if theta else (iset[S_ITER] + 1 if iterate else 1)
     return passes, iterate, iterate and not const_mass
 
 
@@ -46,13 +62,13 @@ def _energy_start(model, user, q, v, cm, sm, M, Ms, c2, s2, mv, cnt):
     from two O(n) products M v in one sweep (:func:`moreau.core.kernels.chain_product_pair`), not from M,
     M_m v_k kept in ``mv`` (n,)."""
     ints, pool = model[0], model[7]
-    n = ints[0]
-    if ints[8]:
+    n = ints[SC_N]
+    if ints[SC_TRIG]:
         _k.trig(q, c2, s2)
     t = 0.0
-    if ints[2] == _k.MASS_CHAIN:
+    if ints[SC_MASS_KIND] == _k.MASS_CHAIN:
         Mv = Ms[0]
-        _k.chain_product_pair(pool, ints[4], cm, sm, c2, s2, v, mv, Mv)
+        _k.chain_product_pair(pool, ints[SC_MASS_OFF], cm, sm, c2, s2, v, mv, Mv)
         for i in range(n):
             t += v[i] * mv[i]
         for i in range(n):
@@ -78,18 +94,18 @@ def energy_correction(model, user, h, q, v, v_new, s0, cm, sm, M, Ms, c2, s2, qp
     M(q_k + Δq), and M_m Δq = h/2 (M_m v_k + M_m v⁺) with M_m v_k from the step's start
     (``mv``). Returns DONE or USER_FAILED."""
     ints, pool = model[0], model[7]
-    n = ints[0]
+    n = ints[SC_N]
     for i in range(n):
         dq[i] = 0.5 * h * (v[i] + v_new[i])
         qp[i] = q[i] + dq[i]
-    if ints[8]:
+    if ints[SC_TRIG]:
         _k.trig(qp, c2, s2)
     s = s0
     den = 0.0
     along = 0.0
-    if ints[2] == _k.MASS_CHAIN:
+    if ints[SC_MASS_KIND] == _k.MASS_CHAIN:
         Mv = Ms[0]
-        _k.chain_product_pair(pool, ints[4], c2, s2, cm, sm, v_new, Mv, qp)  # M(q⁺) v⁺, M_m v⁺
+        _k.chain_product_pair(pool, ints[SC_MASS_OFF], c2, s2, cm, sm, v_new, Mv, qp)  # M(q⁺) v⁺, M_m v⁺
         for i in range(n):
             s += 0.5 * v_new[i] * (Mv[i] - qp[i])
             qp[i] = 0.5 * h * (mv[i] + qp[i])  # M_m Δq
@@ -163,7 +179,7 @@ def pass_forces(model, user, npass, correct, t, h, q, v, qm, cm, sm, v_new, s0, 
     depend on v is the first pass's (``ec[9]``). Returns DONE or USER_FAILED."""
     ints, ekind, eoff = model[0], model[1], model[2]
     Ms, c2, s2, qp, dq, x = ec[0], ec[1], ec[2], ec[3], ec[4], ec[5]
-    iterate_from(ints[0], npass, v, v_new, x, vbar)
+    iterate_from(ints[SC_N], npass, v, v_new, x, vbar)
     # the forces that do not depend on v are the first pass's (``ec[9]``, same t and q_m)
     if _user_failed(ev.velocity_forces(ints, ekind, eoff, model[7], user, t + 0.5 * h, qm, cm, sm, vbar, ec[9], f, fb),
                     cnt):

@@ -3,6 +3,12 @@ accumulators, per-row state and impact log) and the numba options of its parts."
 
 from numba import njit
 
+# the lowered scene's ints (moreau.compiled.lowering.CompiledScene.ints): coordinates n, rows
+# m, the mass matrix's kernel kind, has bias terms, its pool offset, effects, contacts,
+# velocity-dependent forces, some kernel uses cos q / sin q, tangent rows mf (friction),
+# bilateral rows me, the first bilateral barrier record
+(SC_N, SC_M, SC_MASS_KIND, SC_HAS_BIAS, SC_MASS_OFF, SC_N_EFFECTS, SC_N_CONTACTS, SC_VELOCITY_DEPENDENT, SC_TRIG,
+ SC_MF, SC_ME, SC_FIRST_EQ) = range(12)
 # status codes
 DONE, IMPACTS_FULL, SOLVER_FAILED, NONFINITE, NOT_SPD, NONFINITE_GAP, USER_FAILED, ENERGY_GROWTH = range(8)
 # (bilateral rows: inconsistent at a step, or not held by the position projection)

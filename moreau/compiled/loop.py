@@ -54,6 +54,14 @@ from moreau.compiled.layout import (  # the loop's layout
     S_LOCATE,
     S_NSTEPS,
     S_STRIDE,
+    SC_HAS_BIAS,
+    SC_M,
+    SC_MASS_KIND,
+    SC_MASS_OFF,
+    SC_ME,
+    SC_MF,
+    SC_N,
+    SC_TRIG,
     USER_FAILED,
 )
 from moreau.compiled.layout import part as _part
@@ -89,13 +97,13 @@ def _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, gen, 
     a step with later passes, its part that does not depend on v also into ``fq``) and
     the gaps g(q_m); returns DONE or why not."""
     ints, ekind, eoff, bkind, boff, brow, bnrows, pool, _, _ = model
-    n, m = ints[0], ints[1]
+    n, m = ints[SC_N], ints[SC_M]
     for i in range(n):
         qm[i] = q[i] + 0.5 * h * v[i]
-    if ints[8]:
+    if ints[SC_TRIG]:
         _k.trig(qm, cm, sm)
-    if ints[2] == _k.MASS_CHAIN:
-        if _k.chain_generators(pool, ints[4], cm, sm, gen) >= 0:
+    if ints[SC_MASS_KIND] == _k.MASS_CHAIN:
+        if _k.chain_generators(pool, ints[SC_MASS_OFF], cm, sm, gen) >= 0:
             return NOT_SPD
     elif not const_mass:
         if _user_failed(ev.mass(ints, pool, user, qm, cm, sm, M), cnt):
@@ -151,7 +159,7 @@ def _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc
     """The gaps at q⁺, drift control, the deepest penetration and each row's largest gap
     since its last contact; returns DONE or why not."""
     ints, _, _, bkind, boff, brow, bnrows, pool, _, _ = model
-    m = ints[1]
+    m = ints[SC_M]
     if _user_failed(ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, q_new, cq, sq, gq), cnt):
         return USER_FAILED
     if iset[S_DRIFT] != DRIFT_NONE:
@@ -159,7 +167,7 @@ def _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc
         if not _project(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc,
                         fail, eligible, ws, lw, rs, in_contact, eqw):
             return cnt[C_FAILKIND]
-        if ints[10] > 0 and cnt[C_PROJ] > nproj:  # projected along the bilateral rows: restore them
+        if ints[SC_ME] > 0 and cnt[C_PROJ] > nproj:  # projected along the bilateral rows: restore them
             status = _eq_hold(ints, bkind, boff, brow, bnrows, pool, model[9], user, q_new, cq, sq, gq, lw[5], L,
                               eqw[0], eqw[1], eqw[2], eqw[3], eqw[4], eqw[7], eqw[9], eqw[11], eqw[12], cnt, acc)
             if status != DONE:
@@ -181,7 +189,7 @@ def _record(model, user, iset, fset, k, q, v, cq, sq, M, P_acc, act_acc, gq, T, 
     """Record the state after step k (and the impulses and activity summed since the last
     record, the gaps and, when asked, the energies); returns DONE or USER_FAILED."""
     ints, ekind, eoff, _, _, _, _, pool, _, _ = model
-    n, m = ints[0], ints[1]
+    n, m = ints[SC_N], ints[SC_M]
     rec = cnt[C_REC]
     T[rec] = fset[F_T0] + k * fset[F_H]
     for i in range(n):
@@ -193,12 +201,12 @@ def _record(model, user, iset, fset, k, q, v, cq, sq, M, P_acc, act_acc, gq, T, 
         GP[rec, r] = gq[r]
         P_acc[r] = 0.0
         act_acc[r] = False
-    if ints[9] > 0:
+    if ints[SC_MF] > 0:
         for r in range(m):
             PTS[rec, r] = PT_acc[r]
             PT_acc[r] = 0.0
-    m0 = m + ints[9]
-    for j in range(ints[10]):  # bilateral rows: impulses and residuals after the contact rows
+    m0 = m + ints[SC_MF]
+    for j in range(ints[SC_ME]):  # bilateral rows: impulses and residuals after the contact rows
         PS[rec, m + j] = PE_acc[j]
         GP[rec, m + j] = gq[m0 + j]
         PE_acc[j] = 0.0
@@ -237,17 +245,17 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
     there, and a record every ``stride`` steps.
     """
     ints, ekind, eoff, _, _, _, _, pool, _, _ = model
-    n, m = ints[0], ints[1]
+    n, m = ints[SC_N], ints[SC_M]
     h, t0 = fset[F_H], fset[F_T0]
     stride, nsteps = iset[S_STRIDE], iset[S_NSTEPS]
-    const_mass = ints[2] == _k.MASS_CONST
+    const_mass = ints[SC_MASS_KIND] == _k.MASS_CONST
     passes, iterate, correct = velocity_passes(iset, ints)
     own, ws, lw, fr, eqw = work
-    friction = ints[9] > 0
-    me = ints[10]
+    friction = ints[SC_MF] > 0
+    me = ints[SC_ME]
     M, L, cm, sm, cq, sq, qm, f, v_new, vbar, q_new, gm, gq, P, active, G, vfree, fb = own[:18]
     ec = own[18:]  # the energy-consistent step's (implicit.pass_forces)
-    bias_work = iset[S_ECHECK] > 0 and ints[3] != 0
+    bias_work = iset[S_ECHECK] > 0 and ints[SC_HAS_BIAS] != 0
     if const_mass:
         if _user_failed(ev.mass(ints, pool, user, q, cq, sq, M), cnt):
             return USER_FAILED
@@ -288,7 +296,7 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
                 if npass == passes - 1:
                     return NOT_CONVERGED
         if me > 0:
-            acc[A_WORK_E] += _eq_records(n, m + ints[9], me, v, v_new, G, eqw[6], eqw[10])
+            acc[A_WORK_E] += _eq_records(n, m + ints[SC_MF], me, v, v_new, G, eqw[6], eqw[10])
         wf = 0.0  # smooth-force work of the step, h fᵀ (v + v⁺)/2
         for i in range(n):
             wf += f[i] * (v[i] + v_new[i])
@@ -304,7 +312,7 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
             return NONFINITE
         # the energy check: every S_ECHECK steps, and after a step with a logged impact
         echeck = iset[S_ECHECK] > 0 and ((k + 1) % iset[S_ECHECK] == 0 or cnt[C_NIMP] > nimp)
-        if ints[8] and (m > 0 or me > 0 or iset[S_ENERGY] == 1 or echeck):
+        if ints[SC_TRIG] and (m > 0 or me > 0 or iset[S_ENERGY] == 1 or echeck):
             _k.trig(q_new, cq, sq)
         if me > 0:  # positions held on the bilateral rows (before the contacts' drift control)
             status = _eq_hold(ints, model[3], model[4], model[5], model[6], pool, model[9], user, q_new, cq, sq, gq, G,

@@ -178,7 +178,8 @@ def lower(scene: Scene) -> CompiledScene:
     i64 = lambda x: np.array(x, dtype=np.int64)  # noqa: E731
     needs_trig = (mass_kind == _k.MASS_CHAIN or any(k in (_k.TRIG, _k.FOURIER_PT) for k in ekind)
                   or any(k in (_k.BAR_TRIG, _k.BAR_CHAIN_POINT) for k in bkind))
-    ints = i64([n, scene.nrows, mass_kind, int(has_bias), mass_off, len(ekind), len(scene.contacts),
+    ints = i64([  # in the order of layout.SC_*
+                n, scene.nrows, mass_kind, int(has_bias), mass_off, len(ekind), len(scene.contacts),
                 int(scene.velocity_dependent), int(needs_trig), mf, me, first_eq])
     return CompiledScene(
         ints=ints, ekind=i64(ekind), eoff=i64(eoff), bkind=i64(bkind), boff=i64(bars.boff),

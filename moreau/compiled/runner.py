@@ -114,7 +114,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     model = cs.arrays()
     user = cs.user.addresses
     run = lp.run_chunk
-    mf = int(cs.ints[9])
+    mf = int(cs.ints[lay.SC_MF])
     work = lp.loop_workspace(n, m, mf, cs.friction, cs.tangent_row, me)
     PTS = np.zeros((n_rec, m) if mf else (1, m))
 
@@ -281,7 +281,7 @@ def _error(code, scene, k, t, q, v, h, fail, cs, user_status, acc, tol=float("na
                 else np.zeros(0, dtype=int)
         rows = [scene.row_names[i] for i in closed]
         names = ["main", "fallback"]
-        if cs.ints[9]:  # friction: Lemke's method and the full law's six residuals, no fallback
+        if cs.ints[lay.SC_MF]:  # friction: Lemke's method and the full law's six residuals, no fallback
             mu = [float(cs.friction[i]) for i in closed]
             residuals = {"lemke": dict(zip(FRICTION_RESIDUALS, fail[0].tolist()))}
             why = ("Lemke's method and the enumeration of contact states found no solution"
@@ -327,7 +327,7 @@ def _slips(cs: CompiledScene, Q: np.ndarray, V: np.ndarray) -> np.ndarray:
     logged warning when a user callable fails there (the trajectory is kept)."""
     from moreau.compiled.at_records import slip_velocities
 
-    n, m, mf, me = (int(x) for x in cs.ints[[0, 1, 9, 10]])
+    n, m, mf, me = (int(x) for x in cs.ints[[lay.SC_N, lay.SC_M, lay.SC_MF, lay.SC_ME]])
     Q, V = np.ascontiguousarray(Q), np.ascontiguousarray(V)
     out = np.zeros((Q.shape[0], m))
     st = call_recovering(slip_velocities, cs.ints, cs.bkind, cs.boff, cs.brow, cs.bnrows, cs.pool, cs.user.addresses,

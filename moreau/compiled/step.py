@@ -33,6 +33,12 @@ from moreau.compiled.layout import (  # the loop's layout
     S_MEMORY,
     S_METHOD,
     S_STEP,
+    SC_M,
+    SC_MASS_KIND,
+    SC_MASS_OFF,
+    SC_ME,
+    SC_MF,
+    SC_N,
     SOLVER_FAILED,
     STEP_ENERGY,
     USER_FAILED,
@@ -121,19 +127,19 @@ def _chain_prepare(ints, pool, cm, sm, gen, GA, k, b, ws, fresh):
     so do chains under ``CHAIN_STRUCTURED_MIN`` (8) links: the dense solves cost as little there, and the dense floor,
     formed only when a check needs it, less (the 3-link chain's step on a floor was 5-7 %
     slower with these)."""
-    n = ints[0]
-    if ints[2] != _k.MASS_CHAIN or ints[9] > 0 or ints[10] > 0 or n < _k.CHAIN_STRUCTURED_MIN:
+    n = ints[SC_N]
+    if ints[SC_MASS_KIND] != _k.MASS_CHAIN or ints[SC_MF] > 0 or ints[SC_ME] > 0 or n < _k.CHAIN_STRUCTURED_MIN:
         if fresh:
             ws[19][n] = 0.0
         return False
-    _k.chain_solve(pool, ints[4], cm, sm, gen, b, ws[1])
+    _k.chain_solve(pool, ints[SC_MASS_OFF], cm, sm, gen, b, ws[1])
     if not fresh:
         return True
-    _k.chain_inverse_diagonal_sqrt(pool, ints[4], cm, sm, gen, ws[19])
+    _k.chain_inverse_diagonal_sqrt(pool, ints[SC_MASS_OFF], cm, sm, gen, ws[19])
     ws[19][n] = 1.0
     MinvGt, W, X = ws[0], ws[2], ws[17]
     for j in range(k):
-        _k.chain_solve(pool, ints[4], cm, sm, gen, GA[j], MinvGt[j])
+        _k.chain_solve(pool, ints[SC_MASS_OFF], cm, sm, gen, GA[j], MinvGt[j])
         for i in range(n):
             X[i, j] = MinvGt[j, i]
     _k.delassus_product(GA, X, W, k, n)
@@ -144,10 +150,10 @@ def _chain_prepare(ints, pool, cm, sm, gen, GA, k, b, ws, fresh):
 def _free_acceleration(ints, pool, Minv, L, gen, cm, sm, f, out):
     """M⁻¹ f into ``out`` (with the inverse of a constant M, as the reference path; a
     chain's from the generators ``gen`` of its factor, O(n), ``cm, sm``: cos/sin of q_m)."""
-    n = ints[0]
-    if ints[2] == _k.MASS_CHAIN:
-        _k.chain_solve(pool, ints[4], cm, sm, gen, f, out)
-    elif ints[2] == _k.MASS_CONST:
+    n = ints[SC_N]
+    if ints[SC_MASS_KIND] == _k.MASS_CHAIN:
+        _k.chain_solve(pool, ints[SC_MASS_OFF], cm, sm, gen, f, out)
+    elif ints[SC_MASS_KIND] == _k.MASS_CONST:
         for i in range(n):
             t = 0.0
             for j in range(n):
@@ -161,8 +167,8 @@ def _free_acceleration(ints, pool, Minv, L, gen, cm, sm, f, out):
 def _momentum(ints, pool, h, M, cm, sm, v, f, b):
     """b = M v + h f, the right-hand side of the step's velocity update; a chain's M v
     in O(n) (``cm, sm``: cos/sin of the configuration of M)."""
-    n = ints[0]
-    if ints[2] == _k.MASS_CHAIN:
+    n = ints[SC_N]
+    if ints[SC_MASS_KIND] == _k.MASS_CHAIN:
         ev.chain_momentum(ints, pool, h, cm, sm, v, f, b)
         return
     for i in range(n):
@@ -179,9 +185,9 @@ def _closed_model(model, user, qm, cm, sm, M, L, gen, G, cnt, locate, again):
     and G(q_m) (again in every pass with bilateral rows or friction, whose solves work on
     G's rows; with ``locate`` it is already there). False when a user callable failed."""
     ints, _, _, bkind, boff, brow, bnrows, pool, _, _ = model
-    if ints[2] == _k.MASS_CHAIN and not again:
+    if ints[SC_MASS_KIND] == _k.MASS_CHAIN and not again:
         ev.chain_dense(ints, pool, cm, sm, gen, M, L)
-    if locate or (again and ints[10] == 0 and ints[9] == 0):
+    if locate or (again and ints[SC_ME] == 0 and ints[SC_MF] == 0):
         return True
     return not _user_failed(ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, G), cnt)
 
@@ -207,7 +213,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     problem in their null space (with the contact rows), as ``EqualityRows.velocity``.
     ``check=False``: its answer unchecked, the problem left in ``lw`` (``implicit.checked``)."""
     ints, _, _, bkind, boff, brow, bnrows, pool, e, atol = model
-    n, m = ints[0], ints[1]
+    n, m = ints[SC_N], ints[SC_M]
     h = fset[F_H]
     combined = iset[S_DRIFT] == DRIFT_COMBINED
     locate = combined and iset[S_LOCATE] == 1
@@ -233,8 +239,8 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
         P[r] = 0.0
     na = _count(active, m)
     Q, R, piv, x, y, by, PE, F, eye, yv, _, cE, keep, _ = eqw
-    me = ints[10]
-    m0 = m + ints[9]
+    me = ints[SC_ME]
+    m0 = m + ints[SC_MF]
     if na == 0 and me == 0:
         if not locate:
             _free_acceleration(ints, pool, Minv, L, lw[9], cm, sm, f, rhs)
@@ -290,10 +296,10 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
             return -1
         _eq_reduce(L, Q, y, x, rank, GA, 0, na, cA)
         Ms, Ls, bs = eye, eye, by
-    if ints[9] > 0:  # friction: the tangent rows join (Lemke's method)
+    if ints[SC_MF] > 0:  # friction: the tangent rows join (Lemke's method)
         solved = _friction_solve(n, m, Ms, Ls, bs, GA_all, GA, cA, active, na, v_new, PA, fset, acc, fail, fr, cnt,
                                  L, eqw, rank)
-    fresh = not again or locate or me > 0 or ints[9] > 0  # else the last Delassus matrix stands (same rows)
+    fresh = not again or locate or me > 0 or ints[SC_MF] > 0  # else the last Delassus matrix stands (same rows)
     chain = _chain_prepare(ints, pool, cm, sm, lw[9], GA, na, b, ws, fresh)
     if solved < 0 or (solved == 0 and not _contact_solve(Ms, Ls, bs, GA, cA, na, v_new, PA, iset, fset, cnt, acc,
                                                           fail, ws, fresh, check, chain)):

@@ -18,7 +18,7 @@ import numpy as np
 from numba import njit
 
 from moreau.compiled import evaluate as ev
-from moreau.compiled.layout import call
+from moreau.compiled.layout import SC_N, SC_TRIG, call
 from moreau.core import kernels as _k
 
 # the run's entry point (called from Python): NRT on, for numpy's QR
@@ -28,8 +28,8 @@ _entry = njit(cache=True, nogil=True)
 @call
 def _accel(ints, ekind, eoff, pool, user, t, q, v, c, s, M, L, f, fb, a):
     """a = M(q)⁻¹ f(t, q, v); returns 0, a user status (> 0) or −1 (M not positive definite)."""
-    n = ints[0]
-    if ints[8]:
+    n = ints[SC_N]
+    if ints[SC_TRIG]:
         _k.trig(q, c, s)
     st = ev.mass(ints, pool, user, q, c, s, M)
     if st != 0:
@@ -74,7 +74,7 @@ def smooth_steps(ints, ekind, eoff, pool, user, t0, h, X, first, last, eps, Q, l
     int
         0, or the step that failed and why (:func:`decode_status`).
     """
-    n = ints[0]
+    n = ints[SC_N]
     dim = 2 * n
     k = Q.shape[1]
     q, v, y = np.empty(n), np.empty(n), np.empty(n)
