@@ -9,14 +9,18 @@ z0 at the most negative q_i, and pivots: the complement of the variable that lef
 enters, the ratio test picks the row that leaves. It ends either with z0 leaving (a
 solution) or on a column without a positive entry — a *secondary ray*: no solution was
 found, which for the matrices of friction problems can mean that none exists. That is a
-status (``RAY``), never an answer.
+status (``RAY``), never an answer — unless z0 is already at round-off when the ray is met
+(a degenerate problem: the basic point solves it but for z0's round-off): that point is
+kept when it passes the answer's check below.
 
 Degenerate problems (ties in the ratio test, frequent in contact problems: a sticking
 contact with zero slip, a contact that closes with zero normal velocity) are handled by
 the lexicographic ratio test on the rows of ``B⁻¹`` (the columns of the w variables in the
-tableau), which excludes cycling. The basic solution is refined once against the original
-data with the tableau's ``B⁻¹`` and checked (z >= 0, w >= 0, z ⟂ w to 1e-9 of their
-scales): an answer that fails its own check is ``FAILED``, not returned.
+tableau), which excludes cycling; ratios within their round-off of each other (1e-12 of
+the ratios' scale) count as ties, so round-off does not decide a tie and cycle. The basic
+solution is refined once against the original data with the tableau's ``B⁻¹`` and checked
+(z >= 0, w >= 0, z ⟂ w to 1e-9 of their scales): an answer that fails its own check is
+``FAILED``, not returned.
 
 Plain loops on small dense arrays: compiled once, called from the compiled time loop and
 from the Python path alike.
@@ -136,21 +140,31 @@ def lcp_lemke(A, q, z, k, T, basis, xb, piv=1e-9):
             rscale = max(rscale, abs(T[i, rhs]))
         r = -1
         best = 0.0
+        tie = 1e-12 * rscale / cmax if cmax > 0.0 else 0.0  # ratios closer than their round-off tie
         for i in range(k):
             ci = T[i, entering]
             if ci <= piv * cmax:
                 continue
             ri = T[i, rhs]
             th = 0.0 if abs(ri) <= 1e-14 * rscale else ri / ci  # round-off of a zero is zero
-            if r < 0 or th < best - 1e-12 * abs(best):
+            tol = max(1e-12 * abs(best), tie)
+            if r < 0 or th < best - tol:
                 r, best = i, th
-            elif th <= best + 1e-12 * abs(best):  # a tie: z0 leaves if it can, else the lexicographic rule
+            elif th <= best + tol:  # a tie: z0 leaves if it can, else the lexicographic rule
                 if basis[i] == z0 or (basis[r] != z0 and _lex_less(T, k, i, ci, r, T[r, entering])):
                     r = i
                     best = min(best, th)
         if r < 0:
             status = RAY
-            break
+            # a ray met with z0 already at round-off: the basic point is a solution but for
+            # z0's round-off; kept when it passes the answer's check (a ray otherwise)
+            for i in range(k):
+                if basis[i] == z0 and abs(T[i, rhs]) <= 1e-12 * rscale:
+                    T[i, rhs] = 0.0
+                    status = OK
+            if status == OK and _refined_and_checked(A, q, z, k, T, basis, xb) != OK:
+                status = RAY
+            return status
     if status != OK:
         return status
     return _refined_and_checked(A, q, z, k, T, basis, xb)
@@ -175,7 +189,7 @@ def _refined_and_checked(A, q, z, k, T, basis, xb):
                 if var < k:
                     if var == i:
                         t -= xb[a]
-                else:
+                elif var < 2 * k:  # z0, basic at round-off after a ray, counts as 0
                     t += A[i, var - k] * xb[a]
             z[i] = t
             rn = max(rn, abs(t))
@@ -188,11 +202,11 @@ def _refined_and_checked(A, q, z, k, T, basis, xb):
                 t += T[a, i] * z[i]
             T[a, rhs] = t  # the correction (the rhs column is not needed any more)
         for a in range(k):
-            xb[a] = max(xb[a] + T[a, rhs], 0.0)
+            xb[a] = max(xb[a] + T[a, rhs], 0.0) if basis[a] < 2 * k else 0.0
     for i in range(k):
         z[i] = 0.0
     for a in range(k):
-        if basis[a] >= k:
+        if k <= basis[a] < 2 * k:
             z[basis[a] - k] = xb[a]
     # the answer's own check: z >= 0, w = A z + q >= 0, z ⟂ w, to 1e-9 of their scales
     # (pivots through a nearly singular tableau can end with z0 out of the basis and an

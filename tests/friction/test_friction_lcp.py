@@ -49,6 +49,45 @@ def test_lemke_reports_a_secondary_ray():
     assert st == RAY
 
 
+def check_solution(A, q, z, tol=1e-9):
+    w = A @ z + q
+    scale = max(np.abs(q).max(), np.abs(A @ z).max(), 1e-300)
+    assert z.min() >= 0.0 and w.min() >= -tol * scale and np.abs(z * w).max() <= tol * scale * max(z.max(), 1e-300)
+
+
+def test_lemke_keeps_a_ray_met_with_z0_at_round_off_when_it_solves_the_problem():
+    """A degenerate LCP (rank-2 PSD A with a duplicated row) on which Lemke meets a ray
+    while z0 is basic at 3.5e-17: the basic point solves it and is returned (it was
+    thrown away as RAY); then 3000 such problems, each with a solution by construction."""
+    A = np.array([[0.1835894103769278, 0.307668427127939, -0.47072942092897757, 0.262096397074904,
+                   -0.47072942092897757],
+                  [0.307668427127939, 0.5748721476786668, -1.1015887085000315, 0.78855485676294,
+                   -1.1015887085000315],
+                  [-0.47072942092897757, -1.1015887085000315, 2.857016870247749, -2.5152156685394353,
+                   2.857016870247749],
+                  [0.262096397074904, 0.78855485676294, -2.5152156685394353, 2.433114754539224,
+                   -2.5152156685394353],
+                  [-0.47072942092897757, -1.1015887085000315, 2.857016870247749, -2.5152156685394353,
+                   2.857016870247749]])
+    q = np.array([-0.11695814574276459, -0.12881411413058913, -0.05464527780863815, 0.22905604855177664,
+                  0.267874033091363])
+    st, z = lemke(A, q)
+    assert st == OK
+    check_solution(A, q, z)
+    rng = np.random.default_rng(0)
+    for _ in range(3000):
+        k = int(rng.integers(3, 12))
+        G = rng.standard_normal((k, int(rng.integers(1, k))))
+        G[rng.integers(0, k)] = G[rng.integers(0, k)]  # a duplicated row
+        A = G @ G.T
+        x = np.maximum(rng.standard_normal(k), 0.0) * (rng.random(k) < 0.5)  # a solution: z = x, w
+        w = np.maximum(rng.standard_normal(k), 0.0) * (x == 0.0) * (rng.random(k) < 0.5)
+        q = w - A @ x
+        st, z = lemke(A, q)
+        assert st == OK
+        check_solution(A, q, z)
+
+
 def body_on_floor(points, m=2.0, J=0.3):
     """A rigid body q = (x, y, θ) at θ = 0 touching a floor at body points (rx, ry):
     M, normal rows (0, 1, rx) and tangent rows (1, 0, −ry)."""
