@@ -3,11 +3,36 @@ compiled call (not record by record in Python): the slip velocities of a run wit
 
 from __future__ import annotations
 
+import logging
+from typing import Any
+
+import numpy as np
 from numba import njit
 
 from moreau.compiled import evaluate as ev
-from moreau.compiled.layout import SC_M, SC_N
+from moreau.compiled.layout import SC_M, SC_ME, SC_MF, SC_N
+from moreau.compiled.usercalls import decode
 from moreau.core import kernels as _k
+from moreau.core.jitcache import call_recovering
+
+log = logging.getLogger("moreau.compiled.runner")
+
+
+def slips(cs: Any, Q: np.ndarray, V: np.ndarray) -> np.ndarray:
+    """The slip velocities T(q) v at the records ``Q, V`` (N, n) of the lowered scene ``cs``
+    (N, m), in one compiled pass; NaN and a logged warning when a user callable fails there
+    (the trajectory is kept)."""
+    n, m, mf, me = (int(cs.ints[i]) for i in (SC_N, SC_M, SC_MF, SC_ME))
+    Q, V = np.ascontiguousarray(Q), np.ascontiguousarray(V)
+    out = np.zeros((Q.shape[0], m))
+    st = call_recovering(slip_velocities, cs.ints, cs.bkind, cs.boff, cs.brow, cs.bnrows, cs.pool, cs.user.addresses,
+                         cs.tangent_row, Q, V, np.zeros(n), np.zeros(n), np.zeros((m + mf + me, n)), out)
+    if st != 0:
+        slot, index, what = decode(int(st))
+        log.warning("could not evaluate the slip velocities on the recorded states: %s callable %d %s",
+                    slot, index, what)
+        out[:] = np.nan
+    return out
 
 
 @njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]  # numba's internal flag

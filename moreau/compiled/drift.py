@@ -44,7 +44,7 @@ def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fai
     (``G_E dq = 0``, :mod:`moreau.contact.equality`; ``eqw`` their work arrays), as
     ``EqualityRows.project_contacts`` does: the contacts are projected along the
     constraints, and the hold after it restores them to second order."""
-    m = model[0][1]
+    m = model[0][SC_M]
     dtol = fset[F_DRIFT_TOL]
     combined = iset[S_DRIFT] == DRIFT_COMBINED
     sel = lw[8]

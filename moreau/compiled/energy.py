@@ -7,14 +7,17 @@ from moreau.compiled.layout import (  # the loop's layout
     A_DU_WARN,
     A_KE0,
     A_KEMAX,
+    A_KEMAX_WARN,
     A_WORK_B,
     A_WORK_F,
     C_ELEVEL,
+    C_EOK,
     C_EWARN,
     DONE,
     ENERGY_GROWTH,
     F_ESTOP,
     F_EWARN,
+    SC_MASS_KIND,
     SC_N,
     USER_FAILED,
 )
@@ -40,17 +43,19 @@ def _kinetic_energy(model, user, q, v, cq, sq, M, cnt):
 
 
 @_call
-def _energy_check(model, user, iset, fset, k, q, v, cq, sq, M, cnt, acc):
+def _energy_check(model, user, iset, fset, k, q, v, cq, sq, M, cnt, acc, q_warn, v_warn):
     """The energy ledger's check (see :mod:`moreau.model.stability`): the kinetic energy
     T(q, v) against T₀ plus the work of the applied forces (the bias terms do none:
     vᵀ f_bias = −½ vᵀ Ṁ v is part of dT/dt) and of the contacts. Unaccounted energy above ``F_EWARN``
     times the largest T so far is noted (``C_EWARN``); above ``F_ESTOP`` at two checks in a
-    row the run stops (ENERGY_GROWTH). Returns DONE, ENERGY_GROWTH or USER_FAILED. A
+    row the run stops (ENERGY_GROWTH; ``C_EOK``: the last check below both bounds); the state
+    of the first warning into ``q_warn, v_warn`` (n,). Returns
+    DONE, ENERGY_GROWTH or USER_FAILED. A
     chain's T from its O(n) product M v (:func:`moreau.compiled.evaluate.chain_kinetic`,
     into ``M[0]``: no reader expects M(q) in ``M`` after the step, a chain's M being formed
     where a step needs it), for chains of ``CHAIN_STRUCTURED_MIN`` (8) links or more (the 3-link chain's and the
     piston's steps were 13-15 % slower with it, measured interleaved)."""
-    if model[0][2] == _k.MASS_CHAIN and model[0][0] >= _k.CHAIN_STRUCTURED_MIN:
+    if model[0][SC_MASS_KIND] == _k.MASS_CHAIN and model[0][SC_N] >= _k.CHAIN_STRUCTURED_MIN:
         status, ke = DONE, ev.chain_kinetic(model[0], model[7], cq, sq, v, M[0])
     else:
         status, ke = _kinetic_energy(model, user, q, v, cq, sq, M, cnt)
@@ -68,6 +73,8 @@ def _energy_check(model, user, iset, fset, k, q, v, cq, sq, M, cnt, acc):
             level = 1
     prev = cnt[C_ELEVEL]
     cnt[C_ELEVEL] = level
+    if level == 0:
+        cnt[C_EOK] = k
     # the stop bound counts when two checks in a row find it passed: a coarse step's
     # transient at an impact (one step) warns, but is not a growth
     if level == 2 and prev == 2:
@@ -75,4 +82,8 @@ def _energy_check(model, user, iset, fset, k, q, v, cq, sq, M, cnt, acc):
     if cnt[C_EWARN] == 0 and level >= 1:
         cnt[C_EWARN] = k
         acc[A_DU_WARN] = du
+        acc[A_KEMAX_WARN] = acc[A_KEMAX]
+        for i in range(q.shape[0]):  # the state the warning's step advice is for
+            q_warn[i] = q[i]
+            v_warn[i] = v[i]
     return DONE

@@ -49,7 +49,10 @@ C_PAINLEVE, C_PAINLEVE_STEP, C_PAINLEVE_ROW = 11, 12, 13
 C_EQROW = 14
 # (C_UPDATES: velocity updates computed, one per pass: see SolverStats.velocity_updates)
 C_UPDATES = 15
-N_COUNTERS = 16
+# (C_EOK: the step of the last energy check that passed, below both bounds: a run the check
+# stops is kept up to it)
+C_EOK = 16
+N_COUNTERS = 17
 # accumulators (float array)
 # (the energy check: kinetic energy at the start, the largest so far, the unaccounted energy
 # at the warning and at the last check, the work of the bias terms)
@@ -59,7 +62,10 @@ A_WORST, A_WORK_F, A_WORK_C, A_KE0, A_KEMAX, A_DU_WARN, A_DU, A_WORK_B, A_WORK_T
 # position projection left; A_WORK_EV: the kinetic energy the velocity projection onto the
 # bilateral rows removed)
 A_WORK_E, A_EQRES, A_WORK_EV = 9, 10, 11
-N_ACCUMULATORS = 12
+# (A_KEMAX_WARN: the largest kinetic energy when the energy check first warned, which the
+# warning quotes)
+A_KEMAX_WARN = 12
+N_ACCUMULATORS = 13
 
 # The step's parts are inlined into the loop by numba (IR level), as are the evaluation
 # functions (moreau.compiled.evaluate); the kernels and LCP routines they call are inlined by LLVM

@@ -85,7 +85,8 @@ def loop_workspace(n: int, m: int, mf: int, mu: np.ndarray, tangent_row: np.ndar
            np.empty((n, n)), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.zeros(n), np.zeros(n),
            np.empty(n), np.zeros(n))
     lw = (np.empty((ma, n)), np.empty(ma), np.empty(n), np.empty(n), np.empty(ma),
-          np.empty((ma, n)), np.empty(n), np.zeros(n), np.zeros(mm, dtype=np.bool_), np.empty((4, n)))
+          np.empty((ma, n)), np.empty(n), np.zeros(n), np.zeros(mm, dtype=np.bool_), np.empty((4, n)),
+          np.zeros(n), np.zeros(n))  # [10], [11]: q and v where the energy check first warned
     return own, workspace(n, m), lw, friction_work(n, m, mf, mu, tangent_row), equality_work(n, me, m + mf)
 
 
@@ -337,7 +338,7 @@ def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, 
         k += 1
         cnt[C_K] = k
         if echeck:
-            status = _energy_check(model, user, iset, fset, k, q, v, cq, sq, M, cnt, acc)
+            status = _energy_check(model, user, iset, fset, k, q, v, cq, sq, M, cnt, acc, lw[10], lw[11])
             if status != DONE:
                 return status
         if k % stride == 0 or k == nsteps:

@@ -18,12 +18,12 @@ import numpy as np
 
 from moreau.compiled import layout as lay
 from moreau.compiled import loop as lp
+from moreau.compiled.at_records import slips
 from moreau.compiled.lowering import CompiledScene, lower
 from moreau.compiled.usercalls import decode
 from moreau.contact.friction import FRICTION_RESIDUALS, painleve_message
 from moreau.core.errors import SimulationError, SolverError, attach_trajectory
-from moreau.core.jitcache import call_recovering
-from moreau.model.stability import ENERGY_CHECK_EVERY, energy_growth_message, not_converged_message
+from moreau.model.stability import ENERGY_CHECK_EVERY, energy_growth_message, kept_until, not_converged_message
 from moreau.results.assemble import assemble
 from moreau.results.impacts import ImpactLog, SolverStats
 from moreau.results.trajectory import Trajectory
@@ -163,7 +163,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
                     chunk //= 2
     except KeyboardInterrupt as exc:
         k = int(cnt[lay.C_K])
-        status, message = "interrupted", f"interrupted by the user at step {k} (t = {t0 + k * h:.9g})"
+        status, message = "interrupted", f"{str(exc) or 'interrupted by the user'} at step {k} (t = {t0 + k * h:.9g})"
         interrupt = exc
     wall = time.perf_counter() - wall0
     while True:  # an interrupt arriving while the result is assembled waits for it
@@ -178,7 +178,8 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
                 interrupt, status = exc, "interrupted"
                 message = "interrupted by the user while the result was assembled"
     if cnt[lay.C_EWARN] > 0:
-        _energy_warning(scene, traj, int(cnt[lay.C_EWARN]), float(acc[lay.A_DU_WARN]), float(acc[lay.A_KEMAX]), h)
+        _energy_warning(scene, traj, int(cnt[lay.C_EWARN]), float(acc[lay.A_DU_WARN]), float(acc[lay.A_KEMAX_WARN]),
+                        h, work[2][10], work[2][11])
     if cnt[lay.C_PAINLEVE_STEP] > 0:  # as the Python path: one warning, kept in traj.warnings
         k0, row = int(cnt[lay.C_PAINLEVE_STEP]) - 1, int(cnt[lay.C_PAINLEVE_ROW])
         msg = painleve_message(t0 + k0 * h, k0, [scene.row_names[row]], [float(scene.friction[row])])
@@ -211,7 +212,14 @@ def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE,
                        cnt[lay.C_EQROW:lay.C_EQROW + 1], max_iter, active, projected)
         message = str(error)
     rec = int(cnt[lay.C_REC])
-    if status != "completed" and T[rec - 1] != t_now and rec < n_rec + 1:
+    nimp = int(cnt[lay.C_NIMP])
+    if code == lay.ENERGY_GROWTH:  # kept up to the last energy check that passed: the rest ran away
+        t_ok = t0 + int(cnt[lay.C_EOK]) * h
+        rec = max(1, int(np.searchsorted(T[:rec], t_ok + 1e-9 * h, side="right")))
+        nimp = int(np.searchsorted(IMP[:nimp, lay.I_T], t_ok + 1e-9 * h, side="right"))
+        message = kept_until(message, float(T[rec - 1]))
+        error = SimulationError(message, None, k)
+    elif status != "completed" and T[rec - 1] != t_now and rec < n_rec + 1:
         # keep the last good state even when it falls between two records
         T, Q, V, PS, ACT, GP, KE, PE = (np.concatenate([a[:rec], a[:1]]) for a in (T, Q, V, PS, ACT, GP, KE, PE))
         T[rec], Q[rec], V[rec], PS[rec, :m], ACT[rec] = t_now, q, v, P_acc, act_acc
@@ -227,7 +235,6 @@ def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE,
         rec += 1
     if energy and cs.python_potentials:  # user potentials are Python callables
         PE[:rec] = [scene.potential_energy(Q[i]) for i in range(rec)]
-    nimp = int(cnt[lay.C_NIMP])
     I = IMP[:nimp]
     onsets = ImpactLog(t=I[:, lay.I_T].copy(), step=I[:, lay.I_STEP].astype(int), row=I[:, lay.I_ROW].astype(int),
                        U_before=I[:, lay.I_UB].copy(), U_after=I[:, lay.I_UA].copy(), impulse=I[:, lay.I_P].copy(),
@@ -250,7 +257,7 @@ def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE,
         gaps=np.ascontiguousarray(GP[:rec, :m]), kinetic=KE[:rec] if energy else None,
         potential=PE[:rec] if energy else None,
         tangential_impulses=PTS[:rec] if PTS is not None else None,
-        slip=_slips(cs, Q[:rec], V[:rec]) if PTS is not None else None,
+        slip=slips(cs, Q[:rec], V[:rec]) if PTS is not None else None,
         constraint_impulses=np.ascontiguousarray(PS[:rec, m:]) if me else None,
         constraint_residuals=np.ascontiguousarray(GP[:rec, m:]) if me else None,
     )
@@ -322,24 +329,6 @@ def _potential_offset(scene, cs: CompiledScene, q0: np.ndarray) -> float:
     return float(scene.potential_energy(q0) - ev.potential(ints, ekind, eoff, cs.pool, q0, *cos_sin(q0)))
 
 
-def _slips(cs: CompiledScene, Q: np.ndarray, V: np.ndarray) -> np.ndarray:
-    """The slip velocities T(q) v at the records (N, m), in one compiled pass; NaN and a
-    logged warning when a user callable fails there (the trajectory is kept)."""
-    from moreau.compiled.at_records import slip_velocities
-
-    n, m, mf, me = (int(x) for x in cs.ints[[lay.SC_N, lay.SC_M, lay.SC_MF, lay.SC_ME]])
-    Q, V = np.ascontiguousarray(Q), np.ascontiguousarray(V)
-    out = np.zeros((Q.shape[0], m))
-    st = call_recovering(slip_velocities, cs.ints, cs.bkind, cs.boff, cs.brow, cs.bnrows, cs.pool, cs.user.addresses,
-                         cs.tangent_row, Q, V, np.zeros(n), np.zeros(n), np.zeros((m + mf + me, n)), out)
-    if st != 0:
-        slot, index, what = decode(int(st))
-        log.warning("could not evaluate the slip velocities on the recorded states: %s callable %d %s",
-                    slot, index, what)
-        out[:] = np.nan
-    return out
-
-
 def _interrupted(cs: CompiledScene) -> bool:
     """A Ctrl-C (or SIGTERM) arrived inside one of the scene's Python callbacks (the flag
     is cleared: the scene may run again)."""
@@ -385,10 +374,10 @@ def _user_error(scene, cs: CompiledScene, status: int, where: str, k: int, t: fl
     return error
 
 
-def _energy_warning(scene, traj: Trajectory, step: int, du: float, ke_max: float, h: float) -> None:
+def _energy_warning(scene, traj: Trajectory, step: int, du: float, ke_max: float, h: float, q: np.ndarray,
+                    v: np.ndarray) -> None:
     """Warn once (``RuntimeWarning``, and in ``traj.warnings``) that the energy check's first
-    bound was passed at ``step``; the step size advice is from the record nearest before it."""
-    i = max(0, int(np.searchsorted(traj.t, traj.t[0] + step * h, side="right")) - 1)
-    msg = energy_growth_message(scene, traj.t[0] + step * h, traj.q[i], traj.v[i], du, ke_max, h)
+    bound was passed at ``step``, where the state was ``q, v`` (the step size advice's)."""
+    msg = energy_growth_message(scene, traj.t[0] + step * h, q, v, du, ke_max, h)
     traj.warnings.append(msg)
     warnings.warn(msg, RuntimeWarning, stacklevel=4)

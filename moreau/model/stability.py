@@ -11,7 +11,8 @@ exponentially (a long chain's fast tail at h = 1e-3, for instance). Checked ever
 transient at an impact, which says the step is coarse for it); above ``stop`` at two checks in a row it stops with a
 :class:`~moreau.SimulationError` that names the time, the energy gained, the step size and
 a step size from the model's fastest mode at that state (:func:`stable_step`), keeping the
-trajectory. The defaults (5 %, 10 %) leave alone the first-order energy drift of a
+trajectory up to the last check that passed (below both bounds): the steps after it may
+already be the runaway. The defaults (5 %, 10 %) leave alone the first-order energy drift of a
 resolved run (a three-rod chain of 0.3 m at h = 1e-3 drifts by 2.9 % of its kinetic
 energy in 2 s, 0.3 % at 1e-4).
 """
@@ -24,7 +25,7 @@ from typing import Any
 import numpy as np
 
 __all__ = ["ENERGY_CHECK_EVERY", "DEFAULT_ENERGY_GROWTH", "as_energy_growth", "fastest_rates", "stable_step",
-           "step_advice", "not_converged_message", "energy_growth_message"]
+           "step_advice", "kept_until", "not_converged_message", "energy_growth_message"]
 
 #: the check runs every this many steps (a mass-matrix evaluation each time)
 ENERGY_CHECK_EVERY = 8
@@ -120,3 +121,10 @@ def energy_growth_message(scene: Any, t: float, q: np.ndarray, v: np.ndarray, du
     return (f"the energy grew by {du:.3g} beyond the work of the applied forces by t = {t:.6g} "
             f"({du / ke_max:.1%} of the largest kinetic energy so far, {ke_max:.3g}) at h = {h:g}: "
             f"the step is too large for this motion; {advice}")
+
+
+def kept_until(message: str, t_kept: float) -> str:
+    """The energy stop's message, saying where the kept trajectory ends: at the last check
+    that passed (the records after it are the runaway the check stopped)."""
+    return (f"{message}; the trajectory is kept up to t = {t_kept:.9g}, the last record at or before the last "
+            "energy check that passed")

@@ -13,7 +13,7 @@ import numpy as np
 
 from moreau.core.errors import SimulationError, SolverError, attach_trajectory
 from moreau.model.scene import Scene
-from moreau.model.stability import ENERGY_CHECK_EVERY, energy_growth_message
+from moreau.model.stability import ENERGY_CHECK_EVERY, energy_growth_message, kept_until
 from moreau.results.assemble import assemble
 from moreau.results.impacts import ImpactLog, ImpactRow, SolverStats
 from moreau.results.trajectory import Trajectory
@@ -53,8 +53,7 @@ def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, s
 
     status, message = "completed", ""
     error: BaseException | None = None
-    check = _EnergyCheck(scene, integ, energy_growth)
-    n_impacts = 0
+    check, stepped_back, n_impacts = _EnergyCheck(scene, integ, energy_growth), False, 0
     wall0 = time.perf_counter()
     k = 0
     try:
@@ -100,11 +99,13 @@ def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, s
             if bar is not None and k % chunk == 0:
                 bar.update(chunk)
     except KeyboardInterrupt as exc:
-        status, message = "interrupted", f"interrupted by the user at step {k} (t = {integ.t:.9g})"
+        status, message = "interrupted", f"{str(exc) or 'interrupted by the user'} at step {k} (t = {integ.t:.9g})"
         log.warning("%s; %d records computed so far are attached to the KeyboardInterrupt", message, rec)
         error = exc
-    except _EnergyGrew as exc:
-        status, message = "failed", str(exc)
+    except _EnergyGrew as exc:  # kept up to the last check that passed: the rest ran away
+        status, stepped_back = "failed", True
+        rec, impacts = _step_back(T, rec, impacts, t0 + check.ok_step * h + 1e-9 * h)
+        message = kept_until(str(exc), float(T[rec - 1]))
         error = SimulationError(message, None, k)
     except SolverError as exc:
         status, message, error = "failed", str(exc), exc
@@ -121,7 +122,7 @@ def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, s
         if bar is not None:
             bar.close()
     wall = time.perf_counter() - wall0
-    if status != "completed" and T[rec - 1] != integ.t:
+    if status != "completed" and not stepped_back and T[rec - 1] != integ.t:
         # keep the last good state even when it falls between two records
         T[rec], Q[rec], V[rec] = integ.t, integ.q, integ.v
         PES[rec] = PE_acc
@@ -182,6 +183,11 @@ def _log_impacts(integ: OneStepIntegrator, rows: np.ndarray, after_flight: np.nd
                         float(integ.P[r]), float(d.energy_lost[j]), flight, fast))
 
 
+def _step_back(T: np.ndarray, rec: int, impacts: list[ImpactRow], t_ok: float) -> tuple[int, list[ImpactRow]]:
+    """The records and impacts up to ``t_ok`` (the last energy check that passed)."""
+    return max(1, int(np.searchsorted(T[:rec], t_ok, side="right"))), [r for r in impacts if r[0] <= t_ok]
+
+
 class _EnergyGrew(Exception):
     """The energy check's stop bound was passed (the message says by how much)."""
 
@@ -196,6 +202,7 @@ class _EnergyCheck:
         integ.track_bias_work = bounds is not None and scene.system.has_bias
         self.warned: str | None = None
         self.level = 0  # the bound the last check found passed: 0 none, 1 warn, 2 stop
+        self.ok_step = 0  # the step of the last check below both bounds
 
     def __call__(self, k: int) -> None:
         if self.bounds is None:
@@ -209,6 +216,8 @@ class _EnergyCheck:
         if du > 1e-12 * (1.0 + self.ke_max):
             level = 2 if du > stop * self.ke_max else 1 if du > warn * self.ke_max else 0
         prev, self.level = self.level, level
+        if level == 0:
+            self.ok_step = k
         # the stop bound counts when two checks in a row find it passed (an impact step's
         # transient warns, but is not a growth)
         if level == 2 and prev == 2:

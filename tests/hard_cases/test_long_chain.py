@@ -47,6 +47,9 @@ def test_the_explicit_step_at_h_1e3_warns_then_stops_before_the_energy_runs_away
     traj = info.value.trajectory
     assert traj.status == "failed" and traj.t[-1] < 2.0
     assert np.all(np.isfinite(traj.q)) and np.all(np.isfinite(traj.v)) and np.all(np.isfinite(traj.energy))
+    # kept up to the last check that passed: the runaway after it is not in the trajectory
+    assert f"kept up to t = {traj.t[-1]:.9g}" in msg and traj.t[-1] < _time_in(msg)
+    assert (traj.energy - traj.energy[0]).max() <= 0.1 * MGL
     # the warning came no later than the first record with the mechanical energy 5 % of
     # m g L above its start
     t_warn = _time_in(warned[0])
@@ -57,14 +60,16 @@ def test_the_explicit_step_at_h_1e3_warns_then_stops_before_the_energy_runs_away
 
 def test_both_paths_stop_at_the_same_step():
     scene = chain_scene(False)
-    stops = []
+    stops, said = [], []
     for backend in ("compiled", "python"):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
             with pytest.raises(mo.SimulationError) as info:
                 mo.simulate(scene, (0.0, 2.0), Q0, V0, 1e-3, backend=backend, solver="exact")
         stops.append(info.value.step)
+        said.append((info.value.trajectory.warnings, str(info.value), info.value.trajectory.t[-1]))
     assert stops[0] == stops[1]
+    assert said[0] == said[1]  # the same figures in the warning and the error, the same kept end
 
 
 def test_without_the_check_the_same_run_only_stops_at_non_finite_numbers():
