@@ -374,3 +374,21 @@ def test_record_every_is_offered_where_the_memory_guard_asks_for_it(tmp_path, ca
     with pytest.raises(SystemExit) as info:
         main(["piston", "--record-every", "0", "--out", str(tmp_path)])
     assert info.value.code == 2 and "argument --record-every: must be >= 1, got 0" in capsys.readouterr().err
+
+
+def test_sweep_files_on_a_full_disk_name_the_file(tmp_path, monkeypatch):
+    import pandas as pd
+
+    from moreau.sweeps.record import _Record
+    from moreau.sweeps.table import _write_table
+
+    def disk_full(*args, **kw):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(pd.DataFrame, "to_csv", disk_full)
+    with pytest.raises(OSError, match=r"No space left on device: .*table\.csv'"):
+        _write_table(pd.DataFrame({"a": [1]}), str(tmp_path / "table.csv"))
+    monkeypatch.setattr("json.dump", disk_full)
+    with pytest.raises(OSError, match=r"No space left on device: .*k\.json'"):
+        _Record._write(str(tmp_path / "k.json"), {"x": 1})
+    assert not list(tmp_path.glob("*.tmp"))

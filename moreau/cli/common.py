@@ -190,6 +190,8 @@ def simulate_and_save(scene: Scene, t_span: tuple[float, float], q0: Sequence[fl
         raise Stopped(f"{partial.message or 'interrupted'}; the {len(partial)} records computed are saved in {path}",
                       interrupt_exit_code(exc)) from None
     path = traj.save(out_stem + (".npz" if traj.completed else ".partial.npz"))
+    if traj.completed and os.path.exists(out_stem + ".partial.npz"):  # an earlier, stopped run's
+        os.remove(out_stem + ".partial.npz")
     if traj.status == "interrupted":
         raise Stopped(f"{traj.message}; the {len(traj)} records computed are saved in {path}", interrupt_exit_code())
     if not traj.completed:

@@ -202,6 +202,8 @@ def run_jobs(fn: Callable, jobs: Sequence[tuple], workers: int,
             done, _ = cf.wait(running, return_when=cf.FIRST_COMPLETED)
             if any(not f.cancelled() and isinstance(f.exception(), cf.process.BrokenProcessPool) for f in done):
                 again = _worker_died(running, started, procs, on_done)  # (before _stop kills the others)
+                if again:  # their workers were stopped with the broken pool, not by the user
+                    log.warning("job(s) %s were stopped when another worker died; running them again", again)
                 _stop(pool)
                 queue[:0] = [(i, jobs[i]) for i in again]
                 running.clear()

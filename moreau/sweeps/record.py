@@ -283,9 +283,11 @@ class _Record:
                 fh.flush()
                 os.fsync(fh.fileno())
             os.replace(tmp, path)
-        except BaseException:
+        except BaseException as exc:
             with contextlib.suppress(OSError):
                 os.remove(tmp)
+            if isinstance(exc, OSError) and not exc.filename:  # "[Errno 28] ...": name the file
+                raise OSError(exc.errno, exc.strerror or str(exc), path) from exc
             raise
 
 

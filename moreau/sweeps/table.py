@@ -67,9 +67,11 @@ def _write_table(df, path: str) -> None:
         else:
             _json_columns(df).to_csv(tmp, index=False)
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(OSError):
             os.remove(tmp)
+        if isinstance(exc, OSError) and (not exc.filename or exc.filename == tmp):  # name the table, not tmp
+            raise OSError(exc.errno, exc.strerror or str(exc), path) from exc
         raise
 
 

@@ -128,6 +128,8 @@ def run_case(case: Case, out: str, progress: bool | dict = False) -> dict:
     path = stem + (".npz" if traj.completed else ".partial.npz")
     try:
         traj.save(path)
+        if traj.completed and os.path.exists(stem + ".partial.npz"):  # an earlier, stopped run of the case
+            os.remove(stem + ".partial.npz")
     except OSError as exc:
         unsaved.append(f"{path} not saved: {exc.strerror or exc}")
     if figs:

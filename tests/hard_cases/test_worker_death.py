@@ -64,3 +64,8 @@ def test_piston_command_with_a_killed_worker_fails_that_case_only(tmp_path):
     assert f"worker process {victim} died (killed by signal SIGKILL" in failed["warnings"]
     line = [x for x in err.splitlines() if "failed" in x and f"e={failed['e']}" in x]
     assert len(line) == 1 and "worker process" in line[0], err[-2000:]
+    # a case stopped with the broken pool and run again leaves its completed file only
+    out_dir = tmp_path / "out"
+    for done in out_dir.glob("piston_*mm.npz"):
+        assert not done.with_name(done.name[:-len(".npz")] + ".partial.npz").exists(), sorted(os.listdir(out_dir))
+    assert "interrupted by the user" not in err
