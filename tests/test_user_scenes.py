@@ -205,3 +205,24 @@ def test_a_row_that_penetrates_without_any_impulse_warns_naming_it(backend):
         traj = mo.simulate(scene, (0.0, 2.0), [1.0], [0.0], 1e-3, backend=backend, progress=False)
     assert len(traj.impacts) == 0 and traj.max_penetration[0] > 10.0
     assert any("never enforced" in w for w in traj.warnings)
+
+
+@pytest.mark.parametrize("backend", ["compiled", "python"])
+def test_a_rough_floor_redundant_with_a_rail_warns_naming_both(backend):
+    """A block held on y = 0 by a rail and standing on a rough floor y >= 0: the normal load
+    may go to either row, and friction on the floor is not determined. The run says so,
+    naming the floor and the rail (not Painlevé's paradox)."""
+    floor = mo.FunctionBarrier(lambda q: np.array([q[1]]), lambda q: np.array([[0.0, 1.0]]),
+                               tangent_jacobian=lambda q: np.array([[1.0, 0.0]]))
+    rail = mo.Bilateral(mo.FunctionBarrier(lambda q: np.array([q[1]]), lambda q: np.array([[0.0, 1.0]])), "rail")
+    scene = mo.Scene(mo.FunctionSystem(np.eye(2)), [mo.ConstantForce([1.0, -G0])],
+                     [mo.Contact(floor, mo.NewtonImpactFriction(0.0, 0.5), name="floor")], constraints=[rail])
+    with pytest.warns(RuntimeWarning, match=r"contact row 'floor' \(mu = 0.5\) is redundant with the bilateral "
+                                            r"rows \['rail'\]"):
+        traj = mo.simulate(scene, (0.0, 0.1), [0.0, 0.0], [0.0, 0.0], 1e-3, backend=backend, progress=False,
+                           **({"solver": "exact"} if backend == "python" else {}))
+    assert any("redundant" in w for w in traj.warnings)
+    # the same floor without the rail carries the load, and friction holds the block (mu g > 1)
+    alone = mo.Scene(scene.system, scene.effects, scene.contacts)
+    held = mo.simulate(alone, (0.0, 0.1), [0.0, 0.0], [0.0, 0.0], 1e-3, backend=backend, progress=False)
+    assert not any("redundant" in w for w in held.warnings) and abs(held.q[-1, 0]) < 1e-12

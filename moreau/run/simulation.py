@@ -23,7 +23,7 @@ from moreau.run.backend import DriftControl, choose_backend, initial_state_only
 from moreau.run.flights import flight_gaps, initial_flight
 from moreau.run.progress import progress_bar
 from moreau.run.python_loop import run_python
-from moreau.run.trust import check_jacobians, penetration_warnings
+from moreau.run.trust import check_jacobians, penetration_warnings, redundancy_warnings
 from moreau.step.integrator import (
     MoreauJeanEnergyConsistent,
     MoreauJeanMidpoint,
@@ -157,8 +157,9 @@ def simulate(
     plan = _plan(scene, t_span, h, tol, record_every, integrator, backend, solver, fallback, drift_control,
                  check_jacobian, penetration_limit, flight_gap, initial_penetration, energy_growth)
     run = _compiled_path if plan.path == "compiled" else _python_path
+    redundant = redundancy_warnings(scene, q0)
     traj = run(scene, plan, q0, v0, integrator, drift_control, check_jacobian, progress, energy)
-    traj.warnings = traj.warnings + penetration_warnings(scene, traj, plan.h, plan.penetration_limit)
+    traj.warnings = redundant + traj.warnings + penetration_warnings(scene, traj, plan.h, plan.penetration_limit)
     return traj
 
 

@@ -20,7 +20,7 @@ import numpy as np
 
 from moreau.model.barriers import finite_difference_jacobian
 
-__all__ = ["check_jacobians", "penetration_warnings"]
+__all__ = ["check_jacobians", "penetration_warnings", "redundancy_warnings"]
 
 
 def check_jacobians(scene, q0: np.ndarray, rtol: float = 1e-5) -> None:
@@ -78,6 +78,36 @@ def penetration_warnings(scene, traj, h: float, limit: float | None) -> list[str
         if pen[r] > lim:
             out.append(f"row {traj.row_names[r]!r} penetrated {pen[r]:.3g} (gap units), beyond {why} "
                        f"({lim:.3g}): the contact is not resolved at this step size")
+    if out:
+        warnings.warn("; ".join(out), RuntimeWarning, stacklevel=3)
+    return out
+
+
+def redundancy_warnings(scene, q0) -> list[str]:
+    """Contact rows with friction whose normal direction the bilateral rows already hold at
+    ``q0`` (G_r in the span of the rows of G_E), as messages; also issued once as a
+    ``RuntimeWarning``. The normal load is then split between redundant rows in a way the
+    model does not determine, and the friction it allows may be any part of mu times it, or
+    none: a rail and a rough floor on the same coordinate, say."""
+    if not getattr(scene, "nconstraints", 0) or not scene.has_friction:
+        return []
+    q = np.asarray(q0, dtype=float)
+    if q.shape != (scene.ndof,) or not np.all(np.isfinite(q)):
+        return []  # the run's own checks name a bad initial state
+    GE = np.vstack([np.atleast_2d(np.asarray(bc.geometry.jacobian(q), dtype=float)) for bc in scene.constraints])
+    G = np.atleast_2d(np.asarray(scene.jacobian(q), dtype=float))
+    out = []
+    for r in np.flatnonzero(np.asarray(scene.friction) > 0.0):
+        norm = float(np.linalg.norm(G[r]))
+        if norm == 0.0:
+            continue
+        coef = np.linalg.lstsq(GE.T, G[r], rcond=None)[0]
+        if np.linalg.norm(GE.T @ coef - G[r]) <= 1e-9 * norm:
+            held = [scene.constraint_names[i] for i in np.flatnonzero(np.abs(coef) > 1e-9 * np.abs(coef).max())]
+            out.append(f"contact row {scene.row_names[r]!r} (mu = {float(scene.friction[r]):g}) is redundant with the "
+                       f"bilateral rows {held} at the initial state: they hold its normal direction, so how the "
+                       "normal load splits between them is not determined, and the friction on it may act on a "
+                       "part of that load or on none")
     if out:
         warnings.warn("; ".join(out), RuntimeWarning, stacklevel=3)
     return out
