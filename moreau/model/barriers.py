@@ -69,9 +69,9 @@ class Barrier(ABC):
         raise NotImplementedError(f"{type(self).__name__} has no tangent rows")
 
     def tangent_kernel(self):
-        """``(kind, params)`` of the compiled kernel whose Jacobian is :meth:`tangent_jacobian`
+        """``(kind, params)`` of the compiled kernel whose Jacobian is :meth:`Barrier.tangent_jacobian`
         (the barrier kernels' layout, gaps unused), ``("user", (None, tangent_jacobian))``, or
-        None: the compiled loop then calls :meth:`tangent_jacobian` back."""
+        None: the compiled loop then calls ``tangent_jacobian`` back."""
         return None
 
     def row_names(self, prefix: str) -> list[str]:
