@@ -69,9 +69,10 @@ class Barrier(ABC):
         raise NotImplementedError(f"{type(self).__name__} has no tangent rows")
 
     def tangent_kernel(self):
-        """``(kind, params)`` of the compiled kernel whose Jacobian is :meth:`Barrier.tangent_jacobian`
-        (the barrier kernels' layout, gaps unused), ``("user", (None, tangent_jacobian))``, or
-        None: the compiled loop then calls ``tangent_jacobian`` back."""
+        """``(kind, params)`` of the compiled kernel whose Jacobian is the tangent rows
+        (:meth:`~moreau.model.barriers.Barrier.tangent_jacobian`; the barrier kernels' layout,
+        gaps unused), ``("user", (None, tangent_jacobian))``, or None: the compiled loop then
+        calls ``tangent_jacobian`` back."""
         return None
 
     def row_names(self, prefix: str) -> list[str]:
