@@ -175,6 +175,11 @@ def lower(scene: Scene) -> CompiledScene:
                  bc.nrows, bc.name)
         me += bc.nrows
     bkind, bar_fns, bar_names = bars.bkind, bars.fns, bars.names
+    callables = {"mass": [(type(sysm).__name__ + ".mass", mass_fun)],
+                 "bias": [(type(sysm).__name__ + ".bias", bias_fun)],
+                 "forces": list(zip(force_names, force_fns)),
+                 "gaps": [(name, pair[0]) for name, pair in zip(bar_names, bar_fns)],
+                 "jacobians": [(name, pair[1]) for name, pair in zip(bar_names, bar_fns)]}
     i64 = lambda x: np.array(x, dtype=np.int64)  # noqa: E731
     needs_trig = (mass_kind == _k.MASS_CHAIN or any(k in (_k.TRIG, _k.FOURIER_PT) for k in ekind)
                   or any(k in (_k.BAR_TRIG, _k.BAR_CHAIN_POINT) for k in bkind))
@@ -189,16 +194,8 @@ def lower(scene: Scene) -> CompiledScene:
                                             dtype=float),
         friction=np.ascontiguousarray(scene.friction, dtype=float), tangent_row=tmap,
         user=user_kernels(mass_fun, bias_fun, tuple(force_fns), tuple(bar_fns), tuple(bars.rows), tuple(bars.nrows),
-                          {"mass": (f"{type(sysm).__name__}.mass",), "bias": (f"{type(sysm).__name__}.bias",),
-                           "forces": tuple(f"effect {x!r}" for x in force_names),
-                           "gaps": tuple(f"barrier {x!r}" for x in bar_names),
-                           "jacobians": tuple(f"barrier {x!r} Jacobian" for x in bar_names)}),
-        python_potentials=python_potentials,
-        user_callables={"mass": [(type(sysm).__name__ + ".mass", mass_fun)],
-                        "bias": [(type(sysm).__name__ + ".bias", bias_fun)],
-                        "forces": list(zip(force_names, force_fns)),
-                        "gaps": [(name, pair[0]) for name, pair in zip(bar_names, bar_fns)],
-                        "jacobians": [(name, pair[1]) for name, pair in zip(bar_names, bar_fns)]},
+                          {slot: tuple(name for name, _ in pairs) for slot, pairs in callables.items()}),
+        python_potentials=python_potentials, user_callables=callables,
     )
 
 
@@ -233,12 +230,3 @@ class _Barriers:
             self.boff.append(self.pool.add(*params))
         self.brow.append(row)
         self.bnrows.append(nrows)
-
-
-def compiles(scene: Scene) -> tuple[bool, str]:
-    """``(True, "")`` when the scene lowers, else ``(False, reason)``."""
-    try:
-        lower(scene)
-    except NotCompilable as exc:
-        return False, str(exc)
-    return True, ""

@@ -20,7 +20,7 @@ from moreau.compiled import layout as lay
 from moreau.compiled import loop as lp
 from moreau.compiled.at_records import slips
 from moreau.compiled.lowering import CompiledScene, lower
-from moreau.compiled.usercalls import decode
+from moreau.compiled.usercalls import SLOT_WORDS, decode
 from moreau.contact.friction import FRICTION_RESIDUALS, painleve_message
 from moreau.core.errors import SimulationError, SolverError, attach_trajectory
 from moreau.model.stability import ENERGY_CHECK_EVERY, energy_growth_message, kept_until, not_converged_message
@@ -350,8 +350,7 @@ def _user_error(scene, cs: CompiledScene, status: int, where: str, k: int, t: fl
     slot, index, what = decode(status)
     callables = cs.user_callables.get(slot, [])
     name, fun = callables[index] if 0 <= index < len(callables) else (f"#{index}", None)
-    kind = {"mass": "mass matrix", "bias": "bias", "forces": "force", "gaps": "gap function",
-            "jacobians": "Jacobian"}[slot]
+    kind = SLOT_WORDS[slot]
     error = SimulationError(f"user {kind} {name!r} {what} {where}", None, k)
     if not what.startswith("raised") or fun is None:
         return error

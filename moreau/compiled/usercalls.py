@@ -53,6 +53,9 @@ __all__ = ["SIGNATURE", "U_MASS", "U_BIAS", "U_FORCES", "U_GAPS", "U_JACOBIANS",
 #: the slots of the ``user`` address array
 U_MASS, U_BIAS, U_FORCES, U_GAPS, U_JACOBIANS = range(5)
 SLOTS = ("mass", "bias", "forces", "gaps", "jacobians")
+#: what a slot's callables are, in messages
+SLOT_WORDS = {"mass": "mass matrix", "bias": "bias", "forces": "force", "gaps": "gap function",
+              "jacobians": "Jacobian"}
 #: what a wrapper reports (the low 3 bits of its code, from moreau.compiled.callbacks; the
 #: callable's index above them)
 _KINDS = {RAISED: "raised an exception", WRONG_SHAPE: "returned an array of the wrong shape",
@@ -204,8 +207,8 @@ def _slot(slot: str, fns: tuple, names: tuple[str, ...], rows: tuple[int, ...] =
             reasons = [first_reason(exc) if f is not None else "" for f in fns]
     for name, f, why in zip(names, fns, reasons):
         if f is not None:
-            log.warning("%s runs as a Python callback in the compiled loop (%s), several µs a call; "
-                        "numba could not compile it: %s", name, slot, why or "another callable of its slot")
+            log.warning("user %s %r runs as a Python callback in the compiled loop, several µs a call; "
+                        "numba could not compile it: %s", SLOT_WORDS[slot], name, why or "another callable of its slot")
     return SlotCallback(slot, fns, rows, nrows)
 
 
@@ -253,7 +256,7 @@ def user_kernels(mass: Any, bias: Any, forces: tuple, barriers: tuple, rows: tup
         if got is not None:
             return got
 
-        def label(slot: str, count: int) -> tuple[str, ...]:
+        def label(slot: str, count: int) -> tuple[str, ...]:  # the names given, else "gaps[0]", ...
             return tuple(names.get(slot, ())) + tuple(f"{slot}[{i}]" for i in range(len(names.get(slot, ())), count))
 
         wrappers: list[Any] = [None] * 5

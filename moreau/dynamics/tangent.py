@@ -235,18 +235,13 @@ def _smooth_run(smooth_run, closed: np.ndarray, s: int, i: int, ns: int, n_align
 def _compiled_smooth_steps(scene: mo.Scene, backend: str, eps: float):
     """``run(t, h, X, first, last, Q) -> (ln|diag R| (steps, k), h trace A (steps,))``: the
     smooth steps ``first .. last − 1`` in compiled code (:mod:`moreau.compiled.tangent`, Q
-    updated in place), or None on the Python path (``backend="python"``, or a scene
-    without a compiled form)."""
+    updated in place), or None on the Python path (``backend="python"``)."""
     if backend == "python":
         return None
-    from moreau.compiled.lowering import NotCompilable, lower
+    from moreau.compiled.lowering import lower
     from moreau.compiled.tangent import decode_status, smooth_steps
 
-    try:
-        cs = lower(scene)
-    except NotCompilable as exc:
-        log.info("lyapunov_spectrum_tangent: the smooth steps run on the Python path: %s", exc)
-        return None
+    cs = lower(scene)
     user = cs.user.addresses
 
     def run(t: float, h: float, X: np.ndarray, first: int, last: int, Q: np.ndarray):

@@ -51,7 +51,7 @@ def choose_backend(backend: str, scene: Scene, integrator: type[OneStepIntegrato
                     drift_control: DriftControl | None,
                     ) -> tuple[str, Any, str | ContactSolver, str | ContactSolver | None]:
     """``(path, compiled scene or None, solver, fallback)`` for :func:`simulate`."""
-    from moreau.compiled.lowering import NotCompilable, lower
+    from moreau.compiled.lowering import lower
     from moreau.compiled.runner import COMPILED_SOLVERS
     from moreau.contact.solvers import ContactSolver
     from moreau.step.drift import CombinedProjection, PositionProjection
@@ -72,10 +72,7 @@ def choose_backend(backend: str, scene: Scene, integrator: type[OneStepIntegrato
         elif fallback not in ("auto", None) and fallback not in COMPILED_SOLVERS:
             reason = f"fallback {fallback!r} does not run in compiled code (compiled: {sorted(COMPILED_SOLVERS)})"
         else:
-            try:
-                cs = lower(scene)
-            except NotCompilable as exc:
-                reason = str(exc)
+            cs = lower(scene)  # every scene lowers (callables numba cannot compile are called back)
     if backend == "compiled" and reason:
         raise ValueError(f"backend='compiled': {reason}")
     path = "python" if (backend == "python" or reason) else "compiled"
