@@ -125,6 +125,7 @@ def lcp_lemke(A, q, z, k, T, basis, xb, piv=1e-9):
         basis[i] = i
     entering = z0
     status = FAILED
+    at_ray = False
     for _ in range(50 * (k + 1)):
         leaving = basis[r]
         _pivot(T, k, nv + 1, r, entering)
@@ -161,13 +162,12 @@ def lcp_lemke(A, q, z, k, T, basis, xb, piv=1e-9):
             for i in range(k):
                 if basis[i] == z0 and abs(T[i, rhs]) <= 1e-12 * rscale:
                     T[i, rhs] = 0.0
-                    status = OK
-            if status == OK and _refined_and_checked(A, q, z, k, T, basis, xb) != OK:
-                status = RAY
-            return status
+                    status, at_ray = OK, True
+            break
     if status != OK:
         return status
-    return _refined_and_checked(A, q, z, k, T, basis, xb)
+    checked = _refined_and_checked(A, q, z, k, T, basis, xb)  # one call site: inlined once
+    return RAY if at_ray and checked != OK else checked
 
 
 @_inline
