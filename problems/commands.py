@@ -33,6 +33,7 @@ from moreau.cli import (
     interrupt_exit_code,
     output_dir,
     positive_int,
+    save_figure,
     simulate_and_save,
     write_summary,
 )
@@ -99,14 +100,8 @@ def run_ball(args: argparse.Namespace) -> int:
     ax.legend()
     fig.tight_layout()
     fig_path = os.path.join(args.out, "ball.png")
-    tmp = f"{fig_path}.{os.getpid()}.tmp.png"  # a unique name, renamed into place
     try:
-        fig.savefig(tmp, dpi=120)
-        os.replace(tmp, fig_path)
-    except OSError as exc:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-        raise OSError(exc.errno, exc.strerror or str(exc), fig_path) from exc
+        save_figure(fig, fig_path, dpi=120)
     finally:
         plt.close(fig)
     row = {

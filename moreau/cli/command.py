@@ -38,7 +38,7 @@ used and the other is named in a warning.
 The handler's exceptions are reported in one line by ``main``: ``CLIError``
 (its ``code``), ``Stopped`` (130/143), ``ValueError`` (2), ``ImportError`` (2: a
 missing optional dependency), ``OSError`` (1); Ctrl-C and SIGTERM are handled alike. The
-helpers a command needs are exported here: ``output_dir``, ``write_summary``,
+helpers a command needs are exported here: ``output_dir``, ``write_summary``, ``save_figure``,
 ``simulate_and_save``, the option types ``float_in``, ``positive_int``,
 ``int_at_least``, ``add_backend_option``, and ``interrupt_exit_code`` (the exit
 code of a Ctrl-C or SIGTERM, for ``Stopped``).
@@ -77,6 +77,7 @@ from moreau.cli.common import (
     int_at_least,
     output_dir,
     positive_int,
+    save_figure,
     simulate_and_save,
     write_summary,
 )
@@ -86,7 +87,7 @@ __all__ = [
     "ENTRY_POINT_GROUP", "EXIT_OK", "EXIT_FAILED", "EXIT_USAGE", "CLIError", "Stopped",
     "add_backend_option", "build_parser", "command_entry_points", "float_in", "int_at_least",
     "interrupt_exit_code", "main", "register_compile",
-    "output_dir", "positive_int", "simulate_and_save", "write_summary",
+    "output_dir", "positive_int", "save_figure", "simulate_and_save", "write_summary",
 ]
 
 log = logging.getLogger("moreau.cli")

@@ -133,6 +133,21 @@ def write_summary(rows: list[dict[str, Any]], path: str) -> None:
     print(f"summary written to {path}")
 
 
+def save_figure(fig: Any, path: str, dpi: int = 110) -> None:
+    """Save a matplotlib figure under a unique temporary name, then rename it into place;
+    an ``OSError`` names ``path`` (a full disk says "[Errno 28] ...: 'out/ball.png'")."""
+    tmp = f"{path}.{os.getpid()}.tmp.png"
+    try:
+        fig.savefig(tmp, dpi=dpi)
+        os.replace(tmp, path)
+    except BaseException as exc:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        if isinstance(exc, OSError) and exc.filename in (None, tmp):
+            raise OSError(exc.errno, exc.strerror or str(exc), path) from exc
+        raise
+
+
 def _umask() -> int:
     """The process's file-creation mask (read without changing it where /proc tells it)."""
     try:

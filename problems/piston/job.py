@@ -19,6 +19,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 import moreau as mo
+from moreau.cli.common import save_figure
 from moreau.sweeps.pool import interrupt_for_signal, run_jobs
 
 from .analysis import cycle_figures, max_penetration_ratio, mean_speed_rpm, settled_speed_rpm
@@ -147,7 +148,7 @@ def run_case(case: Case, out: str, progress: bool | dict = False) -> dict:
                                f"{last.side_changes} side changes, {last.impacts} impacts"
                                + (f", friction {last.friction_loss:.3g} J" if case.mu else ""))
         try:
-            _save_figure(fig, stem + ".png")
+            save_figure(fig, stem + ".png")
         except OSError as exc:
             unsaved.append(f"{stem}.png not saved: {exc.strerror or exc}")
         plt.close(fig)
@@ -155,18 +156,6 @@ def run_case(case: Case, out: str, progress: bool | dict = False) -> dict:
         log.error("case %s: %s", case.label, "; ".join(unsaved))
         row["warnings"] = "; ".join(filter(None, [row["warnings"], *unsaved]))
     return row
-
-
-def _save_figure(fig, path: str) -> None:
-    """Save a figure under a unique temporary name, then rename it into place."""
-    tmp = f"{path}.{os.getpid()}.tmp.png"
-    try:
-        fig.savefig(tmp, dpi=110)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-        raise
 
 
 def summary_row(case: Case, status: str, wall: float = float("nan")) -> dict:
