@@ -13,7 +13,7 @@ import numpy as np
 from moreau.compiled.bilateral import _eq_reduce
 from moreau.compiled.layout import A_WORK_T, A_WORST, C_K, C_PAINLEVE, C_PAINLEVE_ROW, C_PAINLEVE_STEP, F_TOL
 from moreau.compiled.layout import part as _part
-from moreau.contact.friction import friction_workspace, solve_friction_step
+from moreau.contact.friction import PAINLEVE_MARGIN, friction_workspace, solve_friction_step
 
 __all__ = ["friction_work", "friction_parts"]
 
@@ -88,7 +88,9 @@ def _friction_solve(n, m, M, L, b, G, GA, cA, active, na, v_new, PA, fset, acc, 
                     ut += GA[na + f, i] * v_new[i]
                 if abs(pt) >= (1.0 - 1e-9) * mu[r] * pn and not (pn == 0.0 and ut == 0.0):
                     s = (-1.0 if pt > 0.0 else 1.0) if pn > 0.0 else (1.0 if ut > 0.0 else -1.0)
-                    if W[j, j] - mu[r] * s * W[j, na + f] <= 0.0 and painleve < 0:
+                    wnn = W[j, j]  # at round-off of W_TT: a row held by the bilateral ones, not Painlevé's
+                    if wnn - mu[r] * s * W[j, na + f] <= PAINLEVE_MARGIN * wnn and wnn > 1e-9 * W[na + f, na + f] \
+                            and painleve < 0:
                         painleve = r
                 f += 1
             j += 1

@@ -61,6 +61,25 @@ def test_painleve_rod_tangential_impact(h):
     assert abs(traj.slip_velocity[i + 1, 0]) < 0.1 < abs(traj.slip_velocity[i - 1, 0])
 
 
+@pytest.mark.parametrize("backend", ["compiled", "python"])
+def test_a_rod_that_leaves_the_floor_still_slipping_near_painleves_point_says_so(backend):
+    """At h = 1e-4 the rod lifts off at 44.9°, still slipping, where the effective normal
+    inverse mass is 0.005 (0.2 % of its frictionless 2.5): no tangential impact, unlike
+    h = 1e-3 and 3e-4. Its sliding came within 1 % of Painlevé's point (at 44.5°,
+    t = 0.8126 s), where the answer depends on the step size, and the run says so: one
+    RuntimeWarning naming the contact, the time and the cause, kept in traj.warnings."""
+    q0, v0 = release()
+    with pytest.warns(RuntimeWarning, match="Painlevé's paradox") as caught:
+        traj = mo.simulate(rod(), (0.0, 0.83), q0, v0, 1e-4, backend=backend, solver="exact")
+    assert traj.completed and traj.stats.backend == backend
+    said = [str(x.message) for x in caught if "Painlevé" in str(x.message)]
+    assert len(said) == 1 and said[0] in traj.warnings
+    t_said = float(said[0].split("at t = ")[1].split(" ")[0])
+    assert 0.80 < t_said < 0.815 and "'end'" in said[0] and "vanishing" in said[0]
+    assert traj.impulses.max() < 1.0  # no tangential impact: it left the floor still slipping
+    assert abs(traj.slip_velocity[-1, 0]) > 5.0 and not traj.active[-1, 0]
+
+
 def test_painleve_region_is_flagged():
     """painleve_rows flags a sliding contact whose effective normal inverse mass
     1 + 3 cos²φ − 3 mu sinφ cosφ (the rod above, sliding to the left) is not positive:
