@@ -174,8 +174,9 @@ def _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc
             if status != DONE:
                 return status
     for r in range(m):
-        if -gq[r] > pen[r]:
-            pen[r] = -gq[r]
+        if -gq[r] > pen[0, r]:  # the deepest penetration, and the step that ends there
+            pen[0, r] = -gq[r]
+            pen[1, r] = cnt[C_K] + 1
         if in_contact[r]:
             gmax[r] = -math.inf
         elif gq[r] > gmax[r]:

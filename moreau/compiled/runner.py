@@ -106,7 +106,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     gmax = np.full(m, -np.inf)
     fgap = np.ascontiguousarray(flight_gap, dtype=float)
     rs = np.zeros((m, 6))  # CombinedProjection's per-row state (gap at q_k, flags, impact instants)
-    pen = np.zeros(m)
+    pen = np.zeros((2, m))  # per row: the deepest penetration, the count of steps at its end
     cnt = np.zeros(lay.N_COUNTERS, dtype=np.int64)
     cnt[lay.C_REC] = 1
     acc = np.zeros(lay.N_ACCUMULATORS)
@@ -249,7 +249,8 @@ def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE,
     traj = assemble(
         scene, t=T[:rec], q=Q[:rec], v=V[:rec], impulses=np.ascontiguousarray(PS[:rec, :m]), active=ACT[:rec],
         onsets=onsets, stats=stats,
-        h=h, stride=stride, status=status, message=message, max_penetration=pen.copy(), energy=energy,
+        h=h, stride=stride, status=status, message=message, max_penetration=pen[0].copy(),
+        max_penetration_t=np.where(pen[0] > 0.0, t0 + pen[1] * h, np.nan), energy=energy,
         work={"forces": float(acc[lay.A_WORK_F]), "contacts": float(acc[lay.A_WORK_C]),
               **({"friction": float(acc[lay.A_WORK_T])} if PTS is not None else {}),
               **({"constraints": float(acc[lay.A_WORK_E]),

@@ -19,7 +19,8 @@ log = logging.getLogger(__name__)
 
 def assemble(scene: Any, *, t: np.ndarray, q: np.ndarray, v: np.ndarray, impulses: np.ndarray,
              active: np.ndarray, onsets: ImpactLog, stats: SolverStats, h: float, stride: int, status: str,
-             message: str, work: dict[str, float], max_penetration: np.ndarray, energy: bool,
+             message: str, work: dict[str, float], max_penetration: np.ndarray,
+             max_penetration_t: np.ndarray | None, energy: bool,
              gaps: np.ndarray | None = None, kinetic: np.ndarray | None = None,
              potential: np.ndarray | None = None, tangential_impulses: np.ndarray | None = None,
              slip: np.ndarray | None = None, constraint_impulses: np.ndarray | None = None,
@@ -57,6 +58,7 @@ def assemble(scene: Any, *, t: np.ndarray, q: np.ndarray, v: np.ndarray, impulse
         record_every=stride, row_names=list(scene.row_names), scene=scene.describe(), energy=total,
         kinetic_energy=kinetic if energy else None, potential_energy=potential if energy else None,
         status=status, message=message, version=__version__, max_penetration=max_penetration, work=work,
+        max_penetration_t=max_penetration_t,
         tangential_impulses=tangential_impulses, slip_velocity=slip, sticking=sticking,
         constraint_impulses=constraint_impulses if me else None,
         constraint_residuals=constraint_residuals if me else None,

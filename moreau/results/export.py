@@ -91,6 +91,9 @@ def trajectory_to_xarray(traj: Trajectory) -> xarray.Dataset:
     if traj.max_penetration is not None:
         data["max_penetration"] = ("row", traj.max_penetration,
                                    {"units": uniform(u["gaps"]), "long_name": "largest penetration over every step"})
+    if traj.max_penetration_t is not None:
+        data["max_penetration_t"] = ("row", traj.max_penetration_t,
+                                     {"units": "s", "long_name": "end of the step with the largest penetration"})
     attrs = {
         "scene": str(traj.scene.get("name", "")),
         "scene_json": json.dumps(traj.scene, default=_plain),

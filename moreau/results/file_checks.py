@@ -39,11 +39,12 @@ def check_loaded(path: str, traj: Any, n_onsets: int) -> None:
     n = np.asarray(traj.q).shape[1] if np.ndim(traj.q) == 2 else -1
     shapes = {"q": (N, n), "v": (N, n), "gaps": (N, m), "impulses": (N, m), "active": (N, m),
               "energy": (N,), "kinetic_energy": (N,), "potential_energy": (N,), "max_penetration": (m,),
+              "max_penetration_t": (m,),
               "tangential_impulses": (N, m), "slip_velocity": (N, m), "sticking": (N, m),
               "constraint_impulses": (N, me), "constraint_residuals": (N, me)}
     for name, shape in shapes.items():
         a = getattr(traj, name)
-        if a is not None and name != "max_penetration" and np.ndim(a) >= 1 and np.shape(a)[0] != N:
+        if a is not None and not name.startswith("max_penetration") and np.ndim(a) >= 1 and np.shape(a)[0] != N:
             raise ValueError(f"{where} is inconsistent: {name} has {np.shape(a)[0]} records, t has {N}")
         if a is not None and (n < 0 or np.shape(a) != shape):
             raise ValueError(f"{where} is inconsistent: {name} has shape {np.shape(a)}, expected {shape} "

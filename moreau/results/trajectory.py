@@ -71,6 +71,9 @@ class Trajectory:
     max_penetration : ndarray, shape (m,) or None
         Largest penetration max(0, −g) of each row over *every* step's end position (not
         only the records), in the gap's unit.
+    max_penetration_t : ndarray, shape (m,) or None
+        Time (s) at the end of the step where each row's ``max_penetration`` was reached;
+        NaN for a row that never penetrated.
     work : dict
         Energy-ledger terms summed over every step: ``"forces"``, the work of the smooth
         forces h fᵀ(v_k + v⁺)/2, and ``"contacts"``, the work of the contact impulses
@@ -136,6 +139,7 @@ class Trajectory:
     version: str = ""
     extra: dict[str, Any] = field(default_factory=dict)
     max_penetration: np.ndarray | None = None
+    max_penetration_t: np.ndarray | None = None
     work: dict[str, float] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     units: dict[str, Any] = field(default_factory=dict)
@@ -230,8 +234,8 @@ class Trajectory:
             "t": self.t, "q": self.q, "v": self.v, "gaps": self.gaps,
             "impulses": self.impulses, "active": self.active,
         }
-        for name in ("energy", "kinetic_energy", "potential_energy", "max_penetration", "tangential_impulses",
-                     "slip_velocity", "sticking", "constraint_impulses", "constraint_residuals"):
+        for name in ("energy", "kinetic_energy", "potential_energy", "max_penetration", "max_penetration_t",
+                     "tangential_impulses", "slip_velocity", "sticking", "constraint_impulses", "constraint_residuals"):
             if getattr(self, name) is not None:
                 arrays[name] = getattr(self, name)
         for name in _impact_arrays():
@@ -304,7 +308,8 @@ class Trajectory:
                 energy=data.get("energy"), kinetic_energy=data.get("kinetic_energy"),
                 potential_energy=data.get("potential_energy"), status=meta["status"],
                 message=meta["message"], version=meta["version"], extra=meta.get("extra", {}),
-                max_penetration=data.get("max_penetration"), work=meta.get("work", {}),
+                max_penetration=data.get("max_penetration"),
+                max_penetration_t=data.get("max_penetration_t"), work=meta.get("work", {}),
                 warnings=list(meta.get("warnings", [])), units=meta.get("units", {}),
                 tangential_impulses=data.get("tangential_impulses"), slip_velocity=data.get("slip_velocity"),
                 sticking=data.get("sticking"), constraint_impulses=data.get("constraint_impulses"),

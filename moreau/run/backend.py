@@ -42,7 +42,7 @@ def initial_state_only(scene: Scene, t0: float, q0: np.ndarray, v0: np.ndarray, 
         active=np.zeros((1, m), dtype=bool), onsets=ImpactLog(),
         stats=SolverStats(solver=str(solver), fallback=str(fallback or ""), backend="compiled"), h=h, stride=stride,
         status="interrupted", message=f"interrupted by the user at step 0 (t = {t0:.9g})", work={},
-        max_penetration=np.zeros(m), energy=False, gaps=np.full((1, m), np.nan),
+        max_penetration=np.zeros(m), max_penetration_t=np.full(m, np.nan), energy=False, gaps=np.full((1, m), np.nan),
     )
 
 

@@ -48,7 +48,7 @@ def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, s
     gmax = gmax.copy()
 
     bar = progress_bar(progress, n_steps, scene.name)
-    pen = np.zeros(m)
+    pen, pen_t = np.zeros(m), np.full(m, np.nan)
     chunk = max(1, min(10_000, n_steps // 200))
 
     status, message = "completed", ""
@@ -77,7 +77,7 @@ def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, s
                 elif in_contact.any():
                     in_contact = np.zeros(m, dtype=bool)
                 g_end = gaps_at(integ.q, integ.v)
-                np.maximum(pen, -g_end, out=pen)
+                pen_t[-g_end > pen], pen[:] = integ.t, np.maximum(pen, -g_end)
                 gmax = np.where(in_contact, -np.inf, np.maximum(gmax, g_end))
             if k % ENERGY_CHECK_EVERY == 0 or len(impacts) > n_impacts:  # and after a logged impact
                 check(k)
@@ -135,7 +135,7 @@ def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, s
     traj = assemble(scene, t=T[:rec], q=Q[:rec], v=V[:rec], impulses=PS[:rec], active=ACT[:rec],
                     onsets=ImpactLog.from_rows(impacts), stats=_stats(integ, wall), h=h, stride=stride,
                     status=status, message=message, work=_work(integ, friction, me), max_penetration=pen,
-                    energy=energy, tangential_impulses=PTS[:rec] if friction else None,
+                    max_penetration_t=pen_t, energy=energy, tangential_impulses=PTS[:rec] if friction else None,
                     constraint_impulses=PES[:rec] if me else None)
     for said in (check.warned, integ.painleve):
         if said is not None:

@@ -62,12 +62,17 @@ def penetration_warnings(scene, traj, h: float, limit: float | None) -> list[str
     gap_size = np.nanmax(np.abs(traj.gaps), axis=0, initial=0.0) if len(traj) else np.zeros(len(pen))
     tol = np.maximum(np.asarray(getattr(scene, "activation_tol", np.zeros(len(pen))), dtype=float),
                      8.0 * np.finfo(float).eps * gap_size)
+    when = traj.max_penetration_t if traj.max_penetration_t is not None else np.full(len(pen), np.nan)
+
+    def at(r: int | np.integer) -> str:  # the time of the row's deepest penetration, when the run kept it
+        return f" at t = {when[r]:.9g} s" if np.isfinite(when[r]) else ""
+
     for r in np.flatnonzero(pen > 0.0):
         if limit is not None:
             lim, why = float(limit), "the given limit"
         elif not carried[r]:  # never an impulse: the row was never enforced (a vanishing Jacobian?)
             if pen[r] > tol[r]:
-                out.append(f"row {traj.row_names[r]!r} penetrated {pen[r]:.3g} (gap units) without any contact "
+                out.append(f"row {traj.row_names[r]!r} penetrated {pen[r]:.3g} (gap units){at(r)} without any contact "
                            "impulse: the contact was never enforced (does its Jacobian vanish there?)")
             continue
         else:
@@ -76,7 +81,7 @@ def penetration_warnings(scene, traj, h: float, limit: float | None) -> list[str
                 continue  # no impact: the drift of a sliding contact, left to drift control
             lim, why = h * float(U.max()), f"h·|U⁻| = {h:g} × {float(U.max()):.3g}, the step's own scale"
         if pen[r] > lim:
-            out.append(f"row {traj.row_names[r]!r} penetrated {pen[r]:.3g} (gap units), beyond {why} "
+            out.append(f"row {traj.row_names[r]!r} penetrated {pen[r]:.3g} (gap units){at(r)}, beyond {why} "
                        f"({lim:.3g}): the contact is not resolved at this step size")
     if out:
         warnings.warn("; ".join(out), RuntimeWarning, stacklevel=3)
