@@ -16,7 +16,10 @@ The pieces, in the field's vocabulary, and where they live:
 
 import sys
 
-from .core.compat import MOVED as _MOVED
+from .core.jitcache import use_process_cache_when_none_is_writable as _use_process_cache
+
+_use_process_cache()  # before any of moreau's cached functions is defined
+from .core.compat import MOVED as _MOVED  # noqa: E402
 from .core.compat import install as _install_moved
 from .core.compat import moved as _moved
 from .core.version import DISTRIBUTION, __version__  # noqa: F401 - DISTRIBUTION is read by the packaging tests

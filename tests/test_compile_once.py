@@ -123,3 +123,52 @@ def test_a_cache_file_overwritten_with_random_bytes_is_removed_and_compiled_agai
     assert "could not be read" in out.stderr and "tiny.twice" in out.stderr
     again = run("plain")  # the file was replaced by a good one
     assert again.returncode == 0 and again.stdout.split() == ["42.0"]
+
+
+_NOWHERE = textwrap.dedent("""
+    import os, sys, warnings
+    import numpy as np
+    from numba.core import caching
+
+    class Nowhere(caching._CacheLocator):  # no directory numba knows of is writable
+        def get_cache_path(self):
+            return ""
+
+        def get_source_stamp(self):
+            return None
+
+        def get_disambiguator(self):
+            return ""
+
+        @classmethod
+        def from_function(cls, py_func, py_file):
+            return None
+
+    (getattr(caching, "CacheImpl", None) or caching._CacheImpl)._locator_classes[:] = [Nowhere]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        import moreau
+        from moreau.core import jitcache
+        from moreau.core.kernels import cholesky
+        M, L = np.array([[4.0, 2.0], [2.0, 3.0]]), np.zeros((2, 2))
+        print(cholesky(M, L, 2), np.allclose(L @ L.T, M))
+    said = [str(w.message) for w in caught if "cache" in str(w.message)]
+    print(len(said), jitcache.cache_dir())
+    print(said[0] if said else "")
+""")
+
+
+def test_no_writable_cache_directory_runs_with_one_warning_in_a_temporary_one():
+    """numba's locators all refusing (a read-only package, home and NUMBA_CACHE_DIR): moreau
+    imports and compiles with one RuntimeWarning naming the way out, into a temporary
+    directory of the process that is gone after it exits (numba alone raises "no locator
+    available" at import)."""
+    out = subprocess.run([sys.executable, "-c", _NOWHERE], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    lines = out.stdout.splitlines()
+    assert lines[0] == "-1 True"
+    count, where = lines[1].split(" ", 1)
+    assert count == "1" and "moreau-numba-" in where
+    assert "no writable numba cache directory" in lines[2] and "NUMBA_CACHE_DIR" in lines[2]
+    assert not os.path.exists(where)  # removed when the process ended
+    assert "Traceback" not in out.stderr

@@ -18,7 +18,8 @@ the same source and numba, so the first run loads the loop instead of compiling 
 
 The cache lives where numba puts it: ``$NUMBA_CACHE_DIR`` when set, else the package's
 ``__pycache__`` when writable, else a folder in the user's cache directory
-(:func:`cache_dir` says which).
+(:func:`cache_dir` says which). When none of these is writable, a temporary directory of
+the process, with one warning (:func:`use_process_cache_when_none_is_writable`).
 """
 
 from __future__ import annotations
@@ -256,3 +257,66 @@ def compile_lock() -> Iterator[None]:
         if fd is not None:
             fcntl.flock(fd, fcntl.LOCK_UN)
             os.close(fd)
+
+
+_PROCESS_DIR: list[str] = []  # this process's temporary cache directory, once made
+_PROCESS_LOCK = threading.Lock()
+
+
+def _process_cache_dir() -> str:
+    """A temporary directory for this process's machine code, made on first use and
+    removed at its exit (by the process that made it)."""
+    with _PROCESS_LOCK:
+        if not _PROCESS_DIR:
+            import atexit
+            import tempfile
+            import warnings
+
+            path = tempfile.mkdtemp(prefix="moreau-numba-")
+            owner = os.getpid()
+
+            def remove() -> None:  # by the process that made it, not by a forked worker
+                if os.getpid() == owner:
+                    shutil.rmtree(path, ignore_errors=True)
+
+            atexit.register(remove)
+            _PROCESS_DIR.append(path)
+            warnings.warn(f"moreau: no writable numba cache directory (NUMBA_CACHE_DIR, the package's __pycache__ "
+                          f"and the user's cache directory were tried); compiled code is kept in {path} for this "
+                          "process only, and every new process compiles again (about 100 s for the time loop). "
+                          "Set NUMBA_CACHE_DIR to a writable directory to keep it", RuntimeWarning, stacklevel=2)
+        return _PROCESS_DIR[0]
+
+
+def use_process_cache_when_none_is_writable() -> None:
+    """Give numba a last cache locator: when none of its own finds a writable directory
+    for a function's cached machine code (which makes ``cache=True`` raise "no locator
+    available" at import), a temporary directory of this process, with one
+    ``RuntimeWarning``. Idempotent; called when moreau is imported."""
+    from numba.core import caching
+
+    impl = getattr(caching, "CacheImpl", None) or caching._CacheImpl  # type: ignore[attr-defined]
+    if any(getattr(cls, "_moreau_last_resort", False) for cls in impl._locator_classes):
+        return
+
+    class ProcessCacheLocator(caching._SourceFileBackedLocatorMixin, caching._CacheLocator):
+        """numba's cache locator of last resort (moreau's): this process's temporary directory."""
+
+        _moreau_last_resort = True
+
+        def __init__(self, py_func, py_file):
+            self._py_file = py_file
+            self._lineno = py_func.__code__.co_firstlineno
+            self._cache_path = os.path.join(_process_cache_dir(), self.get_suitable_cache_subpath(py_file))
+
+        def get_cache_path(self) -> str:
+            return self._cache_path
+
+        @classmethod
+        def from_function(cls, py_func, py_file):
+            try:
+                return super().from_function(py_func, py_file)
+            except OSError:  # no temporary directory either: numba says "no locator available"
+                return None
+
+    impl._locator_classes.append(ProcessCacheLocator)
