@@ -1,14 +1,15 @@
 """The first `moreau piston` after a fresh install against the second (issue 23).
 
 Makes a new virtual environment in a temporary folder, installs this checkout into it as a
-user would (`pip install <checkout>`, not editable: the wheel's build step compiles the time
-loop into the package), then runs `moreau piston` twice with an empty `NUMBA_CACHE_DIR`,
-each under `/usr/bin/time -v`, and prints wall time and peak resident memory (the largest
+user would (`pip install <checkout>`: the wheel's build step compiles the time loop into the
+package; with `--editable`, `pip install -e`: the build step compiles it into the cache),
+with `NUMBA_CACHE_DIR` on a new empty folder, then runs `moreau piston` twice, each under
+`/usr/bin/time -v`, and prints wall time and peak resident memory (the largest
 single process: the parent or a worker) of the install and of both runs, and their ratio.
 
     python benchmarks/first_run.py            # about 3-4 minutes on 2 cores
-    python benchmarks/first_run.py --editable # the same with `pip install -e` (no machine code
-                                              # in the package: the first run compiles)
+    python benchmarks/first_run.py --editable # the same with `pip install -e` (the README's
+                                              # command; MOREAU_PREBUILD=0: the first run compiles)
 
 Needs the package index (or pip's cache) for the dependencies, and GNU time.
 """
@@ -52,10 +53,10 @@ def main() -> int:
         env = {k: v for k, v in os.environ.items() if not k.startswith(("NUMBA_", "PYTHONPATH", "VIRTUAL_ENV"))}
         env["MPLBACKEND"] = "Agg"
         target = ["-e", str(ROOT)] if args.editable else [str(ROOT)]
-        inst = _timed([py, "-m", "pip", "install", "--quiet", *target], env, tmp)
-        cache = os.path.join(tmp, "numba-cache")
+        cache = os.path.join(tmp, "numba-cache")  # empty; the editable install compiles into it
         os.makedirs(cache)
         env["NUMBA_CACHE_DIR"] = cache
+        inst = _timed([py, "-m", "pip", "install", "--quiet", *target], env, tmp)
         moreau = os.path.join(venv, "bin", "moreau")
         first = _timed([moreau, "piston", "--no-progress", "--out", "out1"], env, tmp)
         second = _timed([moreau, "piston", "--no-progress", "--out", "out2"], env, tmp)

@@ -1,4 +1,5 @@
-"""The machine code a built package carries, so that its first run does not compile.
+"""The machine code a built package carries, so that its first run does not compile (an
+editable install compiles into the checkout's own cache instead: :func:`warm_up`).
 
 ``setup.py``'s build hook runs ``python -m moreau.problems.prebuild DIR`` with the freshly
 built package first on ``sys.path`` and an empty ``NUMBA_CACHE_DIR``: it loads (compiles)
@@ -18,16 +19,15 @@ import tempfile
 import time
 from collections.abc import Sequence
 
-__all__ = ["prebuild", "main"]
+__all__ = ["prebuild", "warm_up", "main"]
 
 log = logging.getLogger(__name__)
 
 
-def prebuild(out: str) -> int:
-    """Compile the time loop and the piston's kernels into numba's cache and copy them into
-    ``out``; returns the number of files copied."""
+def warm_up() -> None:
+    """Compile the time loop and the piston's kernels into numba's cache (the editable
+    install's build step calls this alone: its runs load them from there)."""
     from moreau.compiled.cache import ensure_compiled
-    from moreau.core.jitcache import export
     from moreau.problems.piston.job import Case, run_cases
 
     ensure_compiled()
@@ -35,6 +35,14 @@ def prebuild(out: str) -> int:
         rows = run_cases([Case(e=0.9, D=0.08004, h=1e-3, cycles=1, transient=0)], tmp, progress=False, workers=1)
     if rows[0]["status"] != "completed":
         log.warning("moreau prebuild: the piston's warm-up run ended %r", rows[0]["status"])
+
+
+def prebuild(out: str) -> int:
+    """Compile the time loop and the piston's kernels into numba's cache (:func:`warm_up`)
+    and copy them into ``out``; returns the number of files copied."""
+    from moreau.core.jitcache import export
+
+    warm_up()
     return export(out)
 
 
