@@ -8,6 +8,7 @@ import math
 import os
 import subprocess
 import sys
+import time
 import uuid
 
 import numpy as np
@@ -45,8 +46,14 @@ def counted(a: float, b: int, calls_dir: str) -> dict:
     open(os.path.join(d, uuid.uuid4().hex), "w").close()
     trigger = os.path.join(calls_dir, "interrupt_at")
     if os.path.exists(trigger) and open(trigger).read() == f"{a}_{b}":
+        with open(os.path.join(calls_dir, "interrupted"), "w") as f:  # when (a system-wide clock)
+            f.write(repr(time.monotonic()))
         raise KeyboardInterrupt
-    return cheap(a, b)
+    out = cheap(a, b)
+    os.makedirs(os.path.join(calls_dir, "finished"), exist_ok=True)
+    with open(os.path.join(calls_dir, "finished", f"{a}_{b}"), "w") as f:
+        f.write(repr(time.monotonic()))
+    return out
 
 
 def _with_tuple(a: int, t: tuple) -> dict:
@@ -54,7 +61,10 @@ def _with_tuple(a: int, t: tuple) -> dict:
 
 
 def calls(calls_dir) -> dict:
-    return {p.name: len(list(p.iterdir())) for p in calls_dir.iterdir()} if calls_dir.exists() else {}
+    """Calls made per point (``counted``'s files)."""
+    if not calls_dir.exists():
+        return {}
+    return {p.name: len(list(p.iterdir())) for p in calls_dir.iterdir() if p.is_dir() and p.name != "finished"}
 
 
 GRID = {"a": np.linspace(0.0, 1.0, 5), "b": [1, 2, 3]}
@@ -151,7 +161,13 @@ def test_interrupted_sweep_resumes_without_recomputing_finished_points(tmp_path,
     (calls_dir / "interrupt_at").unlink()
     parts = [p for p in (tmp_path / "sweep.parquet.parts").iterdir() if p.name != "sweep.json"]
     before = calls(calls_dir)
-    assert 7 <= len(parts) < 15  # the 7 points before (0.5, 2) at least; not all
+    # every point that finished before the interrupt is kept (serially: the 7 before
+    # (0.5, 2); with two workers, whatever the other had finished by then); not all
+    t_stop = float((calls_dir / "interrupted").read_text())
+    kept_before = [p for p in (calls_dir / "finished").iterdir() if float(p.read_text()) < t_stop]
+    assert len(kept_before) <= len(parts) < 15
+    if executor == "serial":
+        assert len(parts) == 7
     # the table lists every point: the finished ones, and the others as not computed
     table = read_table(out)
     assert len(table) == 15 and (table["error"] == "not computed").sum() == 15 - len(parts)
