@@ -13,7 +13,8 @@ import numpy as np
 from moreau.compiled.bilateral import _eq_reduce
 from moreau.compiled.layout import A_WORK_T, A_WORST, C_K, C_PAINLEVE, C_PAINLEVE_ROW, C_PAINLEVE_STEP, F_TOL
 from moreau.compiled.layout import part as _part
-from moreau.contact.friction import PAINLEVE_MARGIN, friction_workspace, solve_friction_step
+from moreau.contact.friction import friction_workspace, solve_friction_step
+from moreau.contact.painleve import PAINLEVE_MARGIN
 
 __all__ = ["friction_work", "friction_parts"]
 
@@ -37,7 +38,7 @@ def _friction_solve(n, m, M, L, b, G, GA, cA, active, na, v_new, PA, fset, acc, 
     (solved; ``PA`` = [P_N; P_T], ``fr``'s PT per row), 0 (no active row has friction: the
     caller solves the frictionless problem) or −1 (no answer passed the law check; the
     residuals in ``fail[0]``). A sliding contact in Painlevé's region (as
-    :func:`moreau.contact.friction.painleve_rows` finds them) is counted in ``cnt``.
+    :func:`moreau.contact.painleve.painleve_rows` finds them) is counted in ``cnt``.
 
     With bilateral rows (``rank`` >= 0: M, L, b are the reduced problem's, ``Lo`` the
     step's own Cholesky factor, ``eqw`` the bilateral work arrays) the tangent rows are

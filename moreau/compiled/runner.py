@@ -21,7 +21,8 @@ from moreau.compiled import loop as lp
 from moreau.compiled.at_records import slips
 from moreau.compiled.lowering import CompiledScene, lower
 from moreau.compiled.usercalls import SLOT_WORDS, decode
-from moreau.contact.friction import FRICTION_RESIDUALS, painleve_message
+from moreau.contact.friction import FRICTION_RESIDUALS
+from moreau.contact.painleve import painleve_message
 from moreau.core.errors import SimulationError, SolverError, attach_trajectory
 from moreau.model.stability import ENERGY_CHECK_EVERY, energy_growth_message, kept_until, not_converged_message
 from moreau.results.assemble import assemble

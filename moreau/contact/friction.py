@@ -37,19 +37,14 @@ contacts here would be invisible). The velocity unknowns (U_T⁻, λ) and their 
 scaled by ``D = diag(W_TT)`` so that every row is a velocity and every unknown an impulse
 (the solution does not change).
 
-Redundant rows (two corners of one rigid body on one wall have identical tangent rows;
-a 3-link chain on a floor at three points has 6 rows on 3 coordinates) make the Delassus
-block singular, and the tableau then holds round-off where exact zeros belong. Measured on
-such problems, either form can end on a ray that is round-off, not the problem's, and
-which one does changes with the last bit of W; so :func:`solve_friction_step` tries the
-Glocker form, then the Anitescu–Potra form, each with Lemke's pivot tolerance 1e-9, 1e-7
-and 1e-11 (column entries below that fraction of the column's largest are not pivots),
-and takes the first answer that passes Lemke's own check (a regularized diagonal was
-tried and measured worse); when every attempt fails and at most five contacts are
-active, the enumeration of contact states (:mod:`moreau.contact.friction_states`)
-searches exactly. Only when that finds nothing too is the status ``RAY`` (no solution
-found) returned, never an answer. :func:`friction_residuals_kernel` checks the
-answer against the full law, as the KKT check does for the frictionless problem.
+Redundant rows (two corners of one body on one wall; a 3-link chain on a floor at three
+points) make the Delassus block singular: either form can then end on a ray of round-off,
+so :func:`solve_friction_step` tries the Glocker form, then the Anitescu–Potra form, each
+with pivot tolerances 1e-9, 1e-7 and 1e-11, takes the first answer that passes the check
+of :func:`friction_residuals_kernel` (the full law), and with at most five contacts
+enumerates their states (:mod:`moreau.contact.friction_states`). Only when nothing is
+found is the status ``RAY``, never an answer. From ``PGS_MIN_CONTACTS`` contacts on it
+first relaxes the problem (:mod:`moreau.contact.pgs`), checked the same way.
 """
 
 from __future__ import annotations
@@ -59,6 +54,7 @@ import math
 import numpy as np
 from numba import njit
 
+from moreau.contact import pgs as _pgs
 from moreau.contact.active_set import _inline, _jit
 from moreau.contact.friction_states import enumerate_states
 from moreau.contact.kkt import kkt_residuals_rows
@@ -66,7 +62,8 @@ from moreau.contact.lemke import FAILED, OK, RAY, lcp_lemke
 from moreau.core.kernels import cho_solve, delassus
 
 __all__ = ["friction_workspace", "solve_friction_step", "friction_residuals_kernel", "friction_one_step",
-           "friction_residuals", "painleve_rows", "painleve_message", "FRICTION_RESIDUALS", "PAINLEVE_MARGIN"]
+           "friction_residuals", "FRICTION_RESIDUALS", "FRICTION_METHODS",
+           "PGS_MIN_CONTACTS"]
 
 #: the pivot tolerances Lemke's method tries in turn on a friction problem (see
 #: :func:`solve_friction_step`)
@@ -74,6 +71,14 @@ PIVOT_TOLERANCES = (1e-9, 1e-7, 1e-11)
 
 #: an answer with every law residual at most this is taken without trying another
 GOOD = 1e-9
+
+#: how :func:`solve_friction_step` solves: by size (projected Gauss–Seidel and a polish
+#: from ``PGS_MIN_CONTACTS`` contacts on, Lemke's method when that fails and below), by
+#: Lemke's method only, or by the relaxation only
+FRICTION_AUTO, FRICTION_LEMKE, FRICTION_PGS = 0, 1, 2
+FRICTION_METHODS = {"auto": FRICTION_AUTO, "lemke": FRICTION_LEMKE, "pgs": FRICTION_PGS}
+#: from this many closed contacts on, "auto" relaxes first (benchmarks/many_contacts.py)
+PGS_MIN_CONTACTS = 64
 
 #: the names of the six residuals of :func:`friction_residuals_kernel`, in order
 FRICTION_RESIDUALS = ("primal", "dual", "complementarity", "stationarity", "cone", "slip")
@@ -84,10 +89,15 @@ def friction_workspace(n: int, m: int, mf: int) -> tuple:
     allocating compiles nothing)."""
     r = max(m + mf, 1)
     p = max(m + 3 * mf, 1)
+    rp = r if m >= PGS_MIN_CONTACTS else 1  # the polish's matrices: only where "auto" relaxes
     return (np.empty((r, n)), np.empty(n), np.empty((r, r)), np.empty(r), np.zeros((p, p)), np.empty(p),
             np.empty(p), np.empty((p, 2 * p + 2)), np.empty(p, dtype=np.int64), np.empty(p), np.empty((n, r)),
             np.empty(r), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(6),
-            np.empty(6), np.empty(r), np.empty(n), np.empty((n, n)), np.zeros(n + 1))
+            np.empty(6), np.empty(r), np.empty(n), np.empty((n, n)), np.zeros(n + 1),
+            # [23:]: the relaxation's U, Q, states, signs, rows, A, factor, r, x, tangent rows, impulses
+            np.empty(r), np.empty(r), np.zeros(max(m, 1), dtype=np.int64), np.zeros(r), np.empty(r, dtype=np.int64),
+            np.empty((rp, rp)), np.empty((rp, rp)), np.empty(r), np.empty(r), np.empty(max(m, 1), dtype=np.int64),
+            np.empty(r))
 
 
 @_inline
@@ -140,7 +150,7 @@ def _assemble(W, w, mu, fidx, k, kf, form, A, qv):
 
 
 @njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]  # a call: compiled once, not re-optimized inline
-def solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, tol, res, ws):
+def solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, tol, res, ws, method=FRICTION_AUTO):
     """v and ``P = [P_N (k); P_T (kf)]`` of the one-step problem with friction (module
     docstring) on the first k normal rows of G and the kf tangential rows after them, and
     the six residuals of the full law (:func:`friction_residuals_kernel`) into ``res``.
@@ -150,7 +160,9 @@ def solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, tol, res, ws):
     reduced problem of a scene with bilateral rows, :mod:`moreau.contact.equality`);
     ``mu`` (>= k) their
     friction coefficients; ``fidx`` (>= kf) the normal row of each tangential row;
-    ``ws`` from :func:`friction_workspace`. Returns ``OK`` (every residual at most
+    ``ws`` from :func:`friction_workspace`; ``method`` one of ``FRICTION_METHODS``
+    (auto: :mod:`moreau.contact.pgs` first from ``PGS_MIN_CONTACTS`` contacts on, needing a
+    workspace made for that many). Returns ``OK`` (every residual at most
     ``tol``), ``FAILED`` (the best answer found misses ``tol``; it is in P, v) or ``RAY``
     (no attempt found one; ``res`` infinite). The compiled loop's friction solve and the
     Python path's (``tol = inf``: the integrator checks) are this one compiled function.
@@ -172,7 +184,9 @@ def solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, tol, res, ws):
     # taken, else the best one (the caller's check decides whether it is good enough)
     cand, rb, Pb, vb = ws[17], ws[18], ws[19], ws[20]
     best = math.inf
-    for form in range(2):
+    if method == FRICTION_PGS or (method == FRICTION_AUTO and k >= PGS_MIN_CONTACTS):
+        best = _relaxed(M, L, b, G, c, mu, fidx, k, kf, P, v, vfree, MinvGt, W, w, cand, rb, Pb, vb, ws)
+    for form in range(2 if best > GOOD and method != FRICTION_PGS else 0):
         p = _assemble(W, w, mu, fidx, k, kf, form, A, qv)
         for piv in PIVOT_TOLERANCES:
             if lcp_lemke(A, qv, z, p, T, basis, xb, piv) != OK:
@@ -186,7 +200,7 @@ def solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, tol, res, ws):
                 break
         if best <= GOOD:
             break
-    if best > GOOD and enumerate_states(W, w, mu, fidx, k, kf, P, A, qv, z, basis):
+    if best > GOOD and method != FRICTION_PGS and enumerate_states(W, w, mu, fidx, k, kf, P, A, qv, z, basis):
         best = _keep_best(M, L, b, G, c, mu, fidx, k, kf, P, v, vfree, MinvGt, cand, rb, Pb, vb, best, ws)
     if best == math.inf:
         for i in range(6):
@@ -201,7 +215,44 @@ def solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, tol, res, ws):
     return OK if best <= tol else FAILED
 
 
-@njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]  # a call, not inlined: two call sites
+@njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]  # a call: compiled once
+def _relaxed(M, L, b, G, c, mu, fidx, k, kf, P, v, vfree, MinvGt, W, w, cand, rb, Pb, vb, ws):
+    """The one-step problem by projected Gauss–Seidel sweeps, polished on the states they
+    find once these settle (looked at after 25, 50, 100, ... sweeps; :mod:`moreau.contact.pgs`);
+    every polished answer is checked (:func:`_keep_best`) and the first passing ``GOOD``
+    ends it. Returns the best worst residual (its answer in Pb, vb, rb)."""
+    R = k + kf
+    U, Q, st, sgn, rows, A, Lr, r, x, tf, Pp = ws[23:34]  # the relaxation's (friction_workspace)
+    for j in range(k):
+        tf[j] = -1
+    for f in range(kf):
+        tf[fidx[f]] = k + f
+    for i in range(R):
+        Pp[i] = 0.0
+        U[i] = w[i]
+    best = math.inf
+    done, upto = 0, _pgs.PGS_FIRST_SWEEPS
+    while done < _pgs.PGS_MAX_SWEEPS:
+        _pgs.pgs_sweeps(W, w, mu, tf, k, R, Pp, U, upto - done)
+        done, upto = upto, 2 * upto
+        changed = _pgs.classify(mu, tf, k, Pp, st, sgn)
+        if changed > max(2.0, _pgs.PGS_SETTLED * k) and done < _pgs.PGS_MAX_SWEEPS:
+            continue
+        for _ in range(_pgs.PGS_CORRECTIONS):
+            _pgs.polish(W, w, mu, tf, k, R, Pp, Q, st, rows, sgn, A, Lr, r, x, 8)
+            for i in range(R):
+                P[i] = Q[i]
+            best = _keep_best(M, L, b, G, c, mu, fidx, k, kf, P, v, vfree, MinvGt, cand, rb, Pb, vb, best, ws)
+            if best <= GOOD:
+                return best
+            if _pgs.correct(W, w, mu, tf, k, R, Q, st, sgn) == 0:
+                break
+    for i in range(R):  # the relaxed answer itself, for the record
+        P[i] = Pp[i]
+    return _keep_best(M, L, b, G, c, mu, fidx, k, kf, P, v, vfree, MinvGt, cand, rb, Pb, vb, best, ws)
+
+
+@njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]  # a call, not inlined: three call sites
 def _keep_best(M, L, b, G, c, mu, fidx, k, kf, P, v, vfree, MinvGt, res, rb, Pb, vb, best, ws):
     """v = v_free + M⁻¹ Gᵀ P for a candidate P, its law residuals; kept (in Pb, vb, rb)
     when better than ``best``; returns the best worst residual so far."""
@@ -269,8 +320,9 @@ def _frictional(TA: np.ndarray, muA: np.ndarray, GA: np.ndarray, cA: np.ndarray,
 
 def friction_one_step(M: np.ndarray, b: np.ndarray, GA: np.ndarray, cA: np.ndarray, TA: np.ndarray,
                       muA: np.ndarray, L: np.ndarray | None = None, cT: np.ndarray | None = None,
-                      ) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
-    """Solve the one-step problem with friction on k active rows by Lemke's method.
+                      method: str = "auto") -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
+    """Solve the one-step problem with friction on k active rows (Lemke's method; for many
+    contacts projected Gauss–Seidel and an exact polish first).
 
     Parameters
     ----------
@@ -286,6 +338,9 @@ def friction_one_step(M: np.ndarray, b: np.ndarray, GA: np.ndarray, cA: np.ndarr
         Cholesky factor of M.
     cT : ndarray, shape (k,), optional
         Offsets of the slip velocities, ``U_T = T v − cT`` (default 0).
+    method : {"auto", "lemke", "pgs"}
+        "auto": the relaxation first from ``PGS_MIN_CONTACTS`` contacts on, Lemke's
+        method below and when it fails; "lemke" or "pgs" alone.
 
     Returns
     -------
@@ -297,6 +352,8 @@ def friction_one_step(M: np.ndarray, b: np.ndarray, GA: np.ndarray, cA: np.ndarr
     """
     from moreau.core.kernels import cholesky
 
+    if method not in FRICTION_METHODS:
+        raise ValueError(f"method must be one of {list(FRICTION_METHODS)}, got {method!r}")
     M = np.ascontiguousarray(M, dtype=float)
     n, k = M.shape[0], GA.shape[0]
     if L is None:
@@ -310,7 +367,9 @@ def friction_one_step(M: np.ndarray, b: np.ndarray, GA: np.ndarray, cA: np.ndarr
     # the compiled loop's entry point, with no tolerance: one compiled function serves both paths
     status = solve_friction_step(M, np.ascontiguousarray(L, dtype=float), np.ascontiguousarray(b, dtype=float),
                                  G, c, np.ascontiguousarray(muA, dtype=float),
-                                 fidx, k, kf, P, v, np.inf, np.empty(6), friction_workspace(n, k, kf))
+                                 fidx, k, kf, P, v, np.inf, np.empty(6),
+                                 friction_workspace(n, max(k, PGS_MIN_CONTACTS) if method == "pgs" else k, kf),
+                                 FRICTION_METHODS[method])
     PT = np.zeros(k)
     PT[fidx] = P[k:]
     return int(status), v, P[:k].copy(), PT
@@ -339,48 +398,3 @@ def friction_residuals(M: np.ndarray, b: np.ndarray, GA: np.ndarray, cA: np.ndar
                               c, np.ascontiguousarray(muA, dtype=float), fidx,
                               np.ascontiguousarray(v, dtype=float), P, k, kf, out, friction_workspace(n, k, kf))
     return out
-
-
-#: a sliding contact whose effective normal inverse mass is at most this fraction of its
-#: frictionless one, W_NN, is at Painlevé's point or past it (1 %: a normal force amplified 100x)
-PAINLEVE_MARGIN = 0.01
-
-
-def painleve_rows(L: np.ndarray, GA: np.ndarray, TA: np.ndarray, muA: np.ndarray, PN: np.ndarray,
-                  PT: np.ndarray, U_T: np.ndarray) -> np.ndarray:
-    """Indices (into the k active rows) of sliding contacts at or in Painlevé's region:
-    the normal velocity the sliding friction impulse makes along with the normal impulse,
-    ``W_NN − mu s W_NT`` (s the slip direction), is not positive, or within
-    ``PAINLEVE_MARGIN`` of ``W_NN`` from zero. The normal row then has a vanishing or
-    negative "effective inverse mass": the force the slip needs grows without bound, and
-    the one-step problem can have several solutions (lift-off, a sliding contact with a
-    large impulse, a tangential impact) or none, the step size choosing among them. A row
-    whose ``W_NN`` is at round-off of its ``W_TT`` is held by bilateral rows (redundant, as
-    :func:`moreau.run.trust.redundancy_warnings` says), not in Painlevé's case.
-    ``L`` = chol(M); ``U_T`` (k,) the post-step slip velocities."""
-    from moreau.core.kernels import cho_solve
-
-    out = []
-    n = L.shape[0]
-    x = np.empty(n)
-    for j in np.flatnonzero(muA > 0.0):
-        edge = abs(PT[j]) >= (1.0 - 1e-9) * muA[j] * PN[j]
-        if not edge or (PN[j] == 0.0 and U_T[j] == 0.0):
-            continue
-        s = -np.sign(PT[j]) if PN[j] > 0.0 else np.sign(U_T[j])
-        cho_solve(L, np.ascontiguousarray(GA[j], dtype=float), x, n)
-        wnn, wnt = float(GA[j] @ x), float(TA[j] @ x)
-        cho_solve(L, np.ascontiguousarray(TA[j], dtype=float), x, n)
-        # W_NN at round-off of W_TT: a row the bilateral rows hold (redundant), not Painlevé's case
-        if wnn - muA[j] * s * wnt <= PAINLEVE_MARGIN * wnn and wnn > 1e-9 * float(TA[j] @ x):
-            out.append(int(j))
-    return np.array(out, dtype=np.int64)
-
-
-def painleve_message(t: float, step: int, rows: list[str], mu: list[float]) -> str:
-    """The warning of a run that met Painlevé's region (both paths say the same)."""
-    return (f"Painlevé's paradox: at t = {t:.9g} (step {step}) the sliding contact(s) {rows} (mu = {mu}) have a "
-            "non-positive or vanishing (below 1 % of its frictionless value) effective normal inverse mass: the "
-            "normal force the slip needs grows without bound, the one-step problem can have several solutions "
-            "(lift-off, sliding, a tangential impact) or none, and the motion from here on depends on the step "
-            "size; compare step sizes")

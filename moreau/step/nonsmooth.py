@@ -9,7 +9,8 @@ import logging
 
 import numpy as np
 
-from moreau.contact.friction import FRICTION_RESIDUALS, friction_residuals, painleve_message, painleve_rows
+from moreau.contact.friction import FRICTION_RESIDUALS, friction_residuals
+from moreau.contact.painleve import painleve_message, painleve_rows
 from moreau.contact.problem import kkt_residuals
 from moreau.contact.solvers import ContactSolver, SolveFailed
 from moreau.core.errors import SolverError
@@ -134,7 +135,7 @@ class NonsmoothSolve:
 
     def _check_painleve(self, M, L, GA, TA, muA, PN, PT, v, rows, cTA=None) -> None:
         """Count the steps with a sliding contact in Painlevé's region (see
-        :func:`moreau.contact.friction.painleve_rows`) and keep the first one's message."""
+        :func:`moreau.contact.painleve.painleve_rows`) and keep the first one's message."""
         if L is None:
             L = np.linalg.cholesky(M)
         bad = painleve_rows(L, GA, TA, muA, PN, PT, TA @ v if cTA is None else TA @ v - cTA)

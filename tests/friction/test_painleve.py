@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import moreau as mo
-from moreau.contact.friction import painleve_rows
+from moreau.contact.painleve import painleve_rows
 
 L, MU, GRAV = 1.0, 5.0 / 3.0, 10.0
 
