@@ -23,7 +23,7 @@ def painleve_rows(L: np.ndarray, GA: np.ndarray, TA: np.ndarray, muA: np.ndarray
     the one-step problem can have several solutions (lift-off, a sliding contact with a
     large impulse, a tangential impact) or none, the step size choosing among them. A row
     whose ``W_NN`` is at round-off of its ``W_TT`` is held by bilateral rows (redundant, as
-    :func:`moreau.run.trust.redundancy_warnings` says), not in Painlevé's case.
+    ``moreau.run.trust.redundancy_warnings`` says), not in Painlevé's case.
     ``L`` = chol(M); ``U_T`` (k,) the post-step slip velocities."""
     from moreau.core.kernels import cho_solve
 

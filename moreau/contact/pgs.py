@@ -3,8 +3,8 @@ exact polish on the contact states it finds.
 
 The Delassus form of :mod:`moreau.contact.friction` (``U = W P + w``, normal rows first,
 then one tangent row per frictional contact). :func:`pgs_sweeps` relaxes one contact at a
-time (the normal impulse projected on P_N >= 0, then the tangential one on the cone
-|P_T| <= mu P_N): each sweep costs O(R²) and the sweeps converge linearly, fast at first.
+time (the normal impulse projected on ``P_N >= 0``, then the tangential one on the cone
+``|P_T| <= mu P_N``): each sweep costs O(R²) and the sweeps converge linearly, fast at first.
 The answer is then made exact on the states they found (:func:`classify`: open,
 sticking, slipping with the impulse's sign): :func:`polish` solves the equations of those
 states (U_N = 0 closed, U_T = 0 sticking, P_T = ±mu P_N slipping) as a correction of the
@@ -12,9 +12,10 @@ relaxed impulses on a semidefinite Cholesky factor of W on the closed and sticki
 (a redundant row — two corners of one body on one wall — keeps its relaxed share), and
 :func:`correct` changes the states the polished answer violates, for another polish.
 :func:`moreau.contact.friction.solve_friction_step` runs them for many contacts and
-checks the answer against the full law, as it checks Lemke's (Acary & Brogliato 2008,
-§13.7 and §12.4 for the projected Gauss–Seidel family; the polish is the active-set step
-of Siconos' and others' "NSGS + local solver" schemes, written for the planar law).
+checks the answer against the full law, as it checks Lemke's. Projected Gauss–Seidel
+on the Delassus form is the classical relaxation of contact problems (Jean's NSCD;
+Acary & Brogliato 2008, "Numerical Methods for Nonsmooth Dynamical Systems", ch. 13);
+the polish is an active-set step on the states it found, which makes the answer exact.
 """
 
 from __future__ import annotations
@@ -38,10 +39,10 @@ PGS_CORRECTIONS = 4
 
 @_jit
 def pgs_sweeps(W, w, mu, tf, k, R, P, U, sweeps):
-    """``sweeps`` projected Gauss–Seidel sweeps on P (R,), keeping ``U = W P + w`` (W exactly
-    symmetric, as :func:`moreau.core.kernels.delassus` forms it); ``tf``
-    (k,) each contact's tangent row (−1: none). Returns the largest change of the last
-    sweep relative to the largest normal impulse."""
+    """``sweeps`` projected Gauss–Seidel sweeps on P (R,), keeping ``U = W P + w`` (W
+    exactly symmetric, as ``moreau.core.kernels.delassus`` forms it); ``tf`` (k,) each
+    contact's tangent row (−1: none). Returns the largest change of the last sweep
+    relative to the largest normal impulse."""
     dmax = 0.0
     for _ in range(sweeps):
         dmax, pmax = 0.0, 1e-300
