@@ -44,7 +44,8 @@ with pivot tolerances 1e-9, 1e-7 and 1e-11, takes the first answer that passes t
 of :func:`friction_residuals_kernel` (the full law), and with at most five contacts
 enumerates their states (:mod:`moreau.contact.friction_states`). Only when nothing is
 found is the status ``RAY``, never an answer. From ``PGS_MIN_CONTACTS`` contacts on it
-first relaxes the problem (:mod:`moreau.contact.pgs`), checked the same way.
+first relaxes the problem (:mod:`moreau.contact.pgs`), below it does when Lemke's method
+fails (an 80-link chain on a rough floor: a ray at 38 contacts), checked the same way.
 """
 
 from __future__ import annotations
@@ -65,20 +66,18 @@ __all__ = ["friction_workspace", "solve_friction_step", "friction_residuals_kern
            "friction_residuals", "FRICTION_RESIDUALS", "FRICTION_METHODS",
            "PGS_MIN_CONTACTS"]
 
-#: the pivot tolerances Lemke's method tries in turn on a friction problem (see
-#: :func:`solve_friction_step`)
+#: the pivot tolerances Lemke's method tries in turn (see :func:`solve_friction_step`)
 PIVOT_TOLERANCES = (1e-9, 1e-7, 1e-11)
 
 #: an answer with every law residual at most this is taken without trying another
 GOOD = 1e-9
 
-#: how :func:`solve_friction_step` solves: by size (projected Gauss–Seidel and a polish
-#: from ``PGS_MIN_CONTACTS`` contacts on, Lemke's method when that fails and below), by
-#: Lemke's method only, or by the relaxation only
+#: how :func:`solve_friction_step` solves: by size (see there), by Lemke's method only, or
+#: by projected Gauss–Seidel and a polish (:mod:`moreau.contact.pgs`) only
 FRICTION_AUTO, FRICTION_LEMKE, FRICTION_PGS = 0, 1, 2
 FRICTION_METHODS = {"auto": FRICTION_AUTO, "lemke": FRICTION_LEMKE, "pgs": FRICTION_PGS}
-#: from this many closed contacts on, "auto" relaxes first (benchmarks/many_contacts.py)
-PGS_MIN_CONTACTS = 64
+#: from this many closed contacts on "auto" relaxes first (0.3-0.5x Lemke's time at 30-50)
+PGS_MIN_CONTACTS = 32
 
 #: the names of the six residuals of :func:`friction_residuals_kernel`, in order
 FRICTION_RESIDUALS = ("primal", "dual", "complementarity", "stationarity", "cone", "slip")
@@ -89,14 +88,13 @@ def friction_workspace(n: int, m: int, mf: int) -> tuple:
     allocating compiles nothing)."""
     r = max(m + mf, 1)
     p = max(m + 3 * mf, 1)
-    rp = r if m >= PGS_MIN_CONTACTS else 1  # the polish's matrices: only where "auto" relaxes
     return (np.empty((r, n)), np.empty(n), np.empty((r, r)), np.empty(r), np.zeros((p, p)), np.empty(p),
             np.empty(p), np.empty((p, 2 * p + 2)), np.empty(p, dtype=np.int64), np.empty(p), np.empty((n, r)),
             np.empty(r), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(6),
             np.empty(6), np.empty(r), np.empty(n), np.empty((n, n)), np.zeros(n + 1),
             # [23:]: the relaxation's U, Q, states, signs, rows, A, factor, r, x, tangent rows, impulses
             np.empty(r), np.empty(r), np.zeros(max(m, 1), dtype=np.int64), np.zeros(r), np.empty(r, dtype=np.int64),
-            np.empty((rp, rp)), np.empty((rp, rp)), np.empty(r), np.empty(r), np.empty(max(m, 1), dtype=np.int64),
+            np.empty((r, r)), np.empty((r, r)), np.empty(r), np.empty(r), np.empty(max(m, 1), dtype=np.int64),
             np.empty(r))
 
 
@@ -162,7 +160,8 @@ def solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, tol, res, ws, meth
     friction coefficients; ``fidx`` (>= kf) the normal row of each tangential row;
     ``ws`` from :func:`friction_workspace`; ``method`` one of ``FRICTION_METHODS``
     (auto: :mod:`moreau.contact.pgs` first from ``PGS_MIN_CONTACTS`` contacts on, needing a
-    workspace made for that many). Returns ``OK`` (every residual at most
+    workspace made for that many; below, after Lemke's method when that fails). Returns
+    ``OK`` (every residual at most
     ``tol``), ``FAILED`` (the best answer found misses ``tol``; it is in P, v) or ``RAY``
     (no attempt found one; ``res`` infinite). The compiled loop's friction solve and the
     Python path's (``tol = inf``: the integrator checks) are this one compiled function.
@@ -178,14 +177,12 @@ def solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, tol, res, ws, meth
         for j in range(n):
             t += G[i, j] * vfree[j]
         w[i] = t
-    # Lemke on the Glocker–Pfeiffer form, then on the Anitescu–Potra form, each with the
-    # pivot tolerances in turn, then (few contacts) the enumeration of states: every
-    # answer is checked against the full law, the first with residuals below GOOD is
-    # taken, else the best one (the caller's check decides whether it is good enough)
+    # the attempts of the module docstring, each answer checked against the full law: the
+    # first below GOOD is taken, else the best one (the caller's check decides on it)
     cand, rb, Pb, vb = ws[17], ws[18], ws[19], ws[20]
     best = math.inf
     if method == FRICTION_PGS or (method == FRICTION_AUTO and k >= PGS_MIN_CONTACTS):
-        best = _relaxed(M, L, b, G, c, mu, fidx, k, kf, P, v, vfree, MinvGt, W, w, cand, rb, Pb, vb, ws)
+        best = _relaxed(M, L, b, G, c, mu, fidx, k, kf, P, v, vfree, MinvGt, W, w, cand, rb, Pb, vb, ws, best)
     for form in range(2 if best > GOOD and method != FRICTION_PGS else 0):
         p = _assemble(W, w, mu, fidx, k, kf, form, A, qv)
         for piv in PIVOT_TOLERANCES:
@@ -202,6 +199,8 @@ def solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, tol, res, ws, meth
             break
     if best > GOOD and method != FRICTION_PGS and enumerate_states(W, w, mu, fidx, k, kf, P, A, qv, z, basis):
         best = _keep_best(M, L, b, G, c, mu, fidx, k, kf, P, v, vfree, MinvGt, cand, rb, Pb, vb, best, ws)
+    if best > GOOD and method == FRICTION_AUTO and k < PGS_MIN_CONTACTS:  # Lemke failed: relax
+        best = _relaxed(M, L, b, G, c, mu, fidx, k, kf, P, v, vfree, MinvGt, W, w, cand, rb, Pb, vb, ws, best)
     if best == math.inf:
         for i in range(6):
             res[i] = math.inf
@@ -216,11 +215,11 @@ def solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, tol, res, ws, meth
 
 
 @njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]  # a call: compiled once
-def _relaxed(M, L, b, G, c, mu, fidx, k, kf, P, v, vfree, MinvGt, W, w, cand, rb, Pb, vb, ws):
-    """The one-step problem by projected Gauss–Seidel sweeps, polished on the states they
-    find once these settle (looked at after 25, 50, 100, ... sweeps; :mod:`moreau.contact.pgs`);
-    every polished answer is checked (:func:`_keep_best`) and the first passing ``GOOD``
-    ends it. Returns the best worst residual (its answer in Pb, vb, rb)."""
+def _relaxed(M, L, b, G, c, mu, fidx, k, kf, P, v, vfree, MinvGt, W, w, cand, rb, Pb, vb, ws, best):
+    """The problem by projected Gauss–Seidel sweeps, polished on the states they find once
+    these settle (looked at after 25, 50, 100, ... sweeps; :mod:`moreau.contact.pgs`); each
+    polished answer is checked against ``best`` so far (:func:`_keep_best`), the first
+    passing ``GOOD`` ends it. Returns the best worst residual (answer in Pb, vb, rb)."""
     R = k + kf
     U, Q, st, sgn, rows, A, Lr, r, x, tf, Pp = ws[23:34]  # the relaxation's (friction_workspace)
     for j in range(k):
@@ -230,7 +229,6 @@ def _relaxed(M, L, b, G, c, mu, fidx, k, kf, P, v, vfree, MinvGt, W, w, cand, rb
     for i in range(R):
         Pp[i] = 0.0
         U[i] = w[i]
-    best = math.inf
     done, upto = 0, _pgs.PGS_FIRST_SWEEPS
     while done < _pgs.PGS_MAX_SWEEPS:
         _pgs.pgs_sweeps(W, w, mu, tf, k, R, Pp, U, upto - done)
@@ -340,7 +338,8 @@ def friction_one_step(M: np.ndarray, b: np.ndarray, GA: np.ndarray, cA: np.ndarr
         Offsets of the slip velocities, ``U_T = T v − cT`` (default 0).
     method : {"auto", "lemke", "pgs"}
         "auto": the relaxation first from ``PGS_MIN_CONTACTS`` contacts on, Lemke's
-        method below and when it fails; "lemke" or "pgs" alone.
+        method when it fails; below, Lemke's method, then the relaxation when that fails;
+        "lemke" or "pgs" alone.
 
     Returns
     -------
@@ -368,7 +367,7 @@ def friction_one_step(M: np.ndarray, b: np.ndarray, GA: np.ndarray, cA: np.ndarr
     status = solve_friction_step(M, np.ascontiguousarray(L, dtype=float), np.ascontiguousarray(b, dtype=float),
                                  G, c, np.ascontiguousarray(muA, dtype=float),
                                  fidx, k, kf, P, v, np.inf, np.empty(6),
-                                 friction_workspace(n, max(k, PGS_MIN_CONTACTS) if method == "pgs" else k, kf),
+                                 friction_workspace(n, k, kf),
                                  FRICTION_METHODS[method])
     PT = np.zeros(k)
     PT[fidx] = P[k:]
