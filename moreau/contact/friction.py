@@ -76,7 +76,7 @@ GOOD = 1e-9
 #: by projected Gauss–Seidel and a polish (:mod:`moreau.contact.pgs`) only
 FRICTION_AUTO, FRICTION_LEMKE, FRICTION_PGS = 0, 1, 2
 FRICTION_METHODS = {"auto": FRICTION_AUTO, "lemke": FRICTION_LEMKE, "pgs": FRICTION_PGS}
-#: from this many closed contacts on "auto" relaxes first (0.3-0.5x Lemke's time at 30-50)
+#: from this many closed contacts on "auto" relaxes first (0.2-0.5x Lemke's time at 30-50)
 PGS_MIN_CONTACTS = 32
 
 #: the names of the six residuals of :func:`friction_residuals_kernel`, in order

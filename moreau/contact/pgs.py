@@ -93,28 +93,29 @@ def polish(W, w, mu, tf, k, R, P, Q, st, rows, sgn, A, Lr, r, x, iters):
                     Q[f] = P[f]
                 else:
                     Q[f] = sgn[f] * mu[j] * Q[j]
-    for a in range(s):
-        for b in range(s):
+    for a in range(s):  # the upper triangle: the factor is formed in place, row by row
+        for b in range(a, s):
             A[a, b] = W[rows[a], rows[b]]
-    # semidefinite Cholesky: a pivot below eps of the diagonal's largest drops its row
+    # semidefinite Cholesky, right-looking (Lr holds U = Lᵀ; its updates run along rows, so
+    # they vectorize): a pivot below 1e-11 of the diagonal's largest drops its row
     dmax = 0.0
     for a in range(s):
         dmax = max(dmax, A[a, a])
     for a in range(s):
         t = A[a, a]
-        for l in range(a):
-            t -= Lr[a, l] * Lr[a, l]
         if t <= 1e-11 * dmax:
             for b in range(a, s):
-                Lr[b, a] = 0.0
+                Lr[a, b] = 0.0
             continue
         d = math.sqrt(t)
         Lr[a, a] = d
         for b in range(a + 1, s):
-            u = A[b, a]
-            for l in range(a):
-                u -= Lr[b, l] * Lr[a, l]
-            Lr[b, a] = u / d
+            Lr[a, b] = A[a, b] / d
+        for b in range(a + 1, s):
+            u = Lr[a, b]
+            if u != 0.0:
+                for c in range(b, s):
+                    A[b, c] -= u * Lr[a, c]
     for _ in range(iters):
         worst, scale = 0.0, 1e-300
         for a in range(s):  # residual of the equations at Q
@@ -126,21 +127,20 @@ def polish(W, w, mu, tf, k, R, P, Q, st, rows, sgn, A, Lr, r, x, iters):
             worst, scale = max(worst, abs(u)), max(scale, abs(w[i]))
         if worst <= 1e-15 * scale:
             break
-        for a in range(s):  # L y = r (dropped rows: 0)
+        for a in range(s):  # Uᵀ y = r, column by column (dropped rows: 0)
             if Lr[a, a] == 0.0:
                 x[a] = 0.0
                 continue
-            t = r[a]
-            for l in range(a):
-                t -= Lr[a, l] * x[l]
-            x[a] = t / Lr[a, a]
-        for a in range(s - 1, -1, -1):  # Lᵀ Δ = y
+            x[a] = r[a] / Lr[a, a]
+            for c in range(a + 1, s):
+                r[c] -= Lr[a, c] * x[a]
+        for a in range(s - 1, -1, -1):  # U Δ = y
             if Lr[a, a] == 0.0:
                 x[a] = 0.0
                 continue
             t = x[a]
-            for l in range(a + 1, s):
-                t -= Lr[l, a] * x[l]
+            for c in range(a + 1, s):
+                t -= Lr[a, c] * x[c]
             x[a] = t / Lr[a, a]
         for a in range(s):
             Q[rows[a]] += x[a]
