@@ -66,15 +66,20 @@ def source_digest() -> str:
     return h.hexdigest()
 
 
+def _cache_impl():
+    """numba's cache implementation class, which holds its list of cache locators (an
+    internal API, renamed across numba versions)."""
+    from numba.core import caching
+
+    return getattr(caching, "CacheImpl", None) or caching._CacheImpl  # type: ignore[attr-defined]
+
+
 def cache_dir(source: str = _ANCHOR) -> str | None:
     """The directory where numba caches the machine code of the module ``source`` (default:
     the compiled loop's; found with numba's own rules, first usable wins), or None when none
     is usable."""
     try:
-        from numba.core import caching
-
-        impl = getattr(caching, "CacheImpl", None) or caching._CacheImpl  # type: ignore[attr-defined]
-        for cls in impl._locator_classes:
+        for cls in _cache_impl()._locator_classes:
             loc = cls.from_function(source_digest, source)
             if loc is not None:
                 return str(loc.get_cache_path())
@@ -295,7 +300,7 @@ def use_process_cache_when_none_is_writable() -> None:
     ``RuntimeWarning``. Idempotent; called when moreau is imported."""
     from numba.core import caching
 
-    impl = getattr(caching, "CacheImpl", None) or caching._CacheImpl  # type: ignore[attr-defined]
+    impl = _cache_impl()
     if any(getattr(cls, "_moreau_last_resort", False) for cls in impl._locator_classes):
         return
 
