@@ -159,8 +159,8 @@ def solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, tol, res, ws, meth
     ``mu`` (>= k) their
     friction coefficients; ``fidx`` (>= kf) the normal row of each tangential row;
     ``ws`` from :func:`friction_workspace`; ``method`` one of ``FRICTION_METHODS``
-    (auto: :mod:`moreau.contact.pgs` first from ``PGS_MIN_CONTACTS`` contacts on, needing a
-    workspace made for that many; below, after Lemke's method when that fails). Returns
+    (auto: :mod:`moreau.contact.pgs` first from ``PGS_MIN_CONTACTS`` contacts on; below,
+    after Lemke's method when that fails). Returns
     ``OK`` (every residual at most
     ``tol``), ``FAILED`` (the best answer found misses ``tol``; it is in P, v) or ``RAY``
     (no attempt found one; ``res`` infinite). The compiled loop's friction solve and the

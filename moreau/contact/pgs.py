@@ -41,33 +41,25 @@ PGS_CORRECTIONS = 4
 def pgs_sweeps(W, w, mu, tf, k, R, P, U, sweeps):
     """``sweeps`` projected Gauss–Seidel sweeps on P (R,), keeping ``U = W P + w`` (W
     exactly symmetric, as ``moreau.core.kernels.delassus`` forms it); ``tf`` (k,) each
-    contact's tangent row (−1: none). Returns the largest change of the last sweep
-    relative to the largest normal impulse."""
-    dmax = 0.0
+    contact's tangent row (−1: none)."""
     for _ in range(sweeps):
-        dmax, pmax = 0.0, 1e-300
         for j in range(k):
-            pn = P[j] - U[j] / W[j, j] if W[j, j] > 0.0 else P[j]
-            pn = max(0.0, pn)
+            pn = max(0.0, P[j] - U[j] / W[j, j]) if W[j, j] > 0.0 else P[j]
             d = pn - P[j]
             if d != 0.0:
                 P[j] = pn
                 for i in range(R):
                     U[i] += W[j, i] * d  # W symmetric: its row, contiguous
-            dmax, pmax = max(dmax, abs(d)), max(pmax, pn)
             f = tf[j]
             if f >= 0:
                 bound = mu[j] * P[j]
-                pt = P[f] - U[f] / W[f, f] if W[f, f] > 0.0 else P[f]
-                pt = min(bound, max(-bound, pt))
+                pt = min(bound, max(-bound, P[f] - U[f] / W[f, f] if W[f, f] > 0.0 else P[f]))
                 d = pt - P[f]
                 if d != 0.0:
                     P[f] = pt
                     for i in range(R):
                         U[i] += W[f, i] * d
-                dmax = max(dmax, abs(d))
-        dmax /= pmax
-    return dmax
+
 
 @_jit
 def polish(W, w, mu, tf, k, R, P, Q, st, rows, sgn, A, Lr, r, x, iters):

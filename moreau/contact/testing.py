@@ -1,4 +1,5 @@
-"""Tools for testing code that uses moreau: fault injection into the contact solve.
+"""Tools for testing code that uses moreau: fault injection into the contact solve, and
+one-step friction problems of many contacts (:func:`rod_pile`).
 
 :class:`FaultInjectingSolver` wraps a real :class:`~moreau.contact.solvers.ContactSolver` and
 makes chosen calls fail, either loudly (``mode="raise"``: the backend reports a failure)
@@ -21,7 +22,7 @@ import numpy as np
 
 from moreau.contact.solvers import ContactSolver, SolveFailed, make_solver
 
-__all__ = ["FaultInjectingSolver"]
+__all__ = ["FaultInjectingSolver", "rod_pile"]
 
 _MODES = ("raise", "wrong")
 
@@ -112,3 +113,39 @@ class FaultInjectingSolver(ContactSolver):
         return {"name": self.name, "inner": self.inner.describe(), "mode": self.mode,
                 "fail_on": sorted(self.fail_on) if self.fail_on is not None else "callable",
                 "error": self.error}
+
+
+def rod_pile(width: int, rng: np.random.Generator, mu: float = 0.3, h: float = 1e-3) -> tuple:
+    """The one-step friction problem of a pile of rods: ``width`` rods (1 m, 1 kg) on a
+    floor, and on every two neighbours one more, up to a single rod at the top; each rod
+    touches the floor or the two rods below at its ends (``width (width + 1)`` contacts; the
+    two floor rows of a rod share one tangent row: redundant), every coordinate moving at
+    random (0.3 m/s, 1 m/s down) for one step of ``h`` (s) under gravity.
+
+    Returns ``(M, b, GA, cA, TA, muA)`` as :func:`moreau.contact.friction.friction_one_step`
+    takes them: M (n, n), b = M v + h f (n,), the normal and tangent rows (k, n), zero
+    lower bounds (e = 0) and ``mu`` (k,)."""
+    rods, layer = [(1.2 * i, 0) for i in range(width)], 1
+    contacts = [(i, -1, s, 0.0) for i in range(width) for s in (-0.5, 0.5)]  # (rod, rod below, arms)
+    below = list(range(width))
+    while len(below) > 1:
+        above = []
+        for i in range(len(below) - 1):
+            x = 0.5 * (rods[below[i]][0] + rods[below[i + 1]][0])
+            rods.append((x, layer))
+            above.append(len(rods) - 1)
+            contacts += [(len(rods) - 1, below[i], -0.5, x - 0.5 - rods[below[i]][0]),
+                         (len(rods) - 1, below[i + 1], 0.5, x + 0.5 - rods[below[i + 1]][0])]
+        below, layer = above, layer + 1
+    n, k = 3 * len(rods), len(contacts)
+    M = np.diag(np.tile([1.0, 1.0, 1.0 / 12], len(rods)))
+    GA, TA = np.zeros((k, n)), np.zeros((k, n))
+    for j, (u, lo, ru, rl) in enumerate(contacts):
+        GA[j, 3 * u + 1], GA[j, 3 * u + 2], TA[j, 3 * u] = 1.0, ru, 1.0
+        if lo >= 0:
+            GA[j, 3 * lo + 1], GA[j, 3 * lo + 2], TA[j, 3 * lo] = -1.0, -rl, -1.0
+    v = 0.3 * rng.standard_normal(n)
+    v[1::3] -= 1.0
+    b = M @ v
+    b[1::3] -= h * 9.81
+    return M, b, GA, np.zeros(k), TA, np.full(k, mu)

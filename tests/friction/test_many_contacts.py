@@ -5,36 +5,7 @@ import numpy as np
 import pytest
 
 from moreau.contact.friction import PGS_MIN_CONTACTS, friction_one_step
-
-
-def pile(width: int, rng: np.random.Generator, mu: float = 0.3):
-    """Rods (1 m, 1 kg) in a pyramid of ``width`` on a floor, each touching the floor or
-    two rods below at its ends (the two floor rows of a rod have one tangent row:
-    redundant), moving at random for one step of 1 ms under gravity."""
-    rods, contacts, layer = [(1.2 * i, 0) for i in range(width)], [], 1
-    contacts = [(i, -1, s, 0.0) for i in range(width) for s in (-0.5, 0.5)]
-    below = list(range(width))
-    while len(below) > 1:
-        above = []
-        for i in range(len(below) - 1):
-            x = 0.5 * (rods[below[i]][0] + rods[below[i + 1]][0])
-            rods.append((x, layer))
-            above.append(len(rods) - 1)
-            contacts += [(len(rods) - 1, below[i], -0.5, x - 0.5 - rods[below[i]][0]),
-                         (len(rods) - 1, below[i + 1], 0.5, x + 0.5 - rods[below[i + 1]][0])]
-        below, layer = above, layer + 1
-    n, k = 3 * len(rods), len(contacts)
-    M = np.diag(np.tile([1.0, 1.0, 1.0 / 12], len(rods)))
-    GA, TA = np.zeros((k, n)), np.zeros((k, n))
-    for j, (u, lo, ru, rl) in enumerate(contacts):
-        GA[j, 3 * u + 1], GA[j, 3 * u + 2], TA[j, 3 * u] = 1.0, ru, 1.0
-        if lo >= 0:
-            GA[j, 3 * lo + 1], GA[j, 3 * lo + 2], TA[j, 3 * lo] = -1.0, -rl, -1.0
-    v = 0.3 * rng.standard_normal(n)
-    v[1::3] -= 1.0
-    b = M @ v
-    b[1::3] -= 1e-3 * 9.81
-    return M, b, GA, np.zeros(k), TA, np.full(k, mu)
+from moreau.contact.testing import rod_pile
 
 
 def coulomb_violation(M, b, GA, TA, muA, v, PN, PT):
@@ -56,7 +27,7 @@ def test_a_pile_of_300_contacts_is_solved_exactly(rng, method):
     """A pyramid of 17 rods at its base (306 contacts, 459 coordinates): the relaxation
     and its polish meet the law to 1e-9 in numpy's own terms, and so does "auto" (which
     takes it from PGS_MIN_CONTACTS contacts on)."""
-    M, b, GA, cA, TA, muA = pile(17, rng)
+    M, b, GA, cA, TA, muA = rod_pile(17, rng)
     assert GA.shape[0] == 306 >= PGS_MIN_CONTACTS
     st, v, PN, PT = friction_one_step(M, b, GA, cA, TA, muA, method=method)
     assert st == 0
@@ -66,19 +37,19 @@ def test_a_pile_of_300_contacts_is_solved_exactly(rng, method):
 
 
 def test_the_relaxation_agrees_with_lemke_where_the_answer_is_unique(rng):
-    """Two rods on the floor and one on them (eight rows, the floor's tangent rows
+    """Two rods on the floor and one on them (six contacts, the floor's tangent rows
     redundant in pairs), 20 draws of the state and mu: the velocities are the same by
     either method to 1e-10 (the split of a redundant impulse is not determined, the
     motion is)."""
     for _ in range(20):
-        M, b, GA, cA, TA, muA = pile(2, rng, mu=float(rng.uniform(0.05, 1.0)))
+        M, b, GA, cA, TA, muA = rod_pile(2, rng, mu=float(rng.uniform(0.05, 1.0)))
         results = [friction_one_step(M, b, GA, cA, TA, muA, method=m) for m in ("lemke", "pgs")]
         assert [r[0] for r in results] == [0, 0]
         np.testing.assert_allclose(results[1][1], results[0][1], atol=1e-10 * np.abs(np.linalg.solve(M, b)).max())
 
 
 def test_an_unknown_method_is_refused(rng):
-    M, b, GA, cA, TA, muA = pile(2, rng)
+    M, b, GA, cA, TA, muA = rod_pile(2, rng)
     with pytest.raises(ValueError, match="method must be one of .* got 'gauss'"):
         friction_one_step(M, b, GA, cA, TA, muA, method="gauss")
 
