@@ -25,8 +25,8 @@ __all__ = ["COMPILE_SECONDS", "ensure_compiled"]
 log = logging.getLogger(__name__)
 
 
-#: what the first compile of the loop takes on a 2-core machine (benchmarks/compile_cost.py:
-#: 64 s on 2026-11-25, 115 s the next day on the same, slower, machine), s
+#: what the first compile of the loop takes on a 2-core machine, s, as the message says it
+#: (measured by benchmarks/compile_cost.py; docs/contributing.md has the figures)
 COMPILE_SECONDS = 90
 _ready = threading.Event()
 _ready_lock = threading.Lock()

@@ -5,9 +5,8 @@ in compiled code: the twin of ``_smooth_step`` and ``_reorthonormalized`` of
 Between impacts the frame Q (2n x k) of the tangent dynamics is carried over a step by
 ``exp(h A)``, A = ∂F/∂x of the vector field F(t, x) = (v, M(q)⁻¹ f(t, q, v)) at the step's
 midpoint state, by forward differences (the rule of ``moreau.dynamics.saltation._Flow``),
-and re-orthonormalized by QR. On the Python path each step costs about 0.5 ms of
-interpreter work for the triple pendulum (2n + 1 evaluations of f and n + 1 of M); here
-about 10 µs.
+and re-orthonormalized by QR, in compiled code instead of the Python path's interpreter
+work (2n + 1 evaluations of f and n + 1 of M a step; docs/studies.md has the cost).
 """
 
 from __future__ import annotations

@@ -31,9 +31,8 @@ of :func:`moreau.simulate` (recorded at every step):
 ``interval``. When the scene has a compiled form (and ``backend`` is not ``"python"``), the
 runs of smooth steps between impacts are taken in compiled code
 (:mod:`moreau.compiled.tangent`, the same rule on the lowered scene; the impact and
-persistent steps stay here): about 10 µs a step for the triple pendulum instead of about
-0.5 ms, the same exponents to round-off. That code is compiled on its first use, apart from
-the time loop (about 10 s, then kept in numba's cache).
+persistent steps stay here), with the same exponents to round-off. That code is compiled
+on its first use, apart from the time loop, then kept in numba's cache.
 
 The error is O(h) (the impact instants and states of the reference trajectory), not
 ``O(h·|v| / delta)`` as for finite differences of the scheme: there is no perturbation
@@ -58,14 +57,10 @@ plus ``Σ ln|det S|`` per unit time: that it matches the flow's contraction chec
 implementation (det S = e², trace A), while the individual exponents are checked by the
 table and by the other methods.
 
-On the chaotic triple pendulum (``forced_triple_pendulum(6.0, 3.0)``, 100 periods, logs
-every half period), measured 2026-11-26: the spectrum is (2.57, 0.84, 0.00, −0.73,
-−1.48, −4.04) ± (0.24, 0.09, 0.05, 0.04, 0.14, 0.21) 1/s at T/h = 1600 and (3.05, 0.67,
-0.08, −0.78, −1.44, −4.45) ± (0.20, 0.09, 0.09, 0.06, 0.08, 0.14) 1/s at T/h = 6400 (the
-segments' trajectories differ with h; the scatter between segments, 2.6–3.1 1/s for the
-largest at T/h = 25 600, exceeds these block error bars); the sum, −2.833 and −2.879 1/s,
-is the flow's contraction −⟨trace(M(q)⁻¹C)⟩ + 2 ln(e) × impact rate computed from a
-separate run (−2.826 and −2.892). At T/h = 1600 there are no persistent contacts and no
+On the chaotic triple pendulum (``forced_triple_pendulum(6.0, 3.0)``) the sum of the
+spectrum matches the flow's contraction −⟨trace(M(q)⁻¹C)⟩ + 2 ln(e) × impact rate,
+computed from a separate run, to about 0.3 % (:doc:`/studies` has the spectra and their
+error bars). At T/h = 1600 there are no persistent contacts and no
 grazing onsets (every contact step is a single impact, the slowest at 0.14 m/s); at
 T/h = 400 a persistent contact of the wall row now occurs (t = 175.4 s) and the default
 ``persistent="raise"`` stops there. The finite-difference

@@ -25,9 +25,8 @@ __all__ = ["chain_mass", "add_chain_bias", "chain_product", "chain_product_pair"
 
 #: Chains of at least this many links take the O(n) forms where a step could also use
 #: dense ones (the contact problem from the chain's solve, points against lines, the energy
-#: check's kinetic energy); shorter chains keep the dense forms, as cheap at that size (with
-#: the O(n) forms the 3-link chain's and the piston's steps were 5-18 % slower, measured
-#: interleaved, 2026-11-27). One number for both paths and every such choice.
+#: check's kinetic energy); shorter chains keep the dense forms, cheaper at that size
+#: (docs/performance.md, "The chain in O(n)"). One number for both paths and every such choice.
 CHAIN_STRUCTURED_MIN = 8
 
 
