@@ -1,9 +1,9 @@
-"""Cost of one time step (µs): the compiled loop against the Python reference path.
+"""Cost of one time step (µs) of the compiled loop, for the bundled scenes and a user's own.
 
 Prints, in one run (absolute times on a shared 2-core machine are noisy; the ratios are
 measured side by side):
 
-1. the piston at h = 1e-4 over one engine cycle, compiled and Python, and their ratio:
+1. the piston at h = 1e-4 over one engine cycle:
    e = 0 with the engine's drift control (``PistonModel.drift_control()``, a
    ``CombinedProjection`` accepting 1e-4 of the clearance) and with an exact one
    (``tol=0``: a projection on 80 % of the steps), e = 0.9 without and with the engine's,
@@ -19,8 +19,9 @@ measured side by side):
    ``simulate()`` call recording every step against every 100th;
 3. the compile time of the loop (a fresh numba cache, in a new process) and the time a
    new process takes to load it from the cache;
-4. (full mode) the contact backends of the Python path: OSQP updated against OSQP
-   rebuilt every step through qpsolvers, enum, daqp.
+4. the contact solvers on the piston sliding on a wall (e = 0): the loop's own (exact,
+   enum) and those it calls back in Python (OSQP updated, OSQP rebuilt every step through
+   qpsolvers, daqp, quadprog).
 
     python benchmarks/step_cost.py            # everything (the compile alone takes ~1.5 min)
     python benchmarks/step_cost.py --quick    # < 30 s: shorter runs, no fresh compile
@@ -61,7 +62,6 @@ def us_per_step(scene, q0, v0, steps, h=H, repeat=1, **kw) -> float:
 def piston_table(quick: bool) -> list[tuple]:
     rows = []
     cycle_steps = int(round(CYCLE / H))
-    py_steps = 3_000 if quick else 30_000
     cases = (
         (0.0, "engine drift control", lambda m: m.drift_control(), 0.0),
         (0.0, "CombinedProjection(tol=0)", lambda m: mo.CombinedProjection(), 0.0),
@@ -77,9 +77,7 @@ def piston_table(quick: bool) -> list[tuple]:
         lim = model.params.clearance / model.params.l1  # as PistonModel.simulate: the clearance
         comp = us_per_step(model.scene, q0, v0, cycle_steps, repeat=3, backend="compiled", drift_control=dc,
                            penetration_limit=lim)
-        py = us_per_step(model.scene, q0, v0, py_steps, backend="python", solver="enum", drift_control=dc,
-                         penetration_limit=lim)
-        rows.append((f"piston e = {e:g}" + (f" + {label}" if label else ""), cycle_steps, comp, py_steps, py))
+        rows.append((f"piston e = {e:g}" + (f" + {label}" if label else ""), cycle_steps, comp))
     return rows
 
 
@@ -117,15 +115,11 @@ def stable_chain_table(quick: bool) -> list[tuple]:
         scene, q0, v0 = chain_scene(N, True)
         steps = (20_000 if quick else 100_000) // N
         comp = us_per_step(scene, q0, v0, steps, h=1e-3, backend="compiled", **ec)
-        py_steps = max(100, (500 if quick else 2_500) // N)
-        py = us_per_step(scene, q0, v0, py_steps, h=1e-3, backend="python", **ec)
-        rows.append((f"chain N = {N:2d}, on the floor, energy-cons.", steps, comp, py_steps, py))
+        rows.append((f"chain N = {N:2d}, on the floor, energy-cons.", steps, comp))
     scene, q0, v0 = falling_chain(40)
     steps = 1_000 if quick else 2_000  # 1 s (the landing and the first whips) or the whole 2 s
     comp = us_per_step(scene, q0, v0, steps, h=1e-3, backend="compiled", **ec)
-    py_steps = 100 if quick else 400
-    py = us_per_step(scene, q0, v0, py_steps, h=1e-3, backend="python", **ec)
-    rows.append(("chain N = 40 falling on a floor, energy-c.", steps, comp, py_steps, py))
+    rows.append(("chain N = 40 falling on a floor, energy-c.", steps, comp))
     return rows
 
 
@@ -139,9 +133,7 @@ def four_bar_table(quick: bool) -> list[tuple]:
         q0, v0 = fb.initial_state()
         steps = 20_000 if quick else 100_000
         comp = us_per_step(fb.scene, q0, v0, steps, backend="compiled", repeat=3)
-        py_steps = 1_000 if quick else 5_000
-        py = us_per_step(fb.scene, q0, v0, py_steps, backend="python", solver="exact")
-        rows.append((label, steps, comp, py_steps, py))
+        rows.append((label, steps, comp))
     return rows
 
 
@@ -152,16 +144,12 @@ def chain_table(quick: bool) -> list[tuple]:
             scene, q0, v0 = chain_scene(N, on_floor)
             steps = (20_000 if quick else 100_000) // (N if on_floor else 1)
             comp = us_per_step(scene, q0, v0, steps, h=1e-3, backend="compiled")
-            py_steps = max(200, (1_000 if quick else 5_000) // N)
-            py = us_per_step(scene, q0, v0, py_steps, h=1e-3, backend="python", solver="osqp")
-            rows.append((f"chain N = {N:2d}, {'on the floor' if on_floor else 'free'}", steps, comp, py_steps, py))
+            rows.append((f"chain N = {N:2d}, {'on the floor' if on_floor else 'free'}", steps, comp))
     for N in (3, 24):  # on a rough floor: N normal and N tangential rows every step (Lemke)
         scene, q0, v0 = chain_scene(N, True, mu=0.5)
         steps = (20_000 if quick else 100_000) // N
         comp = us_per_step(scene, q0, v0, steps, h=1e-3, backend="compiled")
-        py_steps = max(100, (500 if quick else 2_500) // N)
-        py = us_per_step(scene, q0, v0, py_steps, h=1e-3, backend="python", solver="exact")
-        rows.append((f"chain N = {N:2d}, on a rough floor (mu 0.5)", steps, comp, py_steps, py))
+        rows.append((f"chain N = {N:2d}, on a rough floor (mu 0.5)", steps, comp))
     return rows
 
 
@@ -191,13 +179,9 @@ def user_scene_table(quick: bool) -> list[tuple]:
                                                      numba.njit(lambda q: np.array([[-0.2, 1.0]]))),
         "README example, gap a Python callback": _inclined(dict_gap, lambda q: np.array([[-0.2, 1.0]])),
     }
-    steps, py_steps = (20_000, 1_000) if quick else (200_000, 20_000)
-    rows = []
-    for name, scene in scenes.items():
-        comp = us_per_step(scene, [0.0, 1.0], [1.0, 0.0], steps, h=1e-3, repeat=2)
-        py = us_per_step(scene, [0.0, 1.0], [1.0, 0.0], py_steps, h=1e-3, backend="python")
-        rows.append((name, steps, comp, py_steps, py))
-    return rows
+    steps = 20_000 if quick else 200_000
+    return [(name, steps, us_per_step(scene, [0.0, 1.0], [1.0, 0.0], steps, h=1e-3, repeat=2))
+            for name, scene in scenes.items()]
 
 
 def woodpecker_call(quick: bool) -> tuple[float, float, int]:
@@ -242,7 +226,7 @@ def startup_times(fresh: bool) -> tuple[float, float]:
     return imp, first
 
 
-def backend_table(steps: int) -> list[tuple]:
+def solver_table(steps: int) -> list[tuple]:
     model = piston_model(PistonParameters(e=0.0))
     q0, v0 = model.initial_state(phi1=np.radians(60.0))  # adjoining the left wall, sliding
     solvers = {
@@ -252,8 +236,10 @@ def backend_table(steps: int) -> list[tuple]:
         "enum": mo.EnumerationSolver,
         "exact (dual active set)": mo.ExactSolver,
         "daqp": lambda: mo.make_solver("daqp"),
+        "quadprog": lambda: mo.make_solver("quadprog"),
     }
-    return [(name, us_per_step(model.scene, q0, v0, steps, backend="python", solver=make()))
+    return [(name, us_per_step(model.scene, q0, v0, steps, solver=make(),
+                               fallback="exact" if name == "enum" else "enum"))
             for name, make in solvers.items()]
 
 
@@ -263,14 +249,13 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     t_start = time.perf_counter()
     us_per_step(*chain_scene(3, True), 10, h=1e-3, backend="compiled")  # load (or compile) first
-    us_per_step(*chain_scene(3, True), 10, h=1e-3, backend="python", solver="osqp")  # and the Python path's kernels
-    print("\nµs per step, compiled loop vs Python path (ratio = python / compiled; piston compiled: best of 3)")
-    print(f"{'case':40s} {'steps':>8s} {'compiled':>9s} {'steps':>7s} {'python':>9s} {'ratio':>7s}")
+    print("\nµs per step of the compiled loop (piston: best of 3)")
+    print(f"{'case':40s} {'steps':>8s} {'µs/step':>9s}")
     table = piston_table(args.quick) + chain_table(args.quick) + stable_chain_table(args.quick) + \
         four_bar_table(args.quick) + user_scene_table(args.quick)
-    for name, cs, comp, ps, py in table:
-        print(f"{name:40s} {cs:8d} {comp:9.3f} {ps:7d} {py:9.1f} {py / comp:7.0f}")
-    cost = {name: comp for name, _, comp, _, _ in table}
+    for name, cs, comp in table:
+        print(f"{name:40s} {cs:8d} {comp:9.3f}")
+    cost = {name: comp for name, _, comp in table}
     piston = cost["piston e = 0 + engine drift control, mu = 0.05"] / cost["piston e = 0 + engine drift control"]
     chain = cost["chain N = 24, on a rough floor (mu 0.5)"] / cost["chain N = 24, on the floor"]
     print(f"\nfriction: the piston at mu = 0.05 costs {piston:.2f}x its frictionless step; "
@@ -298,16 +283,16 @@ def main(argv=None) -> None:
     t0 = time.perf_counter()
     for i in range(calls):
         fp(0.001 * i)
-    print(f"the piston's gas pressure, one scalar evaluation (the Python path's force, once a step): "
+    print(f"the piston's gas pressure, one scalar evaluation in Python: "
           f"{(time.perf_counter() - t0) / calls * 1e6:.2f} µs")
     imp, load = startup_times(fresh=False)
     print(f"\nnew process: import moreau {imp:.2f} s; first piston run, loop loaded from the cache {load:.2f} s")
     if not args.quick:
         imp, comp = startup_times(fresh=True)
         print(f"new process, empty numba cache: first piston run (compiling the loop) {comp:.1f} s")
-        print("\nPython path, piston sliding on a wall (e = 0), µs per contact-heavy step")
-        for name, us in backend_table(5_000):
-            print(f"{name:40s} {us:9.1f}")
+    print("\ncontact solvers, piston sliding on a wall (e = 0), µs per contact-heavy step")
+    for name, us in solver_table(2_000 if args.quick else 20_000):
+        print(f"{name:40s} {us:9.1f}")
     print(f"\n(benchmark wall time {time.perf_counter() - t_start:.0f} s)")
 
 

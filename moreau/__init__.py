@@ -8,7 +8,7 @@ The pieces, in the field's vocabulary, and where they live:
   :mod:`moreau.model`;
 * the one-step non-smooth problem and its *solvers* — :mod:`moreau.contact`;
 * the one-step *integrators* (:class:`MoreauJeanMidpoint`) and drift control —
-  :mod:`moreau.step`, and their compiled twins in :mod:`moreau.compiled`;
+  :mod:`moreau.step`, run by the compiled time loop in :mod:`moreau.compiled`;
 * the front door :func:`simulate` (:mod:`moreau.run`), which returns a
   :class:`Trajectory` (:mod:`moreau.results`);
 * physics kernels and errors, the ground floor — :mod:`moreau.core`.

@@ -33,29 +33,24 @@ def chaotic_pendulum():
     return chaotic_pendulum()
 
 
-#: Tests that run on the Python path only (no compiled loop, no subprocess), about 90 s of
-#: work on 2 cores (measured 2026-11-26 with a plugin recording which tests call
-#: ``ensure_compiled``). Under pytest-xdist they open the second worker's first batch: on an
+#: Tests that run without the compiled loop (the numpy reference of tests/oracle, the solvers
+#: on their own; no subprocess), found with a plugin recording which tests call
+#: ``ensure_compiled``. Under pytest-xdist they open the second worker's first batch: on an
 #: empty cache one worker compiles the time loop (about 90 s) and the other used to wait on
 #: the compile lock in its first compiled test meanwhile; now it runs these. A name missing
 #: here costs only that wait.
 PYTHON_PATH_FIRST = (
     "test_painleve_rod_tangential_impact",
-    "test_moreau_impact_times_converge_to_the_reference_at_first_order",
-    "test_both_integrators_first_order_across_impacts",
-    "test_osqp_projection_solves_pass_the_check_without_fallbacks",
     "test_block_pressed_on_two_corners_leaves_without_spin",
     "test_exact_solver_agrees_with_enumeration_and_osqp_on_2000_random_problems",
     "test_located_impacts_leave_the_block_rocking_at_coarse_h",
-    "test_ball_plastic_no_rebound",
     "test_friction_routes_agree_with_lemke",
-    "test_pendulum_just_reaching_the_wall",
 )
 
 
 @pytest.hookimpl(trylast=True)  # after the -m selection: the chunk is of the tests that run
 def pytest_collection_modifyitems(session, config, items):
-    """Under xdist, put the Python-path tests at the start of the second worker's first batch
+    """Under xdist, put the tests without the loop at the start of the second worker's first batch
     (xdist's load scheduling sends each worker a consecutive chunk of a quarter of its
     share first); the order is the same in every worker, as xdist requires."""
     workers = getattr(config, "workerinput", {}).get("workercount", 0)

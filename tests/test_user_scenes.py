@@ -6,6 +6,7 @@ import logging
 
 import numba
 import numpy as np
+import oracle
 import pytest
 
 import moreau as mo
@@ -154,7 +155,7 @@ def test_the_free_velocity_of_a_frictional_contact_step_leaves_out_the_friction_
     turns it (the tangential impulse changes the end's normal velocity)."""
     phi, h = 0.05, 1e-3
     scene = sliding_rod((0.5, 0.5))
-    integ = mo.MoreauJeanMidpoint(scene, h, solver="exact")
+    integ = oracle.MoreauJeanMidpoint(scene, h, solver="exact")
     integ.init(0.0, [0.0, 0.5 * np.sin(phi), phi], [2.0, 0.0, 0.0])
     integ.step()
     assert integ.active[0] and integ.PT[0] != 0.0
@@ -175,7 +176,7 @@ def block_on_floor(tangent):
 
 def test_a_zero_tangent_row_on_the_osqp_route_prints_nothing(capfd):
     scene = block_on_floor(lambda q: np.array([[0.0, 0.0]]))  # a frictionless floor written as a zero row
-    traj = mo.simulate(scene, (0.0, 0.2), [0.0, 0.0], [0.0, 0.0], 1e-3, backend="python", solver="osqp",
+    traj = oracle.simulate(scene, (0.0, 0.2), [0.0, 0.0], [0.0, 0.0], 1e-3, backend="python", solver="osqp",
                        progress=False)
     assert traj.completed and "Polishing" not in capfd.readouterr().out
     assert traj.v[-1, 0] == pytest.approx(1.0, rel=1e-9)  # no friction force: x'' = 5
@@ -188,7 +189,7 @@ def test_a_non_finite_tangent_jacobian_is_named_with_the_step(backend):
 
     kw = {"solver": "osqp"} if backend == "python" else {}
     with pytest.raises(mo.SimulationError, match=r"floor.*(tangent|non-finite|not finite).* at step \d+") as info:
-        mo.simulate(block_on_floor(tangent), (0.0, 1.0), [0.0, 0.0], [0.0, 0.0], 1e-3, backend=backend,
+        oracle.simulate(block_on_floor(tangent), (0.0, 1.0), [0.0, 0.0], [0.0, 0.0], 1e-3, backend=backend,
                     progress=False, **kw)
     assert "OSQPException" not in str(info.value)
     assert info.value.trajectory.q[-1, 0] <= 0.06
@@ -203,7 +204,7 @@ def test_a_row_that_penetrates_without_any_impulse_warns_naming_it(backend):
     scene = mo.Scene(mo.FunctionSystem(np.eye(1)), [mo.ConstantForce([-G0])],
                      [mo.Contact(floor, 0.5, name="floor")])
     with pytest.warns(RuntimeWarning, match="row 'floor' penetrated .* without any contact impulse"):
-        traj = mo.simulate(scene, (0.0, 2.0), [1.0], [0.0], 1e-3, backend=backend, progress=False)
+        traj = oracle.simulate(scene, (0.0, 2.0), [1.0], [0.0], 1e-3, backend=backend, progress=False)
     assert len(traj.impacts) == 0 and traj.max_penetration[0] > 10.0
     assert any("never enforced" in w for w in traj.warnings)
 
@@ -220,10 +221,10 @@ def test_a_rough_floor_redundant_with_a_rail_warns_naming_both(backend):
                      [mo.Contact(floor, mo.NewtonImpactFriction(0.0, 0.5), name="floor")], constraints=[rail])
     with pytest.warns(RuntimeWarning, match=r"contact row 'floor' \(mu = 0.5\) is redundant with the bilateral "
                                             r"rows \['rail'\]"):
-        traj = mo.simulate(scene, (0.0, 0.1), [0.0, 0.0], [0.0, 0.0], 1e-3, backend=backend, progress=False,
+        traj = oracle.simulate(scene, (0.0, 0.1), [0.0, 0.0], [0.0, 0.0], 1e-3, backend=backend, progress=False,
                            **({"solver": "exact"} if backend == "python" else {}))
     assert any("redundant" in w for w in traj.warnings) and not any("Painlevé" in w for w in traj.warnings)
     # the same floor without the rail carries the load, and friction holds the block (mu g > 1)
     alone = mo.Scene(scene.system, scene.effects, scene.contacts)
-    held = mo.simulate(alone, (0.0, 0.1), [0.0, 0.0], [0.0, 0.0], 1e-3, backend=backend, progress=False)
+    held = oracle.simulate(alone, (0.0, 0.1), [0.0, 0.0], [0.0, 0.0], 1e-3, backend=backend, progress=False)
     assert not any("redundant" in w for w in held.warnings) and abs(held.q[-1, 0]) < 1e-12

@@ -1,6 +1,6 @@
 """Bilateral rows in the compiled step: the velocity update in the null space of the
 equality rows, their impulses and work, and the projection that holds positions on
-g_E(q) = 0 — the twin of :mod:`moreau.step.bilateral`, with the kernels of
+g_E(q) = 0, with the kernels of
 :mod:`moreau.contact.equality`. Called only by scenes with constraints (``ints[SC_ME] > 0``).
 
 These parts are calls, compiled once each, not inlined into the loop: inlined (numba's IR

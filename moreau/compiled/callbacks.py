@@ -26,7 +26,9 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["SlotCallback", "compile_or_reason", "fingerprint", "first_reason", "is_dispatcher"]
+from moreau.contact.base import ContactSolver, SolveFailed
+
+__all__ = ["SlotCallback", "SolverCallback", "compile_or_reason", "fingerprint", "first_reason", "is_dispatcher"]
 
 #: codes a slot returns (the low 3 bits; the callable's index above them), as usercalls'
 RAISED, WRONG_SHAPE, NONFINITE, INTERRUPTED = 1, 2, 3, 4
@@ -168,6 +170,65 @@ class SlotCallback:
             self.error = exc
             return code + RAISED
         return _write(r, out, shape, code, add)
+
+
+def _array(ptr: int, size: int) -> np.ndarray:
+    """The loop's ``size`` doubles at ``ptr`` as numpy, without a copy."""
+    return np.ctypeslib.as_array((ctypes.c_double * max(size, 1)).from_address(ptr))[:size]
+
+
+#: the C signature of a called-back solver
+_SOLVER_CFUNC = ctypes.CFUNCTYPE(ctypes.c_int64, *([ctypes.c_void_p] * 6), ctypes.c_int64, ctypes.c_int64)
+
+
+class SolverCallback:
+    """A one-step contact solver as a C callback at ``address``, for a scene of ``n``
+    coordinates and ``m`` contact rows. In C::
+
+        int64 solve(double *M, double *b, double *G, double *c, double *v, double *P, int64 n, int64 k)
+
+    ``M`` (n, n), ``b`` (n,), ``G`` (k, n), ``c`` (k,): the QP ``min ½ vᵀMv − bᵀv s.t. G v >= c``
+    of the step's closed rows; it writes ``v`` (n,) and ``P`` (k,) and returns 0, 1 when the
+    solver gave up (the loop checks every answer and falls back as for its own methods), or
+    2 when interrupted.
+
+    ``error`` keeps why the last failed solve failed (named in the run's error);
+    ``interrupted`` is set when a Ctrl-C arrived during a solve (the loop then stops and the
+    runner raises the interrupt).
+    """
+
+    def __init__(self, solver: ContactSolver, n: int, m: int) -> None:
+        self.solver, self.n, self.m = solver, n, m
+        # no constant mass at setup: the loop also solves reduced problems (M = I) and
+        # drift projections with the same solver
+        solver.setup(n, m, None)
+        self.error = ""
+        self.interrupted = False
+        self._G = np.zeros((m, n))
+        self._c = np.zeros(m)
+        self._cfunc = _SOLVER_CFUNC(self._call)  # kept alive with the object: the loop holds its address
+        self.address = int(ctypes.cast(self._cfunc, ctypes.c_void_p).value or 0)
+
+    def _call(self, Mp: int, bp: int, Gp: int, cp: int, vp: int, Pp: int, n: int, k: int) -> int:
+        self.error = ""
+        try:
+            G, c = self._G, self._c
+            G[:k] = _array(Gp, k * n).reshape(k, n)
+            c[:k] = _array(cp, k)
+            v, P = self.solver.solve(_array(Mp, n * n).reshape(n, n).copy(), _array(bp, n).copy(), G, c, np.arange(k))
+            v, P = np.asarray(v, dtype=float), np.asarray(P, dtype=float)
+            if v.shape != (n,) or P.shape != (k,):
+                raise SolveFailed(f"{self.solver.name} returned v of shape {v.shape} and P of shape {P.shape}, "
+                                  f"expected ({n},) and ({k},)")
+            _array(vp, n)[:] = v
+            _array(Pp, k)[:] = P
+            return 0
+        except KeyboardInterrupt:
+            self.interrupted = True
+            return 2
+        except BaseException as exc:  # noqa: BLE001 - a callback must not raise into C
+            self.error = f"{self.solver.name}: {type(exc).__name__}: {exc}"
+            return 1
 
 
 def _write(r: np.ndarray, out: np.ndarray, shape: tuple[int, ...], code: int, add: bool) -> int:

@@ -1,5 +1,5 @@
-"""Compiled drift control: the projection of the end position onto g >= 0 — the twin of
-:mod:`moreau.step.drift` (PositionProjection, CombinedProjection)."""
+"""Drift control: the projection of the end position onto g >= 0
+(:mod:`moreau.step.drift`: PositionProjection, CombinedProjection)."""
 
 from __future__ import annotations
 

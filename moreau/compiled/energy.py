@@ -1,5 +1,4 @@
-"""The compiled energy check: the twin of ``_EnergyCheck`` in :mod:`moreau.run.python_loop`
-(the rule is :mod:`moreau.model.stability`'s)."""
+"""The energy check of the loop (the rule is :mod:`moreau.model.stability`'s)."""
 
 from moreau.compiled import evaluate as ev
 from moreau.compiled.layout import (  # the loop's layout

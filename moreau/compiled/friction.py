@@ -1,7 +1,6 @@
 """Coulomb friction in the compiled step: the tangent rows of the active contacts join
 the step's problem, solved by Lemke's method with the law check
-(:func:`moreau.contact.friction.solve_friction_step`) — the twin of the Python path's
-friction solve (``OneStepIntegrator._solve_friction``). Compiled into the loop only as a
+(:func:`moreau.contact.friction.solve_friction_step`). Compiled into the loop only as a
 branch taken by scenes with friction (``ints[SC_MF] > 0``); the solve itself is a call (its
 code is compiled once, not into the loop; the two parts here are inlined: as calls of
 their own, passing the friction arrays' tuple, they compiled 5 s slower)."""

@@ -1,5 +1,5 @@
-"""The compiled energy-consistent step's inertial correction: the twin of
-:class:`moreau.step.integrator.MoreauJeanEnergyConsistent` (the loop iterates the velocity
+"""The energy-consistent step's inertial correction
+(:class:`moreau.step.integrator.MoreauJeanEnergyConsistent`; the loop iterates the velocity
 update; these two parts add κ M_m Δq to the force of every iterate).
 
 The two that evaluate M are calls, not inlined parts: they run once per iterate, evaluate M
@@ -147,7 +147,7 @@ def next_iterate(n, y, x, ylast, rlast, mixed, tol):
     """True when the answer ``y`` of the iterate ``x`` is converged, |y − x|∞ <= tol (1 + |y|∞);
     else the next iterate into ``x``: y, or with ``mixed`` (a previous pair in ``ylast``,
     ``rlast``) Anderson's depth-1 mix y − γ (y − y_last), γ = Δrᵀ r / Δrᵀ Δr with r = y − x
-    (as :meth:`moreau.step.integrator.MoreauJeanEnergyConsistent.step`)."""
+    (Walker & Ni 2011)."""
     change = 0.0
     top = 0.0
     num = 0.0

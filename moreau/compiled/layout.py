@@ -23,6 +23,12 @@ S_STEP, S_DRIFT, S_DRIFT_ITER, S_STRIDE, S_NSTEPS, S_METHOD, S_FALLBACK, S_ENERG
 S_ECHECK = 10
 # (S_ITER: iterates allowed per energy-consistent step)
 S_ITER = 11
+# (S_EXTERNAL, S_EXTERNAL + 1: the addresses of the main and the fallback solver where their
+# method is METHOD_EXTERNAL, a solver called back in Python: compiled.callbacks.SolverCallback)
+S_EXTERNAL = 12
+N_SETTINGS = 14
+# the LCP methods (S_METHOD, S_FALLBACK): dual active set, enumeration, called back; -1 none
+METHOD_EXACT, METHOD_ENUM, METHOD_EXTERNAL = 0, 1, 2
 # the step (S_STEP): midpoint, predictor-corrector, energy-consistent
 STEP_MIDPOINT, STEP_THETA, STEP_ENERGY = 0, 1, 2
 # drift control modes (S_DRIFT)

@@ -4,7 +4,7 @@ A :class:`~moreau.model.scene.Scene` becomes a :class:`CompiledScene`: one recor
 per contact of the scene — its kernel code (:mod:`moreau.core.kernels`) and the offset of its
 parameters in one flat float pool — and nothing else. The compiled loop walks these
 records, so a scene without damping never evaluates damping and a scene without
-barriers never builds a contact problem, in machine code as on the Python path. Every
+barriers never builds a contact problem. Every
 scene lowers to arrays only, so one loop, compiled once per machine and loaded from
 numba's cache by every later process, serves them all; user callables are called through
 the addresses of small wrappers compiled for the scene alone, or of callbacks into Python

@@ -1,6 +1,6 @@
 """The compiled loop's contact records after each velocity update: impulses and activity
-summed up to the next record, the contact work, and the impact log (the twin of what
-``moreau.run.python_loop`` and :class:`moreau.results.impacts.ImpactLog` keep)."""
+summed up to the next record, the contact work, and the impact log (what
+:class:`moreau.results.impacts.ImpactLog` keeps)."""
 
 from moreau.compiled.friction import _friction_records
 from moreau.compiled.layout import (  # the loop's layout

@@ -19,10 +19,12 @@ import numpy as np
 from moreau.compiled import layout as lay
 from moreau.compiled import loop as lp
 from moreau.compiled.at_records import slips
+from moreau.compiled.callbacks import SolverCallback
 from moreau.compiled.lowering import CompiledScene, lower
 from moreau.compiled.usercalls import SLOT_WORDS, decode
 from moreau.contact.friction import FRICTION_RESIDUALS
 from moreau.contact.painleve import painleve_message
+from moreau.contact.solvers import make_solver
 from moreau.core.errors import SimulationError, SolverError, attach_trajectory
 from moreau.model.stability import ENERGY_CHECK_EVERY, energy_growth_message, kept_until, not_converged_message
 from moreau.results.assemble import assemble
@@ -33,30 +35,29 @@ __all__ = ["COMPILED_SOLVERS", "run_compiled"]
 
 log = logging.getLogger(__name__)
 
-#: contact solvers that run inside the compiled loop, by name → LCP method code
-COMPILED_SOLVERS = {"exact": 0, "enum": 1}
+#: contact solvers with a method of the compiled loop's own, by name → LCP method code; any
+#: other solver is called back (:class:`moreau.compiled.callbacks.SolverCallback`)
+COMPILED_SOLVERS = {"exact": lay.METHOD_EXACT, "enum": lay.METHOD_ENUM}
 
 
-def _methods(solver, fallback) -> tuple[int, int]:
-    if solver not in COMPILED_SOLVERS:
-        raise ValueError(f"solver {solver!r} does not run in compiled code; compiled solvers are "
-                         f"{sorted(COMPILED_SOLVERS)} (or use backend='python')")
-    if fallback is not None and fallback not in COMPILED_SOLVERS:
-        raise ValueError(f"fallback {fallback!r} does not run in compiled code; choose one of "
-                         f"{sorted(COMPILED_SOLVERS)} or None")
-    if fallback == solver:
-        raise ValueError(f"fallback must differ from the main solver, got {solver!r} twice")
-    return COMPILED_SOLVERS[solver], (-1 if fallback is None else COMPILED_SOLVERS[fallback])
+def _method(spec, n: int, m: int) -> tuple[int, SolverCallback | None]:
+    """The loop's method code for a solver name or instance, and its callback if it has one."""
+    if spec is None:
+        return -1, None
+    if isinstance(spec, str) and spec in COMPILED_SOLVERS:
+        return COMPILED_SOLVERS[spec], None
+    return lay.METHOD_EXTERNAL, SolverCallback(make_solver(spec), n, m)
 
 
-def _settings(scene, t0: float, h: float, n_steps: int, step: int, solver: str, fallback, stride: int,
-              energy: bool, tol: float, drift_control, energy_growth,
-              iteration: tuple[int, float] = (1, 0.0)) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The loop's settings (int and float arrays, see :mod:`moreau.compiled.layout`) and the
-    rows eligible for drift control. ``step``: the step (``layout.STEP_*``); ``iteration``:
-    the energy-consistent step's iterates allowed per step and tolerance."""
-    method, fb = _methods(solver, fallback)
+def _settings(scene, t0: float, h: float, n_steps: int, step: int, solver, fallback, stride: int,
+              energy: bool, tol: float, drift_control, energy_growth, iteration: tuple[int, float] = (1, 0.0),
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[SolverCallback | None, ...]]:
+    """The loop's settings (int and float arrays, see :mod:`moreau.compiled.layout`), the
+    rows eligible for drift control and the called-back solvers (kept alive through the run).
+    ``step``: the step (``layout.STEP_*``); ``iteration``: the energy-consistent step's
+    iterates allowed per step and tolerance."""
     m = scene.nrows
+    (method, main), (fb, back) = _method(solver, scene.ndof, m), _method(fallback, scene.ndof, m)
     eligible = np.zeros(m, dtype=np.bool_)
     drift_iter, drift_tol = 1, 0.0
     if drift_control is not None and m:
@@ -69,13 +70,14 @@ def _settings(scene, t0: float, h: float, n_steps: int, step: int, solver: str, 
     locate = int(bool(getattr(drift_control, "locate_impacts", False)))
     echeck = ENERGY_CHECK_EVERY if energy_growth is not None else 0
     iset = np.array([step, drift_mode, drift_iter, stride, n_steps, method, fb, int(energy), memory, locate,
-                     echeck, iteration[0]], dtype=np.int64)
+                     echeck, iteration[0], main.address if main else 0, back.address if back else 0],
+                    dtype=np.int64)
     warn, stop = energy_growth if energy_growth is not None else (math.inf, math.inf)
-    return iset, np.array([h, t0, tol, drift_tol, 0.0, warn, stop, iteration[1]]), eligible
+    return iset, np.array([h, t0, tol, drift_tol, 0.0, warn, stop, iteration[1]]), eligible, (main, back)
 
 
 def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0: np.ndarray,
-                 h: float, n_steps: int, *, step: int, solver: str, fallback, stride: int,
+                 h: float, n_steps: int, *, step: int, solver, fallback, stride: int,
                  bar, energy: bool, tol: float, drift_control, flight_gap: np.ndarray,
                  gmax0: np.ndarray, energy_growth: tuple[float, float] | None = None,
                  iteration: tuple[int, float] = (1, 0.0)) -> Trajectory:
@@ -83,11 +85,10 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     which calls this after :func:`~moreau.compiled.cache.ensure_compiled`); ``gmax0`` is each
     row's initial flight gap (``moreau.run.flights.initial_flight``); ``energy_growth`` the energy
     check's ``(warn, stop)`` (None: no check); ``step``, ``iteration``: see ``_settings``."""
-    if cs is None:
-        cs = lower(scene)
+    cs = lower(scene) if cs is None else cs
     n, m = scene.ndof, scene.nrows
-    iset, fset, eligible = _settings(scene, t0, h, n_steps, step, solver, fallback, stride, energy, tol,
-                                     drift_control, energy_growth, iteration)
+    iset, fset, eligible, called = _settings(scene, t0, h, n_steps, step, solver, fallback, stride, energy, tol,
+                                             drift_control, energy_growth, iteration)
     n_rec = n_steps // stride + 1 + (1 if n_steps % stride else 0)
     T, Q, V = np.empty(n_rec), np.empty((n_rec, n)), np.empty((n_rec, n))
     me = scene.nconstraints
@@ -150,8 +151,8 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
                            fgap, rs, work, PTS)
                 if bar is not None:
                     bar.update(int(cnt[lay.C_K]) - k_before)
-                if code == lay.USER_FAILED and _interrupted(cs):  # Ctrl-C inside a Python callback
-                    raise KeyboardInterrupt
+                if (code == lay.USER_FAILED and _interrupted(cs)) or any(c and c.interrupted for c in called):
+                    raise KeyboardInterrupt  # Ctrl-C inside a Python callback
                 if code == lay.IMPACTS_FULL:
                     IMP = np.concatenate([IMP, np.empty_like(IMP)])
                     continue
@@ -172,7 +173,8 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
             traj, error = _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE, IMP,
                                     q, v, P_acc, act_acc, pen, cnt, acc, fail, cs, t0, h, stride, solver,
                                     fallback, energy, wall, PTS if mf else None, work[3][3], tol, work[4][10],
-                                    int(iset[lay.S_ITER]), work[0][14], work[2][8])
+                                    int(iset[lay.S_ITER]), work[0][14], work[2][8],
+                                    tuple(c.error if c else "" for c in called))
             break
         except KeyboardInterrupt as exc:
             if interrupt is None:
@@ -181,7 +183,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     if cnt[lay.C_EWARN] > 0:
         _energy_warning(scene, traj, int(cnt[lay.C_EWARN]), float(acc[lay.A_DU_WARN]), float(acc[lay.A_KEMAX_WARN]),
                         h, work[2][10], work[2][11])
-    if cnt[lay.C_PAINLEVE_STEP] > 0:  # as the Python path: one warning, kept in traj.warnings
+    if cnt[lay.C_PAINLEVE_STEP] > 0:  # one warning, kept in traj.warnings
         k0, row = int(cnt[lay.C_PAINLEVE_STEP]) - 1, int(cnt[lay.C_PAINLEVE_ROW])
         msg = painleve_message(t0 + k0 * h, k0, [scene.row_names[row]], [float(scene.friction[row])])
         traj.warnings.append(msg)
@@ -198,7 +200,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
 
 def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE, IMP, q, v, P_acc, act_acc,
               pen, cnt, acc, fail, cs, t0, h, stride, solver, fallback, energy, wall, PTS=None, PT_acc=None,
-              tol=float("nan"), PE_acc=None, max_iter=0, active=None, projected=None):
+              tol=float("nan"), PE_acc=None, max_iter=0, active=None, projected=None, errors=("", "")):
     """The Trajectory (and the error to raise, if any) from the loop's buffers (``PTS``:
     the tangential impulses of a scene with friction, else None; ``active``: the rows the
     last step closed; ``projected``: the rows of drift control's last projection)."""
@@ -210,7 +212,7 @@ def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE,
     if code != lay.DONE and status == "completed":
         status = "failed"
         error = _error(code, scene, k, t_now, q, v, h, fail, cs, int(cnt[lay.C_USER]), acc, tol,
-                       cnt[lay.C_EQROW:lay.C_EQROW + 1], max_iter, active, projected)
+                       cnt[lay.C_EQROW:lay.C_EQROW + 1], max_iter, active, projected, (solver, fallback), errors)
         message = str(error)
     rec = int(cnt[lay.C_REC])
     nimp = int(cnt[lay.C_NIMP])
@@ -242,7 +244,7 @@ def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE,
                        energy_lost=I[:, lay.I_LOST].copy(), flight=I[:, lay.I_FLIGHT] != 0.0,
                        fast=I[:, lay.I_FAST] != 0.0)
     stats = SolverStats(
-        solver=solver, fallback=fallback or "", steps=k, contact_steps=int(cnt[lay.C_CONTACT]),
+        solver=_name(solver), fallback=_name(fallback), steps=k, contact_steps=int(cnt[lay.C_CONTACT]),
         solves=int(cnt[lay.C_SOLVES]), fallbacks=int(cnt[lay.C_FALLBACKS]),
         projections=int(cnt[lay.C_PROJ]), worst_residual=float(acc[lay.A_WORST]), wall_time=wall,
         backend="compiled", velocity_updates=int(cnt[lay.C_UPDATES]),
@@ -266,8 +268,13 @@ def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE,
     return traj, error
 
 
+def _name(solver) -> str:
+    """A solver's name in results: the name given, or an instance's ``name``; "" for none."""
+    return "" if solver is None else solver if isinstance(solver, str) else str(getattr(solver, "name", solver))
+
+
 def _error(code, scene, k, t, q, v, h, fail, cs, user_status, acc, tol=float("nan"), cnt_row=None, max_iter=0,
-           active=None, projected=None):
+           active=None, projected=None, names=("main", "fallback"), errors=("", "")):
     where = f"at step {k} (t = {t:.9g})"
     if code == lay.ENERGY_GROWTH:
         return SimulationError(energy_growth_message(scene, t, q, v, float(acc[lay.A_DU]), float(acc[lay.A_KEMAX]), h),
@@ -279,7 +286,7 @@ def _error(code, scene, k, t, q, v, h, fail, cs, user_status, acc, tol=float("na
     if code in (lay.SOLVER_FAILED, lay.PROJECTION_FAILED):
         # the rows the step closed (also those closed ahead of the barrier: the
         # energy-consistent step, CombinedProjection), else the rows closed at q_m; a
-        # projection's own rows (as the Python path's "projection solve failed")
+        # projection's own rows ("projection solve failed")
         kind = "contact"
         if code == lay.PROJECTION_FAILED:
             kind, active = "projection", projected
@@ -289,7 +296,6 @@ def _error(code, scene, k, t, q, v, h, fail, cs, user_status, acc, tol=float("na
             closed = np.flatnonzero(scene.gaps(q + 0.5 * h * v) <= scene.activation_tol) if scene.nrows \
                 else np.zeros(0, dtype=int)
         rows = [scene.row_names[i] for i in closed]
-        names = ["main", "fallback"]
         if cs.ints[lay.SC_MF]:  # friction: Lemke's method and the full law's six residuals, no fallback
             mu = [float(cs.friction[i]) for i in closed]
             residuals = {"lemke": dict(zip(FRICTION_RESIDUALS, fail[0].tolist()))}
@@ -298,8 +304,9 @@ def _error(code, scene, k, t, q, v, h, fail, cs, user_status, acc, tol=float("na
                    f"no answer passed the law check (tol = {tol:g}); the best one's residuals")
             return SolverError(f"contact solve with friction failed {where}, active rows {rows}, mu = {mu}: "
                                f"{why}: {residuals}", step=k, t=t, rows=rows, residuals=residuals)
-        residuals = {names[i]: dict(zip(("primal", "dual", "complementarity", "stationarity"),
-                                        fail[i, :4].tolist())) for i in range(2)}
+        residuals = {_name(names[i]) or "fallback": errors[i] or dict(zip(("primal", "dual", "complementarity",
+                                                                      "stationarity"), fail[i, :4].tolist()))
+                     for i in range(2) if i == 0 or names[1]}
         return SolverError(f"{kind} solve failed {where}, active rows {rows}: {residuals}",
                            step=k, t=t, rows=rows, residuals=residuals)
     if code in (lay.CONSTRAINTS_INCONSISTENT, lay.CONSTRAINTS_NOT_HELD):

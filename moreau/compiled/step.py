@@ -1,7 +1,6 @@
 """The compiled Moreau–Jean step: the free acceleration, the velocity update with the
-contacts closed at the midpoint, and the contact solve with its check and fallback — the
-twin of :class:`moreau.step.integrator.MoreauJeanMidpoint` and
-``OneStepIntegrator._solve_contact`` (``moreau.step.base``)."""
+contacts closed at the midpoint, and the contact solve with its check and fallback
+(:class:`moreau.step.integrator.MoreauJeanMidpoint`)."""
 
 from __future__ import annotations
 
@@ -22,12 +21,14 @@ from moreau.compiled.layout import (  # the loop's layout
     DRIFT_COMBINED,
     F_H,
     F_TOL,
+    METHOD_EXTERNAL,
     R_BOUNCED,
     R_DELAY,
     R_GAP,
     R_PINNED,
     R_SHIFT,
     S_DRIFT,
+    S_EXTERNAL,
     S_FALLBACK,
     S_LOCATE,
     S_MEMORY,
@@ -44,6 +45,7 @@ from moreau.compiled.layout import (  # the loop's layout
     USER_FAILED,
 )
 from moreau.compiled.layout import part as _part
+from moreau.compiled.usercalls import call_solver
 from moreau.contact.lcp import kkt_residuals_kernel, solve_one_step
 from moreau.core import kernels as _k
 
@@ -86,14 +88,21 @@ def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail
     # np.int64: numba would type the count as the literal 0 at one of the inlined call
     # sites and compile the solver and the check a second time
     k = np.int64(na)
+    # a called-back main solver forms no Delassus matrix: the fallback forms its own
+    external = iset[S_METHOD] == METHOD_EXTERNAL
     for attempt in range(2):
         method = iset[S_METHOD] if attempt == 0 else iset[S_FALLBACK]
         if method < 0:
             break
         if attempt == 1:
             cnt[C_FALLBACKS] += 1
-        st = solve_one_step(M, L, b, GA, cA, P_out, v_out, k, method, 1e-12, ws,
-                            fresh and attempt == 0 and not prepared, prepared)
+        if method == METHOD_EXTERNAL:
+            st = call_solver(iset[S_EXTERNAL + attempt], M, b, GA, cA, v_out, P_out, M.shape[0], k)
+            if st == 2:  # interrupted (Ctrl-C): no fallback, the runner raises it
+                return False
+        else:
+            st = solve_one_step(M, L, b, GA, cA, P_out, v_out, k, method, 1e-12, ws,
+                                (external or fresh and attempt == 0) and not prepared, prepared)
         if st == 0 and not check:
             return True
         if st == 0:

@@ -1,11 +1,11 @@
 """The smooth steps of the tangent dynamics (:func:`moreau.dynamics.lyapunov_spectrum_tangent`)
-in compiled code: the twin of ``_smooth_step`` and ``_reorthonormalized`` of
-:mod:`moreau.dynamics.tangent`, on a lowered scene.
+in compiled code, on a lowered scene (the QR of ``_reorthonormalized`` of
+:mod:`moreau.dynamics.tangent`; its numpy reference is in the tests).
 
 Between impacts the frame Q (2n x k) of the tangent dynamics is carried over a step by
 ``exp(h A)``, A = ∂F/∂x of the vector field F(t, x) = (v, M(q)⁻¹ f(t, q, v)) at the step's
 midpoint state, by forward differences (the rule of ``moreau.dynamics.saltation._Flow``),
-and re-orthonormalized by QR, in compiled code instead of the Python path's interpreter
+and re-orthonormalized by QR, in compiled code instead of the interpreter's
 work (2n + 1 evaluations of f and n + 1 of M a step; docs/studies.md has the cost).
 """
 

@@ -11,11 +11,11 @@ functions are compiled by numba as they are; a slot with a callable numba cannot
 a C callback into Python instead (:mod:`moreau.compiled.callbacks`). An address of 0 means
 the slot is empty (a built-in scene has five zeros).
 
-Each wrapper checks what the user's function returns, every call, as the Python path
-does: the shape (a wrong length is never written past a buffer), finiteness, and an
-exception raised inside the function. It returns 0, or a code that names the callable
-and what went wrong (:func:`decode`); the loop stops the run with that code and the
-driver turns it into a :class:`~moreau.SimulationError`. In C::
+Each wrapper checks what the user's function returns, every call: the shape (a wrong length
+is never written past a buffer), finiteness, and an exception raised inside the function. It
+returns 0, or a code that names the callable and what went wrong (:func:`decode`); the loop
+stops the run with that code and the driver turns it into a
+:class:`~moreau.SimulationError`. In C::
 
     int64 slot(double t, double *q, double *v, double *out, int64 n, int64 m)
 
@@ -48,7 +48,7 @@ from moreau.compiled.callbacks import (
 )
 
 __all__ = ["SIGNATURE", "U_MASS", "U_BIAS", "U_FORCES", "U_GAPS", "U_JACOBIANS", "SLOTS", "UserKernels",
-           "call_user", "user_kernels", "decode"]
+           "call_solver", "call_user", "user_kernels", "decode"]
 
 #: the slots of the ``user`` address array
 U_MASS, U_BIAS, U_FORCES, U_GAPS, U_JACOBIANS = range(5)
@@ -90,6 +90,27 @@ def _call_user(typingctx, addr, t, q, v, out, n, m):
 
 #: ``call_user(addr, t, q, v, out, n, m) -> int64`` in compiled code
 call_user: Any = intrinsic(_call_user)
+
+
+def _call_solver(typingctx, addr, M, b, G, c, v, P, n, k):
+    """Call a one-step solver at address ``addr`` (:class:`moreau.compiled.callbacks.SolverCallback`)
+    on the data of ``M`` (n, n), ``b`` (n,), the first k rows of ``G`` (rows of length n), ``c``;
+    it writes ``v`` (n,) and ``P`` (k,) and returns 0 when it solved."""
+    sig = types.int64(types.int64, M, b, G, c, v, P, types.int64, types.int64)
+
+    def codegen(context, builder, signature, args):
+        dp = ir.DoubleType().as_pointer()
+        i64 = ir.IntType(64)
+        fn = builder.inttoptr(args[0], ir.FunctionType(i64, [dp] * 6 + [i64, i64]).as_pointer())
+        ptrs = [builder.bitcast(context.make_array(ty)(context, builder, val).data, dp)
+                for ty, val in zip(signature.args[1:7], args[1:7])]
+        return builder.call(fn, ptrs + [args[7], args[8]])
+
+    return sig, codegen
+
+
+#: ``call_solver(addr, M, b, G, c, v, P, n, k) -> int64`` in compiled code
+call_solver: Any = intrinsic(_call_solver)
 
 
 # -- the wrappers' source, one template per slot ------------------------------------------

@@ -1,4 +1,4 @@
-"""The compiled exact backends called from the Python path: :class:`ExactSolver` (dual
+"""The compiled exact backends as ContactSolvers, callable from Python: :class:`ExactSolver` (dual
 active set) and :class:`EnumerationSolver`, both running the kernels of
 :mod:`moreau.contact.lcp`."""
 
@@ -12,7 +12,7 @@ __all__ = ["ExactSolver", "EnumerationSolver"]
 
 
 class _CompiledLCPSolver(ContactSolver):
-    """A compiled LCP method of :mod:`moreau.contact.lcp` called from the Python path."""
+    """A compiled LCP method of :mod:`moreau.contact.lcp` called from Python."""
 
     exact = True
     _method = 0

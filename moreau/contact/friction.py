@@ -163,8 +163,8 @@ def solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, tol, res, ws, meth
     after Lemke's method when that fails). Returns
     ``OK`` (every residual at most
     ``tol``), ``FAILED`` (the best answer found misses ``tol``; it is in P, v) or ``RAY``
-    (no attempt found one; ``res`` infinite). The compiled loop's friction solve and the
-    Python path's (``tol = inf``: the integrator checks) are this one compiled function.
+    (no attempt found one; ``res`` infinite). The compiled loop's friction solve and a
+    ContactSolver's (``tol = inf``: the caller checks) are this one compiled function.
     """
     n = M.shape[0]
     R = k + kf

@@ -23,7 +23,7 @@ solution is refined once against the original data with the tableau's ``B⁻¹``
 ``FAILED``, not returned.
 
 Plain loops on small dense arrays: compiled once, called from the compiled time loop and
-from the Python path alike.
+from Python (:class:`~moreau.contact.exact.ExactSolver`) alike.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Sections: stroboscopic samples and Poincaré sections on a surface s(q, v) = 0.
 
 From a recorded :class:`moreau.Trajectory` (linear interpolation between records, exact
-when the sample falls on a record) or on the fly while stepping a one-step integrator.
+when the sample falls on a record) or on the fly, chunk by chunk of a run.
 """
 
 from __future__ import annotations
@@ -136,12 +136,13 @@ def poincare_on_the_fly(scene: mo.Scene, q0, v0, h: float,
                         surface: Callable[[np.ndarray, np.ndarray], float], n_crossings: int, *,
                         t0: float = 0.0, direction: int = 1, t_max: float = np.inf,
                         t_start: float | None = None, integrator: type = mo.MoreauJeanMidpoint,
-                        **integrator_kwargs) -> Section:
-    """Step a one-step integrator until ``n_crossings`` crossings of ``s(q, v) = 0``.
+                        chunk_steps: int = 4096, **simulate_kwargs) -> Section:
+    """Run until ``n_crossings`` crossings of ``s(q, v) = 0`` have been found.
 
-    Nothing but the crossings is stored, so the run length is bounded by the number of
-    points wanted rather than by memory. Uses the Python one-step path (use
-    :func:`poincare` on a :func:`moreau.simulate` run when speed matters).
+    The run goes in chunks of ``chunk_steps`` steps of :func:`moreau.simulate`, each from
+    the last state of the one before; only the crossings are kept, so the run length is
+    bounded by the number of points wanted rather than by memory. Each chunk starts
+    afresh: drift control's memory of persistent contacts restarts with it.
 
     Parameters
     ----------
@@ -159,30 +160,33 @@ def poincare_on_the_fly(scene: mo.Scene, q0, v0, h: float,
         Stop at this time even if fewer crossings were found.
     integrator : OneStepIntegrator subclass
         Default :class:`moreau.MoreauJeanMidpoint`.
-    **integrator_kwargs
-        Passed to the integrator (``solver=``, ``fallback=``, ...).
+    chunk_steps : int
+        Steps per chunk (default 4096).
+    **simulate_kwargs
+        Passed to :func:`moreau.simulate` (``solver=``, ``drift_control=``, ...).
     """
     h = as_positive(h, "poincare_on_the_fly.h")
-    integ = integrator(scene, h, **integrator_kwargs)
-    integ.init(float(t0), as_vector(q0, "q0", scene.ndof), as_vector(v0, "v0", scene.ndof))
-    t_prev, q_prev, v_prev = integ.t, integ.q.copy(), integ.v.copy()
-    s_prev = float(surface(q_prev, v_prev))
-    T: list[float] = []
+    t, q, v = float(t0), as_vector(q0, "q0", scene.ndof), as_vector(v0, "v0", scene.ndof)
+    kw = {"progress": False, **simulate_kwargs, "record_every": 1, "integrator": integrator}
+    T: list[np.ndarray] = []
     Q: list[np.ndarray] = []
     V: list[np.ndarray] = []
-    while len(T) < n_crossings and integ.t < t_max:
-        integ.step()
-        t, q, v = integ.t, integ.q.copy(), integ.v.copy()
-        s = float(surface(q, v))
-        idx, w = _crossings(np.array([t_prev, t]), np.array([s_prev, s]), direction)
-        if len(idx):
-            tc = t_prev + w[0] * (t - t_prev)
-            if t_start is None or tc >= t_start:
-                T.append(tc)
-                Q.append((1 - w[0]) * q_prev + w[0] * q)
-                V.append((1 - w[0]) * v_prev + w[0] * v)
-        t_prev, q_prev, v_prev, s_prev = t, q, v, s
+    found, pen = 0, float(kw.pop("initial_penetration", 1e-12))
+    while found < n_crossings and t < t_max:
+        traj = mo.simulate(scene, (t, min(t + chunk_steps * h, t_max)), q, v, h, initial_penetration=pen, **kw)
+        sec = poincare(traj, surface, direction=direction, t_start=t_start)
+        take = min(len(sec), n_crossings - found)
+        T.append(sec.t[:take])
+        Q.append(sec.q[:take])
+        V.append(sec.v[:take])
+        found += take
+        t, q, v = float(traj.t[-1]), traj.q[-1], traj.v[-1]
+        # the next chunk starts where this one ended, inside a barrier by at most its penetration
+        depth = traj.max_penetration
+        pen = max(1e-12, 1.01 * float(depth.max(initial=0.0))) if depth is not None else 1e-12
     n = scene.ndof
-    if len(T) < n_crossings:
-        log.warning("poincare_on_the_fly: %d of %d crossings before t_max = %g", len(T), n_crossings, t_max)
-    return Section(np.array(T), np.array(Q).reshape(-1, n), np.array(V).reshape(-1, n))
+    if found < n_crossings:
+        log.warning("poincare_on_the_fly: %d of %d crossings before t_max = %g", found, n_crossings, t_max)
+    if not T:
+        return Section(np.zeros(0), np.zeros((0, n)), np.zeros((0, n)))
+    return Section(np.concatenate(T), np.concatenate(Q).reshape(-1, n), np.concatenate(V).reshape(-1, n))

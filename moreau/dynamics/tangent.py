@@ -28,8 +28,7 @@ of :func:`moreau.simulate` (recorded at every step):
   Rows hit in the same step are taken one after the other in the order of their τ.
 
 Φ is QR re-orthonormalized after every step; the logs of ``|diag R|`` are summed per
-``interval``. When the scene has a compiled form (and ``backend`` is not ``"python"``), the
-runs of smooth steps between impacts are taken in compiled code
+``interval``. The runs of smooth steps between impacts are taken in compiled code
 (:mod:`moreau.compiled.tangent`, the same rule on the lowered scene; the impact and
 persistent steps stay here), with the same exponents to round-off. That code is compiled
 on its first use, apart from the time loop, then kept in numba's cache.
@@ -165,7 +164,7 @@ def lyapunov_spectrum_tangent(scene: mo.Scene, q0, v0, h: float, *, interval: fl
     lndet_sum = 0.0
     from tqdm import tqdm
     bar = tqdm(total=n_all, disable=not progress, desc="Lyapunov spectrum (saltation)")
-    smooth_run = _compiled_smooth_steps(scene, kw.get("backend", "auto"), float(eps))
+    smooth_run = _compiled_smooth_steps(scene, float(eps))
     i = 0
     while i < n_all:
         m = min(per_chunk, n_all - i)
@@ -173,7 +172,7 @@ def lyapunov_spectrum_tangent(scene: mo.Scene, q0, v0, h: float, *, interval: fl
         closed = np.any(P[1:] > 0.0, axis=1)
         s = 0
         while s < m * ns:
-            if smooth_run is not None and not closed[s]:
+            if not closed[s]:  # a run of smooth steps, compiled
                 e, tr_run = _smooth_run(smooth_run, closed, s, i, ns, n_align, t, hh, X, Q, logs, times, bar)
                 trace_sum += tr_run
                 P_prev = P[e]
@@ -184,9 +183,7 @@ def lyapunov_spectrum_tangent(scene: mo.Scene, q0, v0, h: float, *, interval: fl
             Ps = P[s + 1]
             counted = i + s // ns >= n_align
             hit = np.flatnonzero(Ps > 0.0)
-            if hit.size == 0:
-                Q, tr_step, ld_step = _smooth_step(flow, Q, ts, hh, xs, xe)
-            elif np.any(P_prev[hit] > 0.0):
+            if np.any(P_prev[hit] > 0.0):
                 stats["persistent_steps"] += counted
                 Q, tr_step, ld_step = _persistent_step(flow, Q, ts, hh, xs, hit, P_prev, eps, persistent)
             else:
@@ -227,12 +224,10 @@ def _smooth_run(smooth_run, closed: np.ndarray, s: int, i: int, ns: int, n_align
     return e, float(tr[ii >= n_align].sum())
 
 
-def _compiled_smooth_steps(scene: mo.Scene, backend: str, eps: float):
+def _compiled_smooth_steps(scene: mo.Scene, eps: float):
     """``run(t, h, X, first, last, Q) -> (ln|diag R| (steps, k), h trace A (steps,))``: the
     smooth steps ``first .. last − 1`` in compiled code (:mod:`moreau.compiled.tangent`, Q
-    updated in place), or None on the Python path (``backend="python"``)."""
-    if backend == "python":
-        return None
+    updated in place)."""
     from moreau.compiled.lowering import lower
     from moreau.compiled.tangent import decode_status, smooth_steps
 
@@ -268,15 +263,6 @@ def _reference(scene: mo.Scene, fmap, x: np.ndarray, t: float, m: int, kw: dict)
     X = np.hstack([traj.q, traj.v])
     P = traj.impulses if scene.nrows else np.zeros((X.shape[0], 0))
     return X, P
-
-
-def _smooth_step(flow: _Flow, Q: np.ndarray, ts: float, hh: float, xs: np.ndarray,
-                 xe: np.ndarray) -> tuple[np.ndarray, float, float]:
-    """A step without impact: ``exp(h A)`` at the midpoint state. Returns ``(Q, h trace A,
-    ln|det| of the impacts = 0)``."""
-    A = flow.jacobian(ts + 0.5 * hh, 0.5 * (xs + xe))
-    Q = _expm(hh * A) @ Q
-    return Q, hh * np.trace(A), 0.0
 
 
 def _persistent_step(flow: _Flow, Q: np.ndarray, ts: float, hh: float, xs: np.ndarray, hit: np.ndarray,

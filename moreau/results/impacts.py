@@ -55,7 +55,7 @@ class ImpactLog:
         scene in SI).
     energy_lost : ndarray
         Kinetic energy dissipated by the contact impulse in the step (``units["energy"]``:
-        J in SI); see :class:`moreau.step.integrator.ContactDetails`.
+        J in SI).
     flight, fast : ndarray of bool
         Which test the onset passed (see above).
     row_names : list of str

@@ -5,7 +5,7 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass
-from typing import Any, cast
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -22,14 +22,13 @@ from moreau.results.trajectory import Trajectory
 from moreau.run.backend import DriftControl, choose_backend, initial_state_only
 from moreau.run.flights import flight_gaps, initial_flight
 from moreau.run.progress import progress_bar
-from moreau.run.python_loop import run_python
 from moreau.run.trust import check_jacobians, penetration_warnings, redundancy_warnings
+from moreau.step.checks import check_initial_state
 from moreau.step.integrator import (
     MoreauJeanEnergyConsistent,
     MoreauJeanMidpoint,
     MoreauJeanPredictorCorrector,
     OneStepIntegrator,
-    check_initial_state,
 )
 
 __all__ = ["simulate"]
@@ -78,18 +77,18 @@ def simulate(
         resolved by the first step's impact.
     h : float
         Step size (> 0).
-    backend : {"auto", "compiled", "python"}
-        Where the time loop runs. ``"compiled"``: the whole loop in machine code
-        (:mod:`moreau.compiled.loop`) for scenes of built-in parts and ``@numba.njit`` user
-        callables, both Moreau–Jean integrators, both drift controls and the solvers
-        ``"exact"`` and ``"enum"``; ``ValueError`` names what does not compile.
-        ``"python"``: the readable reference path, with any solver. ``"auto"`` (default):
-        compiled when everything compiles, else Python (logged). Both paths evaluate the
-        same kernels and return the same fields; ``traj.stats.backend`` says which ran.
+    backend : {"auto", "compiled"}
+        Kept for existing code: every scene runs in the compiled loop
+        (:mod:`moreau.compiled.loop`); ``"python"`` is deprecated (``DeprecationWarning``)
+        and runs there too. ``traj.stats.backend`` is ``"compiled"``.
     solver : str or ContactSolver, optional
         Contact solver: ``"exact"`` (dual active set, exact, any number of rows; the
-        default of the compiled path), ``"enum"`` (enumeration, ≤ 12 rows), ``"osqp"``
-        (the default of the Python path), ``"daqp"``, ``"quadprog"``.
+        default), ``"enum"`` (enumeration, ≤ 12 rows), ``"osqp"``, ``"daqp"``,
+        ``"quadprog"`` or a :class:`~moreau.contact.base.ContactSolver` instance. The first
+        two are the loop's own; the others are called from the loop for each contact
+        problem (:class:`~moreau.compiled.callbacks.SolverCallback`). Every answer is KKT-checked. Steps with
+        friction are solved by the loop's friction solver (Lemke's method, projected
+        Gauss–Seidel for many contacts) whatever the solver.
     fallback : str or ContactSolver or None
         Exact solver for steps the main one fails; ``"auto"``: ``"enum"``, or
         ``"exact"`` when the main solver is ``"enum"``. Never the same as ``solver``.
@@ -145,10 +144,9 @@ def simulate(
         Every backend failed on a step; ``exc.trajectory`` holds the run up to it.
     SimulationError
         The state became non-finite, the energy check stopped the run, the mass matrix
-        stopped being SPD, a model function returned an array of another shape (named;
-        checked at every call on the Python path, at the initial state on the compiled
-        one), or a user callable raised; ``exc.trajectory`` holds the run up to the last
-        good step.
+        stopped being SPD, a model function returned an array of another shape (named; a
+        user callable's output is checked at every call), or a user callable raised;
+        ``exc.trajectory`` holds the run up to the last good step.
     KeyboardInterrupt
         Re-raised after Ctrl-C with the part computed so far as ``exc.trajectory``
         (``status == "interrupted"``): nothing computed is lost, and a script that
@@ -156,9 +154,8 @@ def simulate(
     """
     plan = _plan(scene, t_span, h, tol, record_every, integrator, backend, solver, fallback, drift_control,
                  check_jacobian, penetration_limit, flight_gap, initial_penetration, energy_growth)
-    run = _compiled_path if plan.path == "compiled" else _python_path
     redundant = redundancy_warnings(scene, q0)
-    traj = run(scene, plan, q0, v0, integrator, drift_control, check_jacobian, progress, energy)
+    traj = _run(scene, plan, q0, v0, integrator, drift_control, check_jacobian, progress, energy)
     traj.warnings = redundant + traj.warnings + penetration_warnings(scene, traj, plan.h, plan.penetration_limit)
     return traj
 
@@ -173,7 +170,6 @@ class _Plan:
     n_steps: int
     stride: int
     n_rec: int
-    path: str
     cs: Any
     solver: str | ContactSolver
     fallback: str | ContactSolver | None
@@ -204,21 +200,21 @@ def _plan(scene: Scene, t_span: tuple[float, float], h: float, tol: float, recor
         raise ValueError(f"check_jacobian must be True or False, got {check_jacobian!r}")
     fg = flight_gaps(flight_gap, scene.nrows)
     initial_penetration = as_positive(initial_penetration, "initial_penetration", allow_zero=True)
-    path, cs, solver, fallback = choose_backend(backend, scene, integrator, solver, fallback, drift_control)
-    return _Plan(t0, h, tol, n_steps, stride, n_rec, path, cs, solver, fallback, fg, penetration_limit,
+    cs, solver, fallback = choose_backend(backend, scene, integrator, solver, fallback, drift_control)
+    return _Plan(t0, h, tol, n_steps, stride, n_rec, cs, solver, fallback, fg, penetration_limit,
                  initial_penetration, as_energy_growth(energy_growth), iteration)
 
 
 def _compiled_step(integrator: type[OneStepIntegrator]) -> int:
     """The compiled loop's code for the step of ``integrator`` (one of the three it has)."""
-    if integrator is MoreauJeanEnergyConsistent:
+    if issubclass(integrator, MoreauJeanEnergyConsistent):
         return STEP_ENERGY
-    return STEP_THETA if integrator is MoreauJeanPredictorCorrector else STEP_MIDPOINT
+    return STEP_THETA if issubclass(integrator, MoreauJeanPredictorCorrector) else STEP_MIDPOINT
 
 
 def _iteration(integrator: type[OneStepIntegrator]) -> tuple[int, float]:
-    """``(max_iterations, iteration_tol)`` of an iterating step (and of a subclass's, which
-    takes the Python path), checked; (1, 0) otherwise."""
+    """``(max_iterations, iteration_tol)`` of an iterating step (a subclass's own), checked;
+    (1, 0) otherwise."""
     if not issubclass(integrator, MoreauJeanEnergyConsistent):
         return 1, 0.0
     its, tol = integrator.max_iterations, integrator.iteration_tol
@@ -227,7 +223,7 @@ def _iteration(integrator: type[OneStepIntegrator]) -> tuple[int, float]:
     return int(its), as_positive(tol, f"{integrator.__name__}.iteration_tol")
 
 
-def _compiled_path(scene: Scene, plan: _Plan, q0: ArrayLike, v0: ArrayLike, integrator: type[OneStepIntegrator],
+def _run(scene: Scene, plan: _Plan, q0: ArrayLike, v0: ArrayLike, integrator: type[OneStepIntegrator],
                    drift_control: DriftControl | None, check_jacobian: bool,
                    progress: bool | dict[str, Any] | None, energy: bool) -> Trajectory:
     """The run on the compiled loop, from a checked initial state."""
@@ -241,7 +237,7 @@ def _compiled_path(scene: Scene, plan: _Plan, q0: ArrayLike, v0: ArrayLike, inte
         bar = progress_bar(progress, plan.n_steps, scene.name)
         return run_compiled(scene, plan.cs, t0, q, v, plan.h, plan.n_steps,
                             step=_compiled_step(integrator), iteration=plan.iteration,
-                            solver=cast(str, plan.solver),
+                            solver=plan.solver,
                             fallback=plan.fallback, stride=plan.stride, bar=bar, energy=energy, tol=plan.tol,
                             drift_control=drift_control, flight_gap=plan.flight_gap,
                             gmax0=initial_flight(scene, q, v), energy_growth=plan.energy_growth)
@@ -253,21 +249,6 @@ def _compiled_path(scene: Scene, plan: _Plan, q0: ArrayLike, v0: ArrayLike, inte
     finally:
         if bar is not None:
             bar.close()
-
-
-def _python_path(scene: Scene, plan: _Plan, q0: ArrayLike, v0: ArrayLike, integrator: type[OneStepIntegrator],
-                 drift_control: DriftControl | None, check_jacobian: bool,
-                 progress: bool | dict[str, Any] | None, energy: bool) -> Trajectory:
-    """The run on the Python reference loop."""
-    # penetration_tol only when set: an integrator subclass of the user's may not take it
-    tol_kw = {} if plan.initial_penetration == 1e-12 else {"penetration_tol": plan.initial_penetration}
-    integ = integrator(scene, plan.h, solver=plan.solver, fallback=plan.fallback, tol=plan.tol,
-                       drift_control=drift_control, **tol_kw)
-    checked_start(lambda: integ.init(plan.t0, q0, v0), scene, plan.t0, q0, v0)
-    if check_jacobian and scene.nrows:
-        check_jacobians(scene, integ.q)
-    return run_python(scene, integ, plan.h, plan.n_steps, plan.stride, plan.n_rec, progress, energy,
-                      plan.flight_gap, initial_flight(scene, integ.q, integ.v), plan.energy_growth)
 
 
 def _steps_and_records(scene: Scene, t_span: tuple[float, float], h: float,

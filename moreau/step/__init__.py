@@ -1,7 +1,6 @@
-"""The Python one-step integrators (Moreau–Jean midpoint, predictor–corrector) and drift
-control: the readable reference of a step, which the compiled loop mirrors.
-
-A new integrator or drift control goes here (and its twin in :mod:`moreau.compiled`).
+"""The one-step integrators (Moreau–Jean midpoint, predictor–corrector, energy-consistent)
+and drift control, as the schemes and settings :func:`moreau.simulate` takes; the compiled
+loop (:mod:`moreau.compiled`) runs them, each phase of the step written once there.
 
 May import: :mod:`moreau.core`, :mod:`moreau.model`, :mod:`moreau.contact`.
 """

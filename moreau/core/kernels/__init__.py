@@ -1,8 +1,8 @@
 """Physics kernels: the one implementation of every built-in mass matrix, force and gap.
 
 Each kernel is a small numba function on arrays, free of allocation where it writes into
-``out``: the compiled time loop (:mod:`moreau.compiled.loop`) calls them step after step, and the
-Python path calls the very same functions through the objects of :mod:`moreau.model.forces`,
+``out``: the compiled time loop (:mod:`moreau.compiled.loop`) calls them step after step, and
+Python calls the very same functions through the objects of :mod:`moreau.model.forces`,
 :mod:`moreau.model.chain` and :mod:`moreau.model.barriers` (so the physics is written once). Kernels
 that *add* into ``out`` accumulate a sum of effects without temporaries.
 

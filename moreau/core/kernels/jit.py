@@ -16,5 +16,5 @@ ensure_fresh()  # before any cached machine code of moreau is loaded
 # calls, the piston step costs a quarter more; inlined by numba (inline="always") at
 # every level, the loop took minutes and gigabytes to compile (see moreau.compiled.loop).
 # _nrt=False (numba's internal flag): kernels allocate nothing, so they need no reference
-# counting, and the Python path and the loop (compiled without it) share one version.
+# counting, and Python callers and the loop (compiled without it) share one version.
 jit = njit(cache=True, nogil=True, forceinline=True, _nrt=False)  # type: ignore[call-overload]

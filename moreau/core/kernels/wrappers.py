@@ -1,4 +1,4 @@
-"""Allocating wrappers of the kernels for the Python path."""
+"""Allocating wrappers of the kernels for Python callers (the model objects' methods)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from moreau.core.kernels.forces import trig
 __all__ = ["force_of", "flat", "cos_sin"]
 
 
-# -- allocating wrappers for the Python path ------------------------------------------------
+# -- allocating wrappers for Python callers -------------------------------------------------
 def force_of(kernel, n: int, *args) -> np.ndarray:
     """Call an accumulating force kernel on a fresh zero vector of size n."""
     out = np.zeros(n)
@@ -23,7 +23,7 @@ def flat(*params) -> np.ndarray:
 
 
 def cos_sin(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(cos q, sin q) through :func:`trig`, for the Python path."""
+    """(cos q, sin q) through :func:`trig`, for Python callers."""
     c = np.empty(q.shape[0])
     s = np.empty(q.shape[0])
     trig(q, c, s)

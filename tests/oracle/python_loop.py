@@ -18,8 +18,8 @@ from moreau.results.assemble import assemble
 from moreau.results.impacts import ImpactLog, ImpactRow, SolverStats
 from moreau.results.trajectory import Trajectory
 from moreau.run.progress import progress_bar
-from moreau.step.base import OneStepIntegrator
-from moreau.step.checks import BadModelOutput, NonFiniteState, NotConverged
+from oracle.base import OneStepIntegrator
+from oracle.checks import BadModelOutput, NonFiniteState, NotConverged
 
 __all__ = ["run_python"]
 

@@ -16,8 +16,8 @@ from moreau.core.kernels import cholesky as _cholesky
 from moreau.core.kernels import symmetry_defect as _symmetry_defect
 from moreau.core.validation import as_positive
 from moreau.model.scene import Scene
-from moreau.step.checks import _COMPOSITE, BadModelOutput, NonFiniteState, _locate_bad_shape, check_initial_state
-from moreau.step.nonsmooth import NonsmoothSolve
+from oracle.checks import _COMPOSITE, BadModelOutput, NonFiniteState, _locate_bad_shape, check_initial_state
+from oracle.nonsmooth import NonsmoothSolve
 
 __all__ = ["OneStepIntegrator", "ContactDetails"]
 
@@ -134,7 +134,7 @@ class OneStepIntegrator(NonsmoothSolve, ABC):
         self._locate = bool(getattr(self.drift_control, "locate_impacts", False))
         # with bilateral rows the solvers see the reduced problem (moreau.contact.equality),
         # whose mass matrix is the identity
-        from moreau.step.bilateral import EqualityRows, constraint_rank
+        from oracle.bilateral import EqualityRows, constraint_rank
 
         self._eq = EqualityRows(scene) if scene.nconstraints else None
         if self._eq is not None:
