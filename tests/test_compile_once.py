@@ -18,7 +18,7 @@ _PROBE = textwrap.dedent("""
     import moreau as mo
     from moreau.compiled import loop
     mo.ensure_compiled()
-    st = loop.run_chunk.stats
+    st = loop._run_chunk.stats
     print(sum(st.cache_misses.values()), sum(st.cache_hits.values()))
 """)
 
@@ -41,7 +41,7 @@ def test_scenes_with_other_user_callables_reuse_the_one_loop():
     from tests.test_compiled import user_scene
 
     mo.ensure_compiled()
-    before = len(loop.run_chunk.overloads)
+    before = len(loop._run_chunk.overloads)
 
     @numba.njit
     def force(t, q, v):
@@ -60,7 +60,7 @@ def test_scenes_with_other_user_callables_reuse_the_one_loop():
     for scene in (user_scene(), other):
         traj = mo.simulate(scene, (0.0, 0.5), [0.0, 1.0], [1.0, 0.0], 1e-3, backend="compiled")
         assert traj.completed and traj.stats.backend == "compiled"
-    assert len(loop.run_chunk.overloads) == before == 1  # no specialization per scene
+    assert len(loop._run_chunk.overloads) == before == 1  # no specialization per scene
     assert lower(other).user.addresses.tolist()[:2] == [0, 0]  # no user mass, no bias: empty slots
 
 
@@ -86,13 +86,13 @@ def test_a_corrupt_cache_warns_and_the_run_works(tmp_path):
     out = subprocess.run(run, env=env, capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.split() == ["0", "1"]  # the filled cache is loaded
-    files = list((tmp_path / "cache").glob("*/loop.run_chunk-*.nbc"))
+    files = list((tmp_path / "cache").glob("*/loop._run_chunk-*.nbc"))
     assert files
     for f in files:  # damaged in place: random bytes, the same size
         f.write_bytes(os.urandom(f.stat().st_size))
     out = subprocess.run(run, env=env, capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr[-2000:]
-    assert "could not be read" in out.stderr and "loop.run_chunk" in out.stderr
+    assert "could not be read" in out.stderr and "loop._run_chunk" in out.stderr
     assert out.stdout.split() == ["1", "0"]  # compiled afresh
 
 

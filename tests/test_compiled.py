@@ -226,7 +226,7 @@ def test_a_new_process_loads_the_loop_from_the_cache():
         t = time.perf_counter()
         traj = m.simulate(0.01, 1e-4, drift_control=mo.PositionProjection())
         assert traj.stats.backend == "compiled"
-        st = loop.run_chunk.stats  # the one entry point, for every scene
+        st = loop._run_chunk.stats  # the one entry point, for every scene
         print(sum(st.cache_hits.values()), sum(st.cache_misses.values()), time.perf_counter() - t)
     """)
     env = dict(os.environ, PYTHONPATH=os.getcwd())

@@ -18,7 +18,7 @@ import moreau.core.jitcache as j
 j.PREBUILT = sys.argv[1]
 print("seeded", j.seed())
 from moreau.compiled.cache import ensure_compiled
-from moreau.compiled.loop import run_chunk
+from moreau.compiled.loop import _run_chunk as run_chunk
 ensure_compiled()
 print("hits", sum(run_chunk.stats.cache_hits.values()), "misses", sum(run_chunk.stats.cache_misses.values()))
 """
@@ -31,7 +31,7 @@ def exported(tmp_path_factory):
     out = tmp_path_factory.mktemp("prebuilt")
     n = jitcache.export(str(out))
     assert n >= 2 and (out / "moreau-jit.digest").read_text() == jitcache.source_digest()
-    assert list((out / "compiled").glob("loop.run_chunk-*.nbi"))
+    assert list((out / "compiled").glob("loop._run_chunk-*.nbi"))
     return out
 
 

@@ -50,7 +50,7 @@ def ensure_compiled() -> float:
         t = time.perf_counter()
         with compile_lock():
             d = cache_dir()
-            cold = d is None or not glob.glob(os.path.join(d, "loop.run_chunk-*.nbi"))
+            cold = d is None or not glob.glob(os.path.join(d, "loop._run_chunk-*.nbi"))
             if cold:
                 log.warning("moreau: compiling the time loop once for this machine (about %d s; later runs "
                             "load it from %s)", COMPILE_SECONDS, d or "nowhere: the cache is not writable")

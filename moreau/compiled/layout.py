@@ -1,6 +1,8 @@
 """The compiled loop's data layout (status codes, indices into its settings, counters,
 accumulators, per-row state and impact log) and the numba options of its parts."""
 
+from collections import namedtuple
+
 from numba import njit
 
 # the lowered scene's ints (moreau.compiled.lowering.CompiledScene.ints): coordinates n, rows
@@ -92,3 +94,17 @@ part = njit(cache=True, nogil=True, _nrt=False, inline="always",  # type: ignore
 call = njit(cache=True, nogil=True, _nrt=False,  # type: ignore[call-overload]
             no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
+
+# The arguments of run_chunk, by name (it hands their fields to the compiled _run_chunk).
+#: the run's settings: the int and float settings above, M⁻¹ of a constant M, the rows drift
+#: control may move (m,), each row's flight gap (m,)
+Settings = namedtuple("Settings", "iset fset Minv eligible fgap")
+#: the state a chunk resumes from: q, v (n,); per row (m,): in contact, the impulse and activity
+#: summed since the last record, the step of its last impulse, its largest gap since then; the
+#: per-row state of CombinedProjection (m, 6); the deepest penetration and its step (2, m)
+RunState = namedtuple("RunState", "q v in_contact P_acc act_acc last_imp gmax rs pen")
+#: the record buffers: times, states, impulses, activity, gaps, energies, the impact log,
+#: the tangential impulses of a scene with friction
+Records = namedtuple("Records", "T Q V PS ACT GP KE PE IMP PTS")
+#: the counters, accumulators and the failed solves' residuals (see above)
+Tally = namedtuple("Tally", "cnt acc fail")

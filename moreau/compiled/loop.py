@@ -63,6 +63,10 @@ from moreau.compiled.layout import (  # the loop's layout
     SC_N,
     SC_TRIG,
     USER_FAILED,
+    Records,
+    RunState,
+    Settings,
+    Tally,
 )
 from moreau.compiled.layout import part as _part
 from moreau.compiled.records import _contact_records
@@ -222,30 +226,36 @@ def _record(model, user, iset, fset, k, q, v, cq, sq, M, P_acc, act_acc, gq, T, 
     return DONE
 
 
-# Compiled without reference counting (numba's internal ``_nrt`` flag): every array it
-# touches is owned by the caller and nothing is allocated, so the counts (an atomic
-# increment and decrement per array per use, measured at two thirds of a contact step's
-# time) would be pure overhead. User callables run in their own wrappers (usercalls).
-@njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]  # numba's internal flag
-def run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
-              T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work, PTS):
+def run_chunk(model: tuple, user: np.ndarray, settings: Settings, state: RunState, records: Records, tally: Tally,
+              work: tuple, k_end: int) -> int:
     """Advance the run to step ``k_end`` (see the module docstring); returns a status.
 
-    State (q, v, step ``cnt[C_K]``, contact flags, impulse accumulators, per row the
-    step of its last impulse ``last_imp`` and its largest gap since then ``gmax``) is
-    updated in place, so a chunk resumes where the previous one stopped. ``user`` (5,)
-    holds the addresses of the scene's user slots (:mod:`moreau.compiled.usercalls`; zeros for a
-    built-in scene). ``fgap`` (m,) is each row's flight gap: a contact onset after the
-    gap exceeded it is an impact. ``rs`` (m, 6) is the per-row state of
-    CombinedProjection (see ``_velocity_update``); ``work`` comes from
-    :func:`loop_workspace`; ``PTS`` (records, m) receives the tangential impulses of a
-    scene with friction (unused without).
+    ``state`` (``layout.RunState``; with the step ``cnt[C_K]``) is
+    updated in place, so a chunk resumes where the previous one stopped; ``settings``,
+    ``records`` and ``tally`` are the layout's named tuples of the same names. ``user`` (5,)
+    holds the addresses of the scene's user slots (:mod:`moreau.compiled.usercalls`; zeros
+    for a built-in scene); ``work`` comes from :func:`loop_workspace`.
 
     One step: the model at the midpoint, the velocity update (twice with θ: a predictor
     pass with f(v_k), then f((v_k + v*)/2); the energy-consistent step's iterates until v⁺
     stops changing), the contact records, the end position, the gaps and drift control
     there, and a record every ``stride`` steps.
     """
+    st, rec = state, records  # the fields as separate arrays: the kernel is faster on them than on the tuples
+    return _run_chunk(model, user, settings.iset, settings.fset, settings.Minv, settings.eligible, st.q, st.v, k_end,
+                      st.in_contact, st.P_acc, st.act_acc, rec.T, rec.Q, rec.V, rec.PS, rec.ACT, rec.GP, rec.KE,
+                      rec.PE, rec.IMP, st.pen, tally.cnt, tally.acc, tally.fail, st.last_imp, st.gmax, settings.fgap,
+                      st.rs, work, rec.PTS)
+
+
+# Compiled without reference counting (numba's internal ``_nrt`` flag): every array it
+# touches is owned by the caller and nothing is allocated, so the counts (an atomic
+# increment and decrement per array per use, measured at two thirds of a contact step's
+# time) would be pure overhead. User callables run in their own wrappers (usercalls).
+@njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]  # numba's internal flag
+def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
+               T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work, PTS):
+    """The steps of :func:`run_chunk`, on the fields of its named tuples."""
     ints, ekind, eoff, _, _, _, _, pool, _, _ = model
     n, m = ints[SC_N], ints[SC_M]
     h, t0 = fset[F_H], fset[F_T0]

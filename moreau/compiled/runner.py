@@ -96,8 +96,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     PS = np.zeros((n_rec, m + me))
     ACT = np.zeros((n_rec, m), dtype=np.bool_)
     GP = np.full((n_rec, m + me), np.nan)
-    KE = np.full(n_rec, np.nan)
-    PE = np.full(n_rec, np.nan)
+    KE, PE = np.full(n_rec, np.nan), np.full(n_rec, np.nan)
     T[0], Q[0], V[0] = t0, q0, v0
     q, v = q0.copy(), v0.copy()
     in_contact = np.zeros(m, dtype=np.bool_)
@@ -138,6 +137,9 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
             PE[0] = scene.potential_energy(q0)
         # the inverse of a constant M, as the reference path uses it for free steps
         Minv = np.linalg.inv(scene.system.mass_matrix(q0)) if scene.system.constant_mass else np.zeros((n, n))
+        settings = lay.Settings(iset, fset, Minv, eligible, fgap)
+        state = lay.RunState(q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, pen)
+        tally = lay.Tally(cnt, acc, fail)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", category=_experimental_warning())
             if energy:
@@ -145,10 +147,8 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
             while cnt[lay.C_K] < n_steps:
                 k_before = int(cnt[lay.C_K])
                 c0 = time.perf_counter()
-                code = run(model, user, iset, fset, Minv, eligible, q, v,
-                           min(n_steps, k_before + chunk), in_contact, P_acc, act_acc,
-                           T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax,
-                           fgap, rs, work, PTS)
+                code = run(model, user, settings, state, lay.Records(T, Q, V, PS, ACT, GP, KE, PE, IMP, PTS),
+                           tally, work, min(n_steps, k_before + chunk))
                 if bar is not None:
                     bar.update(int(cnt[lay.C_K]) - k_before)
                 if (code == lay.USER_FAILED and _interrupted(cs)) or any(c and c.interrupted for c in called):

@@ -155,7 +155,7 @@ def ensure_fresh() -> None:
     try:
         with open(stamp) as f:
             if f.read().strip() == digest:
-                if not glob.glob(os.path.join(d, "loop.run_chunk-*.nbi")):
+                if not glob.glob(os.path.join(d, "loop._run_chunk-*.nbi")):
                     seed(digest)
                 return
     except OSError:

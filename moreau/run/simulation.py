@@ -22,7 +22,7 @@ from moreau.results.trajectory import Trajectory
 from moreau.run.backend import DriftControl, choose_backend, initial_state_only
 from moreau.run.flights import flight_gaps, initial_flight
 from moreau.run.progress import progress_bar
-from moreau.run.trust import check_jacobians, penetration_warnings, redundancy_warnings
+from moreau.run.trust import check_jacobians, constraint_rank, penetration_warnings, redundancy_warnings
 from moreau.step.checks import check_initial_state
 from moreau.step.integrator import (
     MoreauJeanEnergyConsistent,
@@ -231,6 +231,10 @@ def _run(scene: Scene, plan: _Plan, q0: ArrayLike, v0: ArrayLike, integrator: ty
                              scene, plan.t0, q0, v0)
     if check_jacobian and scene.nrows:
         check_jacobians(scene, q)
+    rank, redundant = constraint_rank(scene, q)
+    if redundant:  # reported, not an error: v stays unique
+        log.info("scene %r: %d bilateral rows of rank %d at q0; redundant: %s", scene.name, scene.nconstraints, rank,
+                 ", ".join(redundant))
     bar = None
     try:
         ensure_compiled()  # before the progress bar moves: a first compile says so

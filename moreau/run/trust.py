@@ -18,9 +18,10 @@ import warnings
 
 import numpy as np
 
+from moreau.contact.equality import eq_basis
 from moreau.model.barriers import finite_difference_jacobian
 
-__all__ = ["check_jacobians", "penetration_warnings", "redundancy_warnings"]
+__all__ = ["check_jacobians", "constraint_rank", "penetration_warnings", "redundancy_warnings"]
 
 
 def check_jacobians(scene, q0: np.ndarray, rtol: float = 1e-5) -> None:
@@ -116,3 +117,18 @@ def redundancy_warnings(scene, q0) -> list[str]:
     if out:
         warnings.warn("; ".join(out), RuntimeWarning, stacklevel=3)
     return out
+
+
+def constraint_rank(scene, q) -> tuple[int, list[str]]:
+    """``(rank, redundant)``: the rank of the scene's bilateral rows at q and the names of
+    the rows the step's pivoted QR finds redundant (dependent on the others: they keep v
+    unique and carry zero impulse)."""
+    if not scene.nconstraints:
+        return 0, []
+    n, me = scene.ndof, scene.nconstraints
+    q = np.asarray(q, dtype=float)
+    L = np.linalg.cholesky(np.asarray(scene.system.mass_matrix(q), dtype=float))
+    G = np.ascontiguousarray(scene.constraint_jacobian(q), dtype=float)
+    piv = np.zeros(me, dtype=np.int64)
+    rank = eq_basis(L, G, 0, me, np.empty((n, n)), np.empty((n, me)), piv, np.empty(n))
+    return int(rank), [scene.constraint_names[i] for i in piv[rank:]]

@@ -5,12 +5,12 @@ import numpy as np
 import oracle
 import pytest
 from numba import njit
-from oracle.bilateral import constraint_rank
 from scipy.integrate import solve_ivp
 
 import moreau as mo
 from moreau.model.chain import Link, PendulumChain, point_on_line
 from moreau.problems.four_bar import four_bar
+from moreau.run.trust import constraint_rank
 
 G0, L1, L2, M1, M2 = 9.81, 1.0, 0.7, 1.0, 0.5
 

@@ -26,26 +26,11 @@ from moreau.contact.equality import (
     eq_velocity,
 )
 from moreau.core.errors import SolverError
+from moreau.run.trust import constraint_rank
 
 __all__ = ["EqualityRows", "MAX_HOLD_ITERATIONS", "constraint_rank"]
 
 log = logging.getLogger(__name__)
-
-
-def constraint_rank(scene, q) -> tuple[int, list[str]]:
-    """``(rank, redundant)``: the rank of the scene's bilateral rows at q and the names of
-    the rows the step's pivoted QR finds redundant (dependent on the others: they keep v
-    unique and carry zero impulse)."""
-    if not scene.nconstraints:
-        return 0, []
-    n, me = scene.ndof, scene.nconstraints
-    q = np.asarray(q, dtype=float)
-    L = np.linalg.cholesky(np.asarray(scene.system.mass_matrix(q), dtype=float))
-    G = np.ascontiguousarray(scene.constraint_jacobian(q), dtype=float)
-    piv = np.zeros(me, dtype=np.int64)
-    rank = eq_basis(L, G, 0, me, np.empty((n, n)), np.empty((n, me)), piv, np.empty(n))
-    return int(rank), [scene.constraint_names[i] for i in piv[rank:]]
-
 
 
 class EqualityRows:
