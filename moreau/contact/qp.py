@@ -66,12 +66,17 @@ class QpsolversSolver(ContactSolver):
             free = _unconstrained_if_feasible(M, b, G, c, rows)
             if free is not None:
                 return free, np.zeros(rows.shape[0])
-        problem = qp.Problem(P=M, q=-b, G=-G[rows], h=-c[rows])
+        # the QP is homogeneous in (b, c): solved where they are O(1) (a drift projection's
+        # 1e-10 data would drown in the backend's absolute tolerances) and scaled back
+        scale = max(float(np.abs(b).max(initial=0.0)), float(np.abs(c[rows]).max(initial=0.0)))
+        if scale == 0.0:  # b = 0, c = 0: v = 0 is the solution
+            return np.zeros(M.shape[0]), np.zeros(rows.shape[0])
+        problem = qp.Problem(P=M, q=-b / scale, G=-G[rows], h=-c[rows] / scale)
         sol = qp.solve_problem(problem, solver=self.backend, **self.options)
         if not sol.found or sol.x is None:
             raise SolveFailed(f"{self.backend} found no solution")
         P = sol.z if sol.z is not None else np.zeros(rows.shape[0])
-        return np.asarray(sol.x, dtype=float), np.asarray(P, dtype=float)
+        return scale * np.asarray(sol.x, dtype=float), scale * np.asarray(P, dtype=float)
 
     def solve_friction(self, M, b, G, c, T, mu, rows, cT=None):
         """Coulomb friction as a fixed point over Tresca QPs (:mod:`moreau.contact.tresca`)."""

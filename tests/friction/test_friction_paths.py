@@ -97,3 +97,23 @@ def test_friction_is_kept_by_save_load_and_to_xarray(tmp_path):
     assert np.array_equal(ds["tangential_impulses"].values, traj.tangential_impulses)
     assert np.array_equal(ds["sticking"].values, traj.sticking)
     assert '"friction"' in ds.attrs["work_json"]
+
+
+def test_the_impact_log_with_friction_is_the_same_on_every_solver():
+    """Issue 41: the piston with skirt friction (mu = 0.01; a slider-crank with clearance) and
+    the engine's drift control, half a cycle at h = 1e-4: every solver (the loop's own, and
+    OSQP and daqp called back from it) logs the same impacts at the same steps, and the runs
+    agree to round-off. The drift projections are the solves that differ (friction steps
+    take the loop's friction solve whatever the solver); none falls back."""
+    from moreau.problems.piston import PistonParameters, piston_model
+
+    model = piston_model(PistonParameters(e=0.0, mu=0.01))
+    runs = {s: model.simulate(0.5, 1e-4, solver=s, drift_control=model.drift_control(), energy=False,
+                              record_every=100) for s in ("exact", "enum", "osqp", "daqp")}
+    ref = runs["exact"]
+    assert ref.completed and len(ref.impacts) >= 3 and ref.stats.projections > 1000
+    for s, traj in runs.items():
+        assert traj.completed and traj.stats.solver == s and traj.stats.fallbacks == 0, s
+        np.testing.assert_array_equal(traj.impacts.step, ref.impacts.step)
+        np.testing.assert_array_equal(traj.impacts.row, ref.impacts.row)
+        assert np.abs(traj.q - ref.q).max() <= 1e-12 * np.abs(ref.q).max(), s
