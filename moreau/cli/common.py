@@ -171,8 +171,8 @@ def _fmt(x: object) -> str:
 def add_backend_option(parser: argparse.ArgumentParser) -> None:
     """``--backend auto|compiled|python`` (see :func:`moreau.simulate`)."""
     parser.add_argument("--backend", choices=("auto", "compiled", "python"), default="auto",
-                        help="where the time loop runs: compiled (numba), python (the reference "
-                             "path, to compare), auto (compiled when the scene and solver allow; default)")
+                        help="kept for existing scripts: every run is compiled (numba); 'python' is "
+                             "deprecated and runs compiled too")
 
 
 def simulate_and_save(scene: Scene, t_span: tuple[float, float], q0: Sequence[float], v0: Sequence[float],
