@@ -29,6 +29,7 @@ from moreau.compiled.layout import (
     SC_N,
     SC_TRIG,
     USER_FAILED,
+    EqualityWork,
 )
 from moreau.compiled.layout import call as _part  # calls from the loop, not inlined
 from moreau.contact.equality import (
@@ -48,15 +49,15 @@ __all__ = ["equality_work", "bilateral_parts"]
 
 
 def equality_work(n: int, me: int, mc: int = 0) -> tuple:
-    """The bilateral rows' work arrays: ``(Q, R, piv, x, y, by, PE, F, eye, yv, PE_acc, cE,
-    rank, S)``; R, piv, cE and S (the rows of the velocity projection: the bilateral rows,
-    then the tangent rows of the step's sticking contacts) have room for the me bilateral
-    and mc more rows (numpy: allocating compiles nothing)."""
+    """The bilateral rows' work arrays (``layout.EqualityWork``); R, piv, cE and S (the rows
+    of the velocity projection: the bilateral rows, then the tangent rows of the step's
+    sticking contacts) have room for the me bilateral and mc more rows (numpy: allocating
+    compiles nothing)."""
     k = max(me, 1)
     ks = me + mc if me else 1
-    return (np.empty((n, n)), np.empty((n, ks)), np.zeros(ks, dtype=np.int64), np.empty(n), np.zeros(n),
-            np.empty(n), np.zeros(k), np.empty(n), np.eye(n), np.zeros(n), np.zeros(k), np.zeros(ks),
-            np.zeros(1, dtype=np.int64), np.empty((ks, n)))
+    return EqualityWork(np.empty((n, n)), np.empty((n, ks)), np.zeros(ks, dtype=np.int64), np.empty(n),
+                        np.zeros(n), np.empty(n), np.zeros(k), np.empty(n), np.eye(n), np.zeros(n), np.zeros(k),
+                        np.zeros(ks), np.zeros(1, dtype=np.int64), np.empty((ks, n)))
 
 
 @_part

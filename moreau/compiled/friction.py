@@ -10,7 +10,16 @@ from __future__ import annotations
 import numpy as np
 
 from moreau.compiled.bilateral import _eq_reduce
-from moreau.compiled.layout import A_WORK_T, A_WORST, C_K, C_PAINLEVE, C_PAINLEVE_ROW, C_PAINLEVE_STEP, F_TOL
+from moreau.compiled.layout import (
+    A_WORK_T,
+    A_WORST,
+    C_K,
+    C_PAINLEVE,
+    C_PAINLEVE_ROW,
+    C_PAINLEVE_STEP,
+    F_TOL,
+    FrictionWork,
+)
 from moreau.compiled.layout import part as _part
 from moreau.contact.friction import friction_workspace, solve_friction_step
 from moreau.contact.painleve import PAINLEVE_MARGIN
@@ -19,15 +28,14 @@ __all__ = ["friction_work", "friction_parts"]
 
 
 def friction_work(n: int, m: int, mf: int, mu: np.ndarray, tangent_row: np.ndarray) -> tuple:
-    """The friction arrays of the loop's workspace: ``(fidx, muA, PT, PT_acc, res, ws, mu,
-    tangent_row)`` — per active row its index among the normal rows and its mu, the
-    step's tangential impulses per row and their sum since the last record, the law
-    residuals, Lemke's work arrays, and per row its mu and tangent row (numpy: allocating
-    compiles nothing)."""
+    """The friction arrays of the loop's workspace (``layout.FrictionWork``) — per active
+    row its index among the normal rows and its mu, the step's tangential impulses per row
+    and their sum since the last record, the law residuals, Lemke's work arrays, and per row
+    its mu and tangent row (numpy: allocating compiles nothing)."""
     mm = max(m, 1)
-    return (np.zeros(mm, dtype=np.int64), np.zeros(mm), np.zeros(m), np.zeros(m), np.zeros(6),
-            friction_workspace(n, m, mf), np.ascontiguousarray(mu, dtype=np.float64),
-            np.ascontiguousarray(tangent_row, dtype=np.int64))
+    return FrictionWork(np.zeros(mm, dtype=np.int64), np.zeros(mm), np.zeros(m), np.zeros(m),
+                        np.zeros(6), friction_workspace(n, m, mf), np.ascontiguousarray(mu, dtype=np.float64),
+                        np.ascontiguousarray(tangent_row, dtype=np.int64))
 
 
 @_part
@@ -61,7 +69,7 @@ def _friction_solve(n, m, M, L, b, G, GA, cA, active, na, v_new, PA, fset, acc, 
     if kf == 0:
         return 0
     if rank >= 0:
-        _eq_reduce(Lo, eqw[0], eqw[4], eqw[3], rank, GA, na, na + kf, cA)
+        _eq_reduce(Lo, eqw.Q, eqw.y, eqw.x, rank, GA, na, na + kf, cA)
     st = solve_friction_step(M, L, b, GA, cA, muA, fidx, np.int64(na), np.int64(kf), PA, v_new, fset[F_TOL], res,
                              fws)
     if st != 0:

@@ -108,3 +108,11 @@ RunState = namedtuple("RunState", "q v in_contact P_acc act_acc last_imp gmax rs
 Records = namedtuple("Records", "T Q V PS ACT GP KE PE IMP PTS")
 #: the counters, accumulators and the failed solves' residuals (see above)
 Tally = namedtuple("Tally", "cnt acc fail")
+#: friction's work arrays (compiled.friction.friction_work): per active row its index among the
+#: normal rows and its mu; per row the step's tangential impulse and its sum since the last
+#: record; the law residuals (6,); Lemke's work arrays; per row its mu and tangent row
+FrictionWork = namedtuple("FrictionWork", "fidx muA PT PT_acc res lemke mu tangent_row")
+#: the bilateral rows' work arrays (compiled.bilateral.equality_work): their basis (Q, R, piv),
+#: the reduced problem's vectors (x, y, by), impulses PE and F, the identity, yv, the impulses
+#: summed since the last record, cE, the rank (1,), and the velocity projection's rows S
+EqualityWork = namedtuple("EqualityWork", "Q R piv x y by PE F eye yv PE_acc cE rank S")

@@ -174,7 +174,7 @@ def _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc
             return cnt[C_FAILKIND]
         if ints[SC_ME] > 0 and cnt[C_PROJ] > nproj:  # projected along the bilateral rows: restore them
             status = _eq_hold(ints, bkind, boff, brow, bnrows, pool, model[9], user, q_new, cq, sq, gq, lw[5], L,
-                              eqw[0], eqw[1], eqw[2], eqw[3], eqw[4], eqw[7], eqw[9], eqw[11], eqw[12], cnt, acc)
+                              eqw.Q, eqw.R, eqw.piv, eqw.x, eqw.y, eqw.F, eqw.yv, eqw.cE, eqw.rank, cnt, acc)
             if status != DONE:
                 return status
     for r in range(m):
@@ -308,7 +308,7 @@ def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact,
                 if npass == passes - 1:
                     return NOT_CONVERGED
         if me > 0:
-            acc[A_WORK_E] += _eq_records(n, m + ints[SC_MF], me, v, v_new, G, eqw[6], eqw[10])
+            acc[A_WORK_E] += _eq_records(n, m + ints[SC_MF], me, v, v_new, G, eqw.PE, eqw.PE_acc)
         wf = 0.0  # smooth-force work of the step, h fᵀ (v + v⁺)/2
         for i in range(n):
             wf += f[i] * (v[i] + v_new[i])
@@ -328,7 +328,7 @@ def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact,
             _k.trig(q_new, cq, sq)
         if me > 0:  # positions held on the bilateral rows (before the contacts' drift control)
             status = _eq_hold(ints, model[3], model[4], model[5], model[6], pool, model[9], user, q_new, cq, sq, gq, G,
-                              L, eqw[0], eqw[1], eqw[2], eqw[3], eqw[4], eqw[7], eqw[9], eqw[11], eqw[12], cnt, acc)
+                              L, eqw.Q, eqw.R, eqw.piv, eqw.x, eqw.y, eqw.F, eqw.yv, eqw.cE, eqw.rank, cnt, acc)
             if status != DONE:
                 return status
         if m > 0:
@@ -338,8 +338,8 @@ def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact,
                 return status
         if me > 0:  # the velocity onto the bilateral rows at q⁺ (traj.work['constraint_projection'])
             w = _eq_project_velocity(ints, model[3], model[4], model[5], model[6], pool, user, q_new, cq, sq, v_new, G,
-                                     M, L, eqw[0], eqw[1], eqw[2], eqw[3], eqw[4], eqw[9], eqw[7], eqw[11], eqw[13],
-                                     code == 1, P, fr[2], fr[6], fr[7], cnt)
+                                     M, L, eqw.Q, eqw.R, eqw.piv, eqw.x, eqw.y, eqw.yv, eqw.F, eqw.cE, eqw.S,
+                                     code == 1, P, fr.PT, fr.mu, fr.tangent_row, cnt)
             if w != w:
                 return cnt[C_FAILKIND]
             acc[A_WORK_EV] += w
@@ -354,6 +354,6 @@ def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact,
                 return status
         if k % stride == 0 or k == nsteps:
             if _record(model, user, iset, fset, k, q, v, cq, sq, M, P_acc, act_acc, gq, T, Q, V, PS, ACT, GP, KE,
-                       PE, cnt, fr[3], PTS, eqw[10]) != DONE:
+                       PE, cnt, fr.PT_acc, PTS, eqw.PE_acc) != DONE:
                 return USER_FAILED
     return DONE

@@ -30,7 +30,7 @@ def _log_onsets(n, m, t, k, h, v, v_new, f, L, P, G, vfree, in_contact, gmax, fg
     (the rule of :class:`moreau.results.impacts.ImpactLog`). With bilateral rows the free
     velocity is the one with the joints held, ``L⁻ᵀ Q b_y`` of the step's reduced problem."""
     if me > 0:
-        eq_velocity(L, eqw[0], eqw[5], vfree)
+        eq_velocity(L, eqw.Q, eqw.by, vfree)
     else:
         _k.cho_solve(L, f, vfree, n)
         for i in range(n):

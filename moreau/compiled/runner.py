@@ -172,7 +172,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
         try:
             traj, error = _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE, IMP,
                                     q, v, P_acc, act_acc, pen, cnt, acc, fail, cs, t0, h, stride, solver,
-                                    fallback, energy, wall, PTS if mf else None, work[3][3], tol, work[4][10],
+                                    fallback, energy, wall, PTS if mf else None, work[3].PT_acc, tol, work[4].PE_acc,
                                     int(iset[lay.S_ITER]), work[0][14], work[2][8],
                                     tuple(c.error if c else "" for c in called))
             break

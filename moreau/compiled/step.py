@@ -217,9 +217,8 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     the energy-consistent step too; Newton's law: :func:`moreau.core.kernels.impact_law`).
     ``rs`` (m, 6, columns ``R_GAP`` ... ``R_SHIFT``) holds per row the gap at q_k, the gap
     the projection left, the pinned and bounced flags, a bounced row's h/2 − s and (2 s − h) a_n.
-    ``fr``: the friction arrays (:mod:`moreau.compiled.friction`); ``eqw``: the bilateral
-    rows' (:mod:`moreau.compiled.bilateral`): with them every step solves the reduced
-    problem in their null space (with the contact rows), as ``EqualityRows.velocity``.
+    ``fr``, ``eqw``: the friction and bilateral work arrays (``layout.FrictionWork``,
+    ``EqualityWork``); with bilateral rows every step solves the reduced problem in their null space.
     ``check=False``: its answer unchecked, the problem left in ``lw`` (``implicit.checked``)."""
     ints, _, _, bkind, boff, brow, bnrows, pool, e, atol = model
     n, m = ints[SC_N], ints[SC_M]
@@ -269,7 +268,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     _momentum(ints, pool, h, M, cm, sm, v, f, b)
     if na == 0:  # no contact row: the bilateral rows alone
         return _eq_alone(n, m, m0, me, M, L, b, v, GA_all, P, v_new, Q, R, piv, x, y, by, PE, F, yv, cE, keep, cnt,
-                         fr[2], fr[7])
+                         fr.PT, fr.tangent_row)
     GA = lw[0]
     cA = lw[1]
     j = 0
@@ -320,5 +319,6 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
             P[r] = PA[j]
             j += 1
     if me > 0:
-        _eq_finish(n, m, me, rank, M, L, b, GA_all, P, v_new, Q, R, piv, x, PE, F, yv, solved == 1, fr[2], fr[7])
+        _eq_finish(n, m, me, rank, M, L, b, GA_all, P, v_new, Q, R, piv, x, PE, F, yv, solved == 1, fr.PT,
+                   fr.tangent_row)
     return 1
