@@ -39,7 +39,7 @@ def chaotic_pendulum():
 #: empty cache one worker compiles the time loop (about 90 s) and the other used to wait on
 #: the compile lock in its first compiled test meanwhile; now it runs these. A name missing
 #: here costs only that wait.
-PYTHON_PATH_FIRST = (
+NO_LOOP_FIRST = (
     "test_painleve_rod_tangential_impact",
     "test_block_pressed_on_two_corners_leaves_without_spin",
     "test_exact_solver_agrees_with_enumeration_and_osqp_on_2000_random_problems",
@@ -56,7 +56,7 @@ def pytest_collection_modifyitems(session, config, items):
     workers = getattr(config, "workerinput", {}).get("workercount", 0)
     if workers < 2:
         return
-    first = [it for it in items if it.originalname in PYTHON_PATH_FIRST]
-    rest = [it for it in items if it.originalname not in PYTHON_PATH_FIRST]
+    first = [it for it in items if it.originalname in NO_LOOP_FIRST]
+    rest = [it for it in items if it.originalname not in NO_LOOP_FIRST]
     chunk = max(2, len(items) // workers // 4)
     items[:] = rest[:chunk] + first + rest[chunk:]

@@ -230,7 +230,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
         _free_acceleration(ints, pool, Minv, L, lw[9], cm, sm, f, rhs)
         if _user_failed(ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, GA_all), cnt):
             return -1
-    ahead = iset[S_STEP] == STEP_ENERGY and not combined  # MoreauJeanEnergyConsistent.closes_ahead
+    ahead = iset[S_STEP] == STEP_ENERGY and not combined  # rows reaching the barrier by the step end
     for r in range(m):
         active[r] = gm[r] <= atol[r] or (ahead and 2.0 * gm[r] - rs[r, R_GAP] <= 0.0)
         if combined:

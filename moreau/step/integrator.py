@@ -17,9 +17,6 @@ __all__ = ["OneStepIntegrator", "MoreauJeanMidpoint", "MoreauJeanPredictorCorrec
 class OneStepIntegrator:
     """The base of the schemes :func:`moreau.simulate` accepts as ``integrator``."""
 
-    #: close a row also when it reaches its barrier by the end of the step (2 g(q_m) − g(q_k) <= 0)
-    closes_ahead = False
-
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         raise TypeError(f"{type(self).__name__} names a scheme: pass the class, "
                         f"simulate(scene, t_span, q0, v0, h, integrator={type(self).__name__}); "
@@ -106,7 +103,6 @@ class MoreauJeanEnergyConsistent(MoreauJeanMidpoint):
     depend on v takes the plain midpoint step.
     """
 
-    closes_ahead = True
     #: largest change of v⁺ between iterates (max norm), relative to 1 + max(abs(v⁺)), that ends
     #: the iteration
     iteration_tol = 1e-10

@@ -1,15 +1,5 @@
-"""One-step integrators: the Moreau–Jean midpoint time-stepper.
-
-An integrator holds the state (t, q, v) of one scene and advances it by one step with
-:meth:`~OneStepIntegrator.step`; it has no loop (that is :func:`moreau.simulate`). It can
-be used by hand::
-
-    integ = MoreauJeanMidpoint(scene, h=1e-3)
-    integ.init(0.0, q0, v0)
-    for _ in range(1000):
-        integ.step()
-    integ.t, integ.q, integ.v
-"""
+"""The numpy reference of the one-step integrators (:mod:`moreau.step.integrator`): each
+class holds the state of one scene and advances it by :meth:`~oracle.base.OneStepIntegrator.step`."""
 
 
 from __future__ import annotations
@@ -31,32 +21,7 @@ log = logging.getLogger(__name__)
 
 
 class MoreauJeanMidpoint(OneStepIntegrator):
-    """The Moreau–Jean midpoint time-stepper.
-
-    One step from (t_k, q_k, v_k) with step h:
-
-    .. code-block:: text
-
-        q_m = q_k + h/2 · v_k
-        M   = M(q_m),   f = f(t_k + h/2, q_m, v_k)        (only the scene's effects)
-        A   = { i : g_i(q_m) <= 0 }                      (no rows → no solver call)
-        G   = G_A(q_m),   U_k = G v_k
-        M (v⁺ − v_k) = h f + Gᵀ P,    0 <= P ⟂ G v⁺ + e ∘ U_k >= 0
-        q⁺  = q_m + h/2 · v⁺
-
-    The contact problem is solved in its QP form (see :mod:`moreau.contact.problem`): impacts and
-    sliding are the same computation, with no event detection.
-
-    Order of accuracy: 1 globally when impacts occur, and 1 in smooth phases with
-    velocity-dependent forces (damping, the Coriolis/centrifugal terms of a
-    configuration-dependent M). For a constant mass matrix and position-only forces the
-    smooth phases are integrated to order 2 (the scheme is then Störmer–Verlet).
-    :class:`MoreauJeanPredictorCorrector` restores order 2 with velocity-dependent forces.
-
-    The velocity condition is imposed with the Jacobian at the midpoint, so a pressed
-    contact on a curved barrier drifts into it by about h²/2 · vᵀ∇²g v per step; a
-    :class:`~moreau.step.drift.PositionProjection` given as ``drift_control`` removes it.
-    """
+    """The numpy step of :class:`moreau.MoreauJeanMidpoint` (the scheme is documented there)."""
 
     #: close a row also when it reaches its barrier by the end of the step (2 g(q_m) − g(q_k) <= 0)
     closes_ahead = False
@@ -201,28 +166,7 @@ class MoreauJeanMidpoint(OneStepIntegrator):
 
 
 class MoreauJeanPredictorCorrector(MoreauJeanMidpoint):
-    """Moreau–Jean midpoint with a predictor–corrector (θ = ½) treatment of the
-    velocity-dependent forces.
-
-    Formerly ``MoreauJeanTheta`` (still importable under that name): renamed because in
-    Siconos' ``MoreauJeanOSI`` θ weights the whole step, while here the step stays the
-    midpoint one and only the velocity-dependent forces are corrected.
-
-    The forces are evaluated at the mean of the start and end velocities instead of at
-    v_k, by one predictor–corrector pass:
-
-    .. code-block:: text
-
-        q_m = q_k + h/2 · v_k,   M = M(q_m)
-        v*  = midpoint velocity update with f(t_m, q_m, v_k)       (contacts included)
-        v⁺  = velocity update with f(t_m, q_m, (v_k + v*)/2)        (contacts included)
-        q⁺  = q_m + h/2 · v⁺
-
-    Order 2 in smooth phases also with damping and Coriolis/centrifugal terms; order 1
-    across impacts, like every time-stepper with Newton's law. A scene whose forces do
-    not depend on v takes the plain midpoint step (the corrector would change nothing).
-    Contact steps cost two contact solves.
-    """
+    """The numpy step of :class:`moreau.MoreauJeanPredictorCorrector`."""
 
     def step(self) -> bool:
         if not self.scene.velocity_dependent:
@@ -244,44 +188,8 @@ class MoreauJeanPredictorCorrector(MoreauJeanMidpoint):
 
 
 class MoreauJeanEnergyConsistent(MoreauJeanMidpoint):
-    """Moreau–Jean midpoint with the velocity-dependent forces implicit and the inertial
-    terms energy-consistent (a discrete gradient of the kinetic energy, Gonzalez 1996):
-    the stable choice for fast, light parts (a long chain's whipping tail).
-
-    With M_m = M(q_m) (factorized once per step, as in the midpoint step) the velocity
-    update is solved by fixed-point iteration, every iterate with the step's contact rows
-    and the same contact solve:
-
-    .. code-block:: text
-
-        q_m = q_k + h/2 · v_k,   M_m = M(q_m),   v̄ = (v_k + v⁺)/2,   Δq = h v̄
-        s   = T(q_k + Δq, v⁺) − T(q_m, v⁺) + T(q_m, v_k) − T(q_k, v_k)
-        κ   = (−s − Δqᵀ f_bias(q_m, v̄)) / (Δqᵀ M_m Δq)
-        M_m (v⁺ − v_k) = h [ f(t_m, q_m, v̄) + κ M_m Δq ] + Gᵀ P,   0 <= P ⟂ G v⁺ + e ∘ U_k >= 0
-        q⁺  = q_k + Δq
-
-    where G, e and U_k are the rows closed at q_m, or reaching the barrier by the end of
-    the step, 2 g(q_m) − g(q_k) <= 0 (as :class:`~moreau.step.drift.CombinedProjection`
-    closes them): a fast part is stopped at the barrier instead of h/2 · (−G v) into it.
-    T(q, v) = ½ vᵀ M(q) v. The scalar κ corrects the bias (centrifugal, Coriolis) force
-    along Δq so that, at convergence, the kinetic energy changes by exactly the work of
-    the applied forces and the contact impulses:
-
-        T(q⁺, v⁺) − T(q_k, v_k) = Δqᵀ f_applied + ½ Pᵀ G (v_k + v⁺)
-
-    whatever h, so the scheme cannot gain energy the way the explicit treatment of the
-    bias does (its error, not its stability, grows with h). κ M_m Δq is O(h²), so the
-    step keeps order 2 in smooth phases; order 1 across impacts. The first iterate is
-    the midpoint step; iterations stop when the largest change of v⁺ is below
-    ``iteration_tol · (1 + |v⁺|∞)``, and a step that does not converge in
-    ``max_iterations`` stops the run with a :class:`moreau.SimulationError` (a step too
-    large for the motion) rather than returning an unconverged state. The iterates' contact
-    solves are KKT-checked in the converged pass only, whose answer is the one kept (one
-    that fails is solved again, checked, with the fallback). A scene with a
-    constant mass matrix and forces that do not depend on v takes the plain midpoint step.
-    Measured on the 40-link chain of ``tests/hard_cases`` at h = 1e-3: 7.6–8.3 velocity
-    updates a step on average (``traj.stats.velocity_updates / traj.stats.steps``).
-    """
+    """The numpy step of :class:`moreau.MoreauJeanEnergyConsistent` (fixed-point iterates with
+    Anderson mixing of depth 1; the scheme is documented there)."""
 
     closes_ahead = True
     #: largest change of v⁺ between iterates (max norm), relative to 1 + max(abs(v⁺)), that ends
