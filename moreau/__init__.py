@@ -16,9 +16,11 @@ The pieces, in the field's vocabulary, and where they live:
 
 import sys
 
+from .core.jitcache import lock_cache_saves as _lock_cache_saves
 from .core.jitcache import use_process_cache_when_none_is_writable as _use_process_cache
 
 _use_process_cache()  # before any of moreau's cached functions is defined
+_lock_cache_saves()
 from .core.compat import MOVED as _MOVED  # noqa: E402
 from .core.compat import install as _install_moved
 from .core.compat import moved as _moved
@@ -26,7 +28,6 @@ from .core.version import DISTRIBUTION, __version__  # noqa: F401 - DISTRIBUTION
 
 _install_moved(sys.modules[__name__])
 
-from .compiled.cache import ensure_compiled
 from .contact.problem import OneStepProblem, Residuals
 from .contact.solvers import (
     ContactSolver,
@@ -53,7 +54,7 @@ from .model.scene import Contact, Scene
 from .model.system import FunctionSystem, MechanicalSystem
 from .results import diagnostics
 from .results.trajectory import ImpactLog, SolverStats, Trajectory, load
-from .run.simulation import simulate
+from .run.simulation import ensure_compiled, simulate
 from .step.drift import CombinedProjection, PositionProjection
 from .step.integrator import (
     MoreauJeanEnergyConsistent,

@@ -96,10 +96,10 @@ def run_sweep(args: argparse.Namespace) -> int:
     where = f"Dask scheduler {args.dask}" if args.dask else f"{args.workers or os.cpu_count()} processes"
     print(f"moreau sweep piston: {n} point(s), {args.transient} transient + {args.cycles} analyzed cycles "
           f"each, h = {args.h:g} τ, on {where}; table {args.out} (finished points kept in {args.out}.parts/)")
-    if args.backend != "python":
-        import moreau as mo
+    import moreau as mo
+    from moreau.problems.piston.model import piston_model
 
-        mo.ensure_compiled()  # here, once: the workers load it (never two compiling)
+    mo.ensure_compiled(piston_model().scene)  # here, once, the variant the points run: the workers load it
     try:
         df = sweep(piston_point, grid, executor=args.dask or "processes", workers=args.workers,
                    out=args.out, progress=not args.no_progress, cache_key=piston_cache_key())

@@ -15,9 +15,9 @@ from moreau.compiled import loop
 from moreau.compiled.lowering import lower
 
 _PROBE = textwrap.dedent("""
-    import moreau as mo
     from moreau.compiled import loop
-    mo.ensure_compiled()
+    from moreau.compiled.cache import ensure_compiled
+    ensure_compiled(False)  # the plain variant
     st = loop._run_chunk.stats
     print(sum(st.cache_misses.values()), sum(st.cache_hits.values()))
 """)
@@ -33,14 +33,16 @@ def test_two_processes_started_together_on_an_empty_cache_compile_once(tmp_path)
         assert p.returncode == 0, err[-2000:]
     counts = sorted(tuple(int(x) for x in out.split()) for out, _ in outs)
     assert counts == [(0, 1), (1, 0)]  # one compiled (and said so), the other waited and loaded
-    said = [err for _, err in outs if "compiling the time loop once for this machine" in err]
+    said = [err for _, err in outs if "compiling the time loop for the plain midpoint step once" in err]
     assert len(said) == 1
 
 
-def test_scenes_with_other_user_callables_reuse_the_one_loop():
+def test_scenes_with_other_user_callables_reuse_the_loop_of_a_built_in_scene():
+    from moreau.problems.bouncing_ball import bouncing_ball
     from tests.test_compiled import user_scene
 
-    mo.ensure_compiled()
+    ball = bouncing_ball(0.5)
+    mo.simulate(ball, (0.0, 0.01), [1.0], [0.0], 1e-3)
     before = len(loop._run_chunk.overloads)
 
     @numba.njit
@@ -60,7 +62,7 @@ def test_scenes_with_other_user_callables_reuse_the_one_loop():
     for scene in (user_scene(), other):
         traj = mo.simulate(scene, (0.0, 0.5), [0.0, 1.0], [1.0, 0.0], 1e-3, backend="compiled")
         assert traj.completed and traj.stats.backend == "compiled"
-    assert len(loop._run_chunk.overloads) == before == 1  # no specialization per scene
+    assert len(loop._run_chunk.overloads) == before  # no specialization per scene: the ball's variant
     assert lower(other).user.addresses.tolist()[:2] == [0, 0]  # no user mass, no bias: empty slots
 
 
@@ -172,3 +174,42 @@ def test_no_writable_cache_directory_runs_with_one_warning_in_a_temporary_one():
     assert "no writable numba cache directory" in lines[2] and "NUMBA_CACHE_DIR" in lines[2]
     assert not os.path.exists(where)  # removed when the process ended
     assert "Traceback" not in out.stderr
+
+
+def test_a_scene_runs_the_plain_loop_unless_it_has_friction_bilateral_rows_or_later_passes():
+    from moreau.compiled.layout import STEP_ENERGY, STEP_MIDPOINT, STEP_THETA
+    from moreau.compiled.loop import variant
+    from moreau.problems.bouncing_ball import bouncing_ball
+    from moreau.problems.four_bar import four_bar
+    from moreau.problems.piston import piston_model
+
+    piston, rough = lower(piston_model(e=0.9).scene), lower(piston_model(e=0.9, mu=0.05).scene)
+    ball = lower(bouncing_ball(0.5))
+    assert not variant(piston.ints, STEP_MIDPOINT) and not variant(ball.ints, STEP_MIDPOINT)
+    assert variant(rough.ints, STEP_MIDPOINT)  # tangent rows
+    assert variant(lower(four_bar().scene).ints, STEP_MIDPOINT)  # bilateral rows
+    assert variant(piston.ints, STEP_ENERGY, 8)  # M(q): the energy-consistent step iterates
+    assert not variant(ball.ints, STEP_ENERGY, 8)  # constant M, no damping: one pass, as the midpoint step
+    assert not variant(ball.ints, STEP_THETA)  # no velocity-dependent force: one pass
+
+
+_PLAIN_ONLY = textwrap.dedent("""
+    import moreau as mo
+    from moreau.compiled.cache import cached_variants
+    from moreau.problems.piston import piston_model
+    traj = piston_model(e=0.0).simulate(0.02, 1e-3)
+    assert traj.completed
+    print(sorted(cached_variants()))
+""")
+
+
+@pytest.mark.slow  # one compile of the plain variant into its own cache (about 55 s, 2026-11-27)
+def test_a_scene_without_friction_or_bilateral_rows_compiles_none_of_their_code(tmp_path):
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), PYTHONPATH=os.getcwd())
+    out = subprocess.run([sys.executable, "-c", _PLAIN_ONLY], env=env, capture_output=True, text=True, timeout=900)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.split() == ["[False]"]  # the plain variant only
+    names = {p.name.split("-")[0] for p in tmp_path.glob("*/*.nbi")}
+    assert "loop._run_chunk" in names and "one_step.solve_one_step" in names
+    assert not {n for n in names if n.startswith(("friction.", "lemke.", "friction_states.", "equality.",
+                                                  "implicit.", "bilateral."))}

@@ -175,8 +175,8 @@ def register_compile(subparsers: Any) -> None:
 
 
 def _run_compile(args: argparse.Namespace) -> int:
-    from moreau.compiled.cache import ensure_compiled
     from moreau.core.jitcache import cache_dir
+    from moreau.run.simulation import ensure_compiled
 
     seconds = ensure_compiled()
     print(f"moreau compile: the time loop is in {cache_dir() or 'no cache (not writable)'} "

@@ -89,10 +89,11 @@ def _eq_reduce(L, Q, y, x, rank, X, k0, k1, c):
 
 
 @_part
-def _eq_finish(n, m, me, rank, M, L, b, G, P, v_new, Q, R, piv, x, PE, F, yv, friction, PT, trow):
+def _eq_finish(n, m, me, rank, M, L, b, G, P, v_new, Q, R, piv, x, PE, F, yv, friction, fr):
     """``v⁺ = L⁻ᵀ Q y`` (y: the reduced problem's answer, in ``v_new``) and the bilateral
     rows' impulses from ``G_Eᵀ P_E = M v⁺ − b − Gᵀ P − Tᵀ P_T`` (the contact rows' P per
-    row; with ``friction``, the tangential impulses ``PT`` per row on the rows ``trow``)."""
+    row; with ``friction``, the tangential impulses ``fr.PT`` per row on the rows
+    ``fr.tangent_row``; ``fr`` None in a scene without friction)."""
     for i in range(n):
         yv[i] = v_new[i]
     eq_velocity(L, Q, yv, v_new)
@@ -105,15 +106,15 @@ def _eq_finish(n, m, me, rank, M, L, b, G, P, v_new, Q, R, piv, x, PE, F, yv, fr
         if P[r] != 0.0:
             for i in range(n):
                 F[i] -= P[r] * G[r, i]
-        if friction and PT[r] != 0.0:
-            t = trow[r]
+        if fr is not None and friction and fr.PT[r] != 0.0:
+            t = fr.tangent_row[r]
             for i in range(n):
-                F[i] -= PT[r] * G[t, i]
+                F[i] -= fr.PT[r] * G[t, i]
     eq_impulses(L, Q, R, piv, rank, me, F, PE, x)
 
 
 @_part
-def _eq_alone(n, m, m0, me, M, L, b, v, G, P, v_new, Q, R, piv, x, y, by, PE, F, yv, cE, keep, cnt, PT, trow):
+def _eq_alone(n, m, m0, me, M, L, b, v, G, P, v_new, Q, R, piv, x, y, by, PE, F, yv, cE, keep, cnt):
     """A step with bilateral rows and no contact row: v⁺ = L⁻ᵀ Q b_y; returns 0, or −1
     when the rows are inconsistent."""
     rank = _eq_prepare(n, m0, me, L, G, v, b, Q, R, piv, x, y, by, cE, keep, cnt)
@@ -121,7 +122,7 @@ def _eq_alone(n, m, m0, me, M, L, b, v, G, P, v_new, Q, R, piv, x, y, by, PE, F,
         return -1
     for i in range(n):
         v_new[i] = by[i]
-    _eq_finish(n, m, me, rank, M, L, b, G, P, v_new, Q, R, piv, x, PE, F, yv, False, PT, trow)
+    _eq_finish(n, m, me, rank, M, L, b, G, P, v_new, Q, R, piv, x, PE, F, yv, False, None)
     return 0
 
 
@@ -195,10 +196,11 @@ def _eq_hold(ints, bkind, boff, brow, bnrows, pool, tol, user, q, cq, sq, g, G, 
 
 @_part
 def _eq_project_velocity(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, v, G, M, L, Q, R, piv, x, y, yv, dv,
-                         cE, S, contact, P, PT, mu, trow, cnt):
+                         cE, S, contact, P, fr, cnt):
     """v projected onto ``G_E(q) v = 0`` in the metric of the step's M, keeping the slip
     of the step's sticking contacts at 0 (``contact``: a contact step; a row with
-    ``P > 0``, ``mu > 0`` and ``|P_T| < mu P``: its tangent row is held), as
+    ``P > 0``, ``mu > 0`` and ``|P_T| < mu P``: its tangent row is held; ``fr`` the friction
+    arrays, None without friction), as
     ``EqualityRows.project_velocity`` (the same rows in the same order,
     :func:`moreau.contact.equality.eq_project`); returns the kinetic
     energy that removes (<= 0), or NaN when a user callable failed (the status in ``cnt``)."""
@@ -217,11 +219,12 @@ def _eq_project_velocity(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq,
             t -= G[m0 + j, i] * v[i]
         cE[j] = t
     k = me
-    if contact and ints[SC_MF] > 0:
+    if fr is not None and contact and ints[SC_MF] > 0:
+        mu, PT = fr.mu, fr.PT
         for r in range(m):
             if P[r] > 0.0 and mu[r] > 0.0 and abs(PT[r]) < mu[r] * P[r]:  # sticking: slip held at 0
                 for i in range(n):
-                    S[k, i] = G[trow[r], i]
+                    S[k, i] = G[fr.tangent_row[r], i]
                 cE[k] = 0.0
                 k += 1
     eq_project(L, S, k, me, cE, Q, R, piv, x, y, yv, dv)

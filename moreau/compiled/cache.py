@@ -4,7 +4,6 @@ and version under a lock (:func:`ensure_compiled`)."""
 from __future__ import annotations
 
 import contextlib
-import glob
 import logging
 import os
 import pickle
@@ -25,54 +24,72 @@ __all__ = ["COMPILE_SECONDS", "ensure_compiled"]
 log = logging.getLogger(__name__)
 
 
-#: what the first compile of the loop takes on a 2-core machine, s, as the message says it
-#: (measured by benchmarks/compile_cost.py; docs/contributing.md has the figures)
-COMPILE_SECONDS = 90
-_ready = threading.Event()
+#: what the first compile of each variant of the loop takes on a 2-core machine, s, as the
+#: message says it (benchmarks/compile_cost.py; docs/performance.md has the figures)
+COMPILE_SECONDS = {False: 55, True: 90}
+_NAMES = {False: "the plain midpoint step", True: "friction, bilateral rows and later passes"}
+_ready = {False: threading.Event(), True: threading.Event()}
 _ready_lock = threading.Lock()
 
 
-def ensure_compiled() -> float:
-    """Load the compiled time loop from numba's cache, or compile it (once per machine
-    and version, saying so in one logged line) when it is not there; returns the seconds
-    it took (0 when this process has it already).
+def ensure_compiled(full: bool | None = None) -> float:
+    """Load a variant of the compiled time loop from numba's cache, or compile it (once per
+    machine and version, saying so in one logged line) when it is not there; returns the
+    seconds it took (0 when this process has it already).
 
-    Processes started together on an empty cache compile once: the first holds a lock
-    in the cache directory (:func:`moreau.core.jitcache.compile_lock`), the others wait and
-    then load what it saved. Call it before starting worker processes, or to warm a
-    cache (``moreau compile`` does).
+    ``full``: the variant with friction, bilateral rows and the step's later passes (True)
+    or the one without them (False; :func:`moreau.compiled.loop.variant` says which a scene
+    runs); None: both. Processes started together on an empty cache compile once: the
+    first holds a lock in the cache directory (:func:`moreau.core.jitcache.compile_lock`),
+    the others wait and then load what it saved. Call it before starting worker
+    processes, or to warm a cache (``moreau compile`` does).
     """
-    if _ready.is_set():
+    if full is None:
+        return ensure_compiled(False) + ensure_compiled(True)
+    full = bool(full)
+    if _ready[full].is_set():
         return 0.0
     with _ready_lock:
-        if _ready.is_set():
+        if _ready[full].is_set():
             return 0.0
         t = time.perf_counter()
-        with compile_lock():
+        with compile_lock(".full" if full else ".plain"):  # the two variants may compile side by side
             d = cache_dir()
-            cold = d is None or not glob.glob(os.path.join(d, "loop._run_chunk-*.nbi"))
+            cold = d is None or full not in cached_variants()
             if cold:
-                log.warning("moreau: compiling the time loop once for this machine (about %d s; later runs "
-                            "load it from %s)", COMPILE_SECONDS, d or "nowhere: the cache is not writable")
-            _ready.set()  # the warm-up run below calls ensure_compiled again
+                log.warning("moreau: compiling the time loop for %s once for this machine (about %d s; later runs "
+                            "load it from %s)", _NAMES[full], COMPILE_SECONDS[full],
+                            d or "nowhere: the cache is not writable")
             try:
-                try:
-                    # loading machine code runs through LLVM callbacks: a Ctrl-C or SIGTERM
-                    # raised inside one aborted the process (seen: exit -6), so during a load
-                    # (0.3 s) they wait and are acted on right after it
-                    with (contextlib.nullcontext() if cold else _signals_deferred()):
-                        call_recovering(_warm_up)  # a damaged file: that function compiled again
-                except (pickle.UnpicklingError, EOFError, ValueError, TypeError, AttributeError,
-                        ImportError, OSError) as exc:  # an unreadable cache file not found in the traceback
-                    removed = clear()
-                    log.warning("moreau: numba's cache in %s could not be read (%s: %s); removed %d files of it "
-                                "and compiling the time loop again (about %d s)", d, type(exc).__name__, exc,
-                                removed, COMPILE_SECONDS)
-                    _warm_up()
-            except BaseException:
-                _ready.clear()
-                raise
+                # loading machine code runs through LLVM callbacks: a Ctrl-C or SIGTERM
+                # raised inside one aborted the process (seen: exit -6), so during a load
+                # (0.3 s) they wait and are acted on right after it
+                with (contextlib.nullcontext() if cold else _signals_deferred()):
+                    call_recovering(lambda: _warm_up(full))  # a damaged file: that function compiled again
+            except (pickle.UnpicklingError, EOFError, ValueError, TypeError, AttributeError,
+                    ImportError, OSError) as exc:  # an unreadable cache file not found in the traceback
+                removed = clear()
+                log.warning("moreau: numba's cache in %s could not be read (%s: %s); removed %d files of it "
+                            "and compiling the time loop again (about %d s)", d, type(exc).__name__, exc,
+                            removed, COMPILE_SECONDS[full])
+                _warm_up(full)
+            _ready[full].set()
         return time.perf_counter() - t
+
+
+def cached_variants() -> set[bool]:
+    """The variants of the loop (``full``, see :func:`ensure_compiled`) in numba's cache for
+    this source (read from numba's index of :func:`moreau.compiled.loop._run_chunk`: its
+    argument ``fr`` is None in the plain variant)."""
+    from numba.core import types
+
+    from moreau.compiled.loop import _run_chunk
+
+    try:
+        index = _run_chunk._cache._cache_file._load_index()  # numba's own (stamp-checked) index
+    except Exception:  # noqa: BLE001 - unreadable or another numba: treated as absent, compiled
+        return set()
+    return {not isinstance(key[0][-3], types.NoneType) for key in index}
 
 
 @contextlib.contextmanager
@@ -99,8 +116,9 @@ def _signals_deferred() -> Iterator[None]:
                 os.kill(os.getpid(), num)
 
 
-def _warm_up() -> None:
-    """Two steps of a one-row scene: loads (or compiles) every compiled function a run calls."""
+def _warm_up(full: bool) -> None:
+    """Two steps of a one-row scene on the ``full`` variant or the plain one: loads (or
+    compiles) every compiled function a run of that variant calls."""
     from moreau.model.barriers import LinearBarrier
     from moreau.model.forces import ConstantForce
     from moreau.model.scene import Contact, Scene
@@ -110,4 +128,4 @@ def _warm_up() -> None:
                   [Contact(LinearBarrier([[1.0]], [0.0]), 0.5)])
     run_compiled(scene, None, 0.0, np.array([1e-3]), np.array([-1.0]), 1e-3, 2, step=STEP_MIDPOINT, solver="exact",
                  fallback=None, stride=1, bar=None, energy=True, tol=1e-8, drift_control=None,
-                 flight_gap=np.zeros(1), gmax0=np.full(1, np.inf))
+                 flight_gap=np.zeros(1), gmax0=np.full(1, np.inf), full=full)

@@ -40,8 +40,8 @@ def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fai
     stay pinned while they carry an impulse without bouncing and their gap does not grow
     beyond where the projection left them.
 
-    With bilateral rows (``ints[SC_ME] > 0``) the QP is solved in their null space at q
-    (``G_E dq = 0``, :mod:`moreau.contact.equality`; ``eqw`` their work arrays), as
+    With bilateral rows the QP is solved in their null space at q (``G_E dq = 0``,
+    :mod:`moreau.contact.equality`; ``eqw`` their work arrays, None without them), as
     ``EqualityRows.project_contacts`` does: the contacts are projected along the
     constraints, and the hold after it restores them to second order."""
     m = model[0][SC_M]
@@ -76,7 +76,6 @@ def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc
     G = lw[5]
     dq = lw[6]
     zero = lw[7]
-    Qe, Re, pive, xe, ye, _, _, _, eye, yv, _, _, keep, _ = eqw
     for _ in range(iset[S_DRIFT_ITER]):
         if not combined:
             for r in range(m):
@@ -100,15 +99,15 @@ def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc
                 j += 1
         PA = lw[4]
         Ms, Ls = M, L
-        me = ints[SC_ME]
-        if me > 0:  # along the bilateral rows: the QP in their null space at q (M = I there)
-            _eq_contact_rows(L, G, m + ints[SC_MF], me, Qe, Re, pive, xe, ye, keep, GA, na, cA)
-            Ms, Ls = eye, eye
+        if eqw is not None and ints[SC_ME] > 0:  # the QP in the bilateral rows' null space (M = I there)
+            _eq_contact_rows(L, G, m + ints[SC_MF], ints[SC_ME], eqw.Q, eqw.R, eqw.piv, eqw.x, eqw.y, eqw.rank, GA,
+                             na, cA)
+            Ms, Ls = eqw.eye, eqw.eye
         if not _contact_solve(Ms, Ls, zero, GA, cA, na, dq, PA, iset, fset, cnt, acc, fail, ws):
             cnt[C_FAILKIND] = PROJECTION_FAILED  # its rows: ``sel`` (lw[8])
             return False
-        if me > 0:
-            _eq_back(L, Qe, yv, dq)
+        if eqw is not None and ints[SC_ME] > 0:
+            _eq_back(L, eqw.Q, eqw.yv, dq)
         for i in range(n):
             q[i] += dq[i]
         if ints[SC_TRIG]:

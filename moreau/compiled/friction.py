@@ -68,7 +68,7 @@ def _friction_solve(n, m, M, L, b, G, GA, cA, active, na, v_new, PA, fset, acc, 
             j += 1
     if kf == 0:
         return 0
-    if rank >= 0:
+    if eqw is not None and rank >= 0:
         _eq_reduce(Lo, eqw.Q, eqw.y, eqw.x, rank, GA, na, na + kf, cA)
     st = solve_friction_step(M, L, b, GA, cA, muA, fidx, np.int64(na), np.int64(kf), PA, v_new, fset[F_TOL], res,
                              fws)

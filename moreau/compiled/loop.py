@@ -41,6 +41,7 @@ from moreau.compiled.layout import (  # the loop's layout
     F_PE0,
     F_T0,
     IMPACTS_FULL,
+    N_SETTINGS,
     NONFINITE,
     NONFINITE_GAP,
     NOT_CONVERGED,
@@ -51,8 +52,10 @@ from moreau.compiled.layout import (  # the loop's layout
     S_DRIFT,
     S_ECHECK,
     S_ENERGY,
+    S_ITER,
     S_LOCATE,
     S_NSTEPS,
+    S_STEP,
     S_STRIDE,
     SC_HAS_BIAS,
     SC_M,
@@ -75,31 +78,56 @@ from moreau.contact.lcp import workspace
 from moreau.core import kernels as _k
 
 
-def loop_workspace(n: int, m: int, mf: int, mu: np.ndarray, tangent_row: np.ndarray, me: int = 0) -> tuple:
+def loop_workspace(n: int, m: int, mf: int, mu: np.ndarray, tangent_row: np.ndarray, me: int = 0,
+                   full: bool = True) -> tuple:
     """The work arrays of :func:`run_chunk` for n coordinates, m rows, mf tangent rows
-    (friction; mu (m,) and tangent_row (m,) from the lowered scene) and me bilateral
-    rows, allocated once per run, outside the loop: the loop itself allocates nothing.
-    Plain numpy: allocating compiles nothing."""
+    (friction; mu (m,) and tangent_row (m,) from the lowered scene) and me bilateral rows,
+    allocated once per run, outside the loop: the loop itself allocates nothing.
+
+    ``(own, ws, lw, fr, eqw, ec)``: the arrays of friction (``fr``), of the bilateral
+    rows (``eqw``) and of the step's later passes (``ec``) are None unless ``full``, and
+    the loop run on them is the variant compiled without any of their code (numba prunes
+    the branches on ``is None``; :func:`variant` says which a scene takes). Plain numpy:
+    allocating compiles nothing."""
     mm = max(m, 1)
     mt = m + mf + me  # the rows of the gaps and the Jacobian: contacts, tangents, bilateral
     ma = max(mt, 1)
     own = (np.empty((n, n)), np.empty((n, n)), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n),
            np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.zeros(mt), np.zeros(mt),
-           np.zeros(m), np.zeros(m, dtype=np.bool_), np.empty((mt, n)), np.empty(n), np.empty(n),
-           np.empty((n, n)), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.zeros(n), np.zeros(n),
-           np.empty(n), np.zeros(n))
+           np.zeros(m), np.zeros(m, dtype=np.bool_), np.empty((mt, n)), np.empty(n), np.empty(n))
     lw = (np.empty((ma, n)), np.empty(ma), np.empty(n), np.empty(n), np.empty(ma),
           np.empty((ma, n)), np.empty(n), np.zeros(n), np.zeros(mm, dtype=np.bool_), np.empty((4, n)),
           np.zeros(n), np.zeros(n))  # [10], [11]: q and v where the energy check first warned
-    return own, workspace(n, m), lw, friction_work(n, m, mf, mu, tangent_row), equality_work(n, me, m + mf)
+    ec = (np.empty((n, n)), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.zeros(n), np.zeros(n),
+          np.empty(n), np.zeros(n))  # the later passes' (implicit.pass_forces)
+    if not full:
+        return own, workspace(n, m), lw, None, None, None
+    return own, workspace(n, m), lw, friction_work(n, m, mf, mu, tangent_row), equality_work(n, me, m + mf), ec
+
+
+def variant(ints: np.ndarray, step: int, iterations: int = 1) -> bool:
+    """Whether a lowered scene (its ``ints``, ``lowering.CompiledScene.ints``) stepped with
+    ``step`` (``layout.STEP_*``; ``iterations``: the energy-consistent step's iterates)
+    runs the loop compiled with friction, bilateral rows and the step's later passes (the
+    full variant: it has tangent rows, bilateral rows or a step of more than one velocity
+    update, :func:`moreau.compiled.implicit.velocity_passes`), or the one compiled
+    without them (the plain midpoint step).
+
+    Two variants, not one per feature set: each compiles the loop function anew (30-45 s
+    here, benchmarks/compile_cost.py), and the test suite, which runs every feature,
+    would compile up to eight."""
+    iset = np.zeros(N_SETTINGS, dtype=np.int64)
+    iset[S_STEP], iset[S_ITER] = step, iterations
+    passes = velocity_passes.py_func(iset, ints)[0]  # the compiled rule, run here
+    return bool(ints[SC_MF] > 0 or ints[SC_ME] > 0 or passes > 1)
 
 
 @_part
-def _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, gen, f, fb, fq, again, gm, cnt):
+def _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, gen, f, fb, ec, gm, cnt):
     """The midpoint q_m = q + h/2 v and the model there: M(q_m) factorized (unless
     constant; a chain's only as the O(n) generators ``gen`` of its factor, M and L are
-    formed by the velocity update when a row closes), f(t + h/2, q_m, v) (with ``again``,
-    a step with later passes, its part that does not depend on v also into ``fq``) and
+    formed by the velocity update when a row closes), f(t + h/2, q_m, v) (a step with
+    later passes, ``ec`` not None: its part that does not depend on v also into ``ec[9]``) and
     the gaps g(q_m); returns DONE or why not."""
     ints, ekind, eoff, bkind, boff, brow, bnrows, pool, _, _ = model
     n, m = ints[SC_N], ints[SC_M]
@@ -119,8 +147,8 @@ def _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, gen, 
             return NOT_SPD
     if _user_failed(ev.force(ints, ekind, eoff, pool, user, t + 0.5 * h, qm, cm, sm, v, f, fb), cnt):
         return USER_FAILED
-    if again:
-        ev.position_forces(ints, ekind, eoff, pool, t + 0.5 * h, qm, cm, sm, v, fq)
+    if ec is not None:
+        ev.position_forces(ints, ekind, eoff, pool, t + 0.5 * h, qm, cm, sm, v, ec[9])
     if m > 0:
         if _user_failed(ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, gm), cnt):
             return USER_FAILED
@@ -172,7 +200,7 @@ def _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc
         if not _project(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc,
                         fail, eligible, ws, lw, rs, in_contact, eqw):
             return cnt[C_FAILKIND]
-        if ints[SC_ME] > 0 and cnt[C_PROJ] > nproj:  # projected along the bilateral rows: restore them
+        if eqw is not None and ints[SC_ME] > 0 and cnt[C_PROJ] > nproj:  # moved along the bilateral rows: restore
             status = _eq_hold(ints, bkind, boff, brow, bnrows, pool, model[9], user, q_new, cq, sq, gq, lw[5], L,
                               eqw.Q, eqw.R, eqw.piv, eqw.x, eqw.y, eqw.F, eqw.yv, eqw.cE, eqw.rank, cnt, acc)
             if status != DONE:
@@ -191,7 +219,7 @@ def _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc
 
 @_part
 def _record(model, user, iset, fset, k, q, v, cq, sq, M, P_acc, act_acc, gq, T, Q, V, PS, ACT, GP, KE, PE, cnt,
-            PT_acc, PTS, PE_acc):
+            fr, PTS, eqw):
     """Record the state after step k (and the impulses and activity summed since the last
     record, the gaps and, when asked, the energies); returns DONE or USER_FAILED."""
     ints, ekind, eoff, _, _, _, _, pool, _, _ = model
@@ -207,15 +235,16 @@ def _record(model, user, iset, fset, k, q, v, cq, sq, M, P_acc, act_acc, gq, T, 
         GP[rec, r] = gq[r]
         P_acc[r] = 0.0
         act_acc[r] = False
-    if ints[SC_MF] > 0:
+    if fr is not None and ints[SC_MF] > 0:
         for r in range(m):
-            PTS[rec, r] = PT_acc[r]
-            PT_acc[r] = 0.0
-    m0 = m + ints[SC_MF]
-    for j in range(ints[SC_ME]):  # bilateral rows: impulses and residuals after the contact rows
-        PS[rec, m + j] = PE_acc[j]
-        GP[rec, m + j] = gq[m0 + j]
-        PE_acc[j] = 0.0
+            PTS[rec, r] = fr.PT_acc[r]
+            fr.PT_acc[r] = 0.0
+    if eqw is not None:  # bilateral rows: impulses and residuals after the contact rows
+        m0 = m + ints[SC_MF]
+        for j in range(ints[SC_ME]):
+            PS[rec, m + j] = eqw.PE_acc[j]
+            GP[rec, m + j] = gq[m0 + j]
+            eqw.PE_acc[j] = 0.0
     if iset[S_ENERGY] == 1:
         status, ke = _kinetic_energy(model, user, q, v, cq, sq, M, cnt)
         if status != DONE:
@@ -234,7 +263,8 @@ def run_chunk(model: tuple, user: np.ndarray, settings: Settings, state: RunStat
     updated in place, so a chunk resumes where the previous one stopped; ``settings``,
     ``records`` and ``tally`` are the layout's named tuples of the same names. ``user`` (5,)
     holds the addresses of the scene's user slots (:mod:`moreau.compiled.usercalls`; zeros
-    for a built-in scene); ``work`` comes from :func:`loop_workspace`.
+    for a built-in scene); ``work`` comes from :func:`loop_workspace`: its None entries
+    choose the loop compiled without friction, bilateral rows or later passes.
 
     One step: the model at the midpoint, the velocity update (twice with θ: a predictor
     pass with f(v_k), then f((v_k + v*)/2); the energy-consistent step's iterates until v⁺
@@ -242,10 +272,11 @@ def run_chunk(model: tuple, user: np.ndarray, settings: Settings, state: RunStat
     there, and a record every ``stride`` steps.
     """
     st, rec = state, records  # the fields as separate arrays: the kernel is faster on them than on the tuples
+    own, ws, lw, fr, eqw, ec = work  # the features' arrays apart: numba prunes on their being None
     return _run_chunk(model, user, settings.iset, settings.fset, settings.Minv, settings.eligible, st.q, st.v, k_end,
                       st.in_contact, st.P_acc, st.act_acc, rec.T, rec.Q, rec.V, rec.PS, rec.ACT, rec.GP, rec.KE,
                       rec.PE, rec.IMP, st.pen, tally.cnt, tally.acc, tally.fail, st.last_imp, st.gmax, settings.fgap,
-                      st.rs, work, rec.PTS)
+                      st.rs, (own, ws, lw), rec.PTS, fr, eqw, ec)
 
 
 # Compiled without reference counting (numba's internal ``_nrt`` flag): every array it
@@ -254,19 +285,22 @@ def run_chunk(model: tuple, user: np.ndarray, settings: Settings, state: RunStat
 # time) would be pure overhead. User callables run in their own wrappers (usercalls).
 @njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]  # numba's internal flag
 def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
-               T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work, PTS):
-    """The steps of :func:`run_chunk`, on the fields of its named tuples."""
+               T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work, PTS,
+               fr, eqw, ec):
+    """The steps of :func:`run_chunk`, on the fields of its named tuples; ``fr``, ``eqw``,
+    ``ec``: friction's, the bilateral rows' and the later passes' arrays, or None (their
+    code pruned at compile time: one compiled variant per feature set)."""
     ints, ekind, eoff, _, _, _, _, pool, _, _ = model
     n, m = ints[SC_N], ints[SC_M]
     h, t0 = fset[F_H], fset[F_T0]
     stride, nsteps = iset[S_STRIDE], iset[S_NSTEPS]
     const_mass = ints[SC_MASS_KIND] == _k.MASS_CONST
-    passes, iterate, correct = velocity_passes(iset, ints)
-    own, ws, lw, fr, eqw = work
-    friction = ints[SC_MF] > 0
+    passes, iterate, correct = 1, False, False
+    if ec is not None:
+        passes, iterate, correct = velocity_passes(iset, ints)
+    own, ws, lw = work
     me = ints[SC_ME]
-    M, L, cm, sm, cq, sq, qm, f, v_new, vbar, q_new, gm, gq, P, active, G, vfree, fb = own[:18]
-    ec = own[18:]  # the energy-consistent step's (implicit.pass_forces)
+    M, L, cm, sm, cq, sq, qm, f, v_new, vbar, q_new, gm, gq, P, active, G, vfree, fb = own
     bias_work = iset[S_ECHECK] > 0 and ints[SC_HAS_BIAS] != 0
     if const_mass:
         if _user_failed(ev.mass(ints, pool, user, q, cq, sq, M), cnt):
@@ -280,18 +314,19 @@ def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact,
         k = cnt[C_K]
         t = t0 + k * h
         nimp = cnt[C_NIMP]
-        status = _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, lw[9], f, fb, ec[9], passes > 1,
-                                 gm, cnt)
+        status = _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, lw[9], f, fb, ec, gm, cnt)
         if status != DONE:
             return status
-        status, s0 = energy_start(model, user, correct, q, v, cm, sm, M, ec, cnt)
-        if status != DONE:
-            return status
+        s0 = 0.0
+        if ec is not None:
+            status, s0 = energy_start(model, user, correct, q, v, cm, sm, M, ec, cnt)
+            if status != DONE:
+                return status
         # one call site of the velocity update, so the contact solve is compiled (inlined) once;
         # its later passes see the forces at (v_k + x)/2 for an iterate x (implicit.pass_forces)
-        code, mixed, defer = 0, False, iterate and not friction and me == 0  # (implicit.end_of_pass)
+        code, mixed, defer = 0, False, iterate and ints[SC_MF] == 0 and me == 0  # (implicit.end_of_pass)
         for npass in range(passes):
-            if npass >= 1:
+            if ec is not None and npass >= 1:
                 status = pass_forces(model, user, npass, correct, t, h, q, v, qm, cm, sm, v_new, s0, M, ec, vbar,
                                      f, fb, cnt)
                 if status != DONE:
@@ -301,13 +336,13 @@ def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact,
             cnt[C_UPDATES] += 1
             if code < 0:
                 return cnt[C_FAILKIND]
-            if iterate and npass >= 1:
+            if ec is not None and iterate and npass >= 1:
                 done, defer, mixed = end_of_pass(n, m, code, defer, mixed, v_new, ec, M, L, active, lw, ws, fset, acc)
                 if done:
                     break
                 if npass == passes - 1:
                     return NOT_CONVERGED
-        if me > 0:
+        if eqw is not None and me > 0:
             acc[A_WORK_E] += _eq_records(n, m + ints[SC_MF], me, v, v_new, G, eqw.PE, eqw.PE_acc)
         wf = 0.0  # smooth-force work of the step, h fᵀ (v + v⁺)/2
         for i in range(n):
@@ -319,14 +354,14 @@ def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact,
                 wb += fb[i] * (v[i] + v_new[i])
             acc[A_WORK_B] += 0.5 * h * wb
         _contact_records(n, m, t, k, h, code == 1, v, v_new, f, L, P, active, G, vfree, P_acc, act_acc,
-                         in_contact, last_imp, gmax, fgap, rs, IMP, cnt, acc, friction, fr, me, eqw)
+                         in_contact, last_imp, gmax, fgap, rs, IMP, cnt, acc, ints[SC_MF] > 0, fr, me, eqw)
         if not _end_position(n, m, h, code == 1, iset, qm, v_new, L, P, G, rs, vbar, vfree, q_new):
             return NONFINITE
         # the energy check: every S_ECHECK steps, and after a step with a logged impact
         echeck = iset[S_ECHECK] > 0 and ((k + 1) % iset[S_ECHECK] == 0 or cnt[C_NIMP] > nimp)
         if ints[SC_TRIG] and (m > 0 or me > 0 or iset[S_ENERGY] == 1 or echeck):
             _k.trig(q_new, cq, sq)
-        if me > 0:  # positions held on the bilateral rows (before the contacts' drift control)
+        if eqw is not None and me > 0:  # positions held on the bilateral rows (before the contacts' drift control)
             status = _eq_hold(ints, model[3], model[4], model[5], model[6], pool, model[9], user, q_new, cq, sq, gq, G,
                               L, eqw.Q, eqw.R, eqw.piv, eqw.x, eqw.y, eqw.F, eqw.yv, eqw.cE, eqw.rank, cnt, acc)
             if status != DONE:
@@ -336,10 +371,10 @@ def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact,
                                ws, lw, rs, in_contact, pen, gmax, eqw)
             if status != DONE:
                 return status
-        if me > 0:  # the velocity onto the bilateral rows at q⁺ (traj.work['constraint_projection'])
+        if eqw is not None and me > 0:  # v onto the bilateral rows at q⁺ (work['constraint_projection'])
             w = _eq_project_velocity(ints, model[3], model[4], model[5], model[6], pool, user, q_new, cq, sq, v_new, G,
                                      M, L, eqw.Q, eqw.R, eqw.piv, eqw.x, eqw.y, eqw.yv, eqw.F, eqw.cE, eqw.S,
-                                     code == 1, P, fr.PT, fr.mu, fr.tangent_row, cnt)
+                                     code == 1, P, fr, cnt)
             if w != w:
                 return cnt[C_FAILKIND]
             acc[A_WORK_EV] += w
@@ -354,6 +389,6 @@ def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact,
                 return status
         if k % stride == 0 or k == nsteps:
             if _record(model, user, iset, fset, k, q, v, cq, sq, M, P_acc, act_acc, gq, T, Q, V, PS, ACT, GP, KE,
-                       PE, cnt, fr.PT_acc, PTS, eqw.PE_acc) != DONE:
+                       PE, cnt, fr, PTS, eqw) != DONE:
                 return USER_FAILED
     return DONE

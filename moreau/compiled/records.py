@@ -29,7 +29,7 @@ def _log_onsets(n, m, t, k, h, v, v_new, f, L, P, G, vfree, in_contact, gmax, fg
     alone would change the normal velocity, or after the gap opened beyond its flight gap
     (the rule of :class:`moreau.results.impacts.ImpactLog`). With bilateral rows the free
     velocity is the one with the joints held, ``L⁻ᵀ Q b_y`` of the step's reduced problem."""
-    if me > 0:
+    if eqw is not None and me > 0:
         eq_velocity(L, eqw.Q, eqw.by, vfree)
     else:
         _k.cho_solve(L, f, vfree, n)
@@ -85,7 +85,7 @@ def _contact_records(n, m, t, k, h, contact, v, v_new, f, L, P, active, G, vfree
             acc[A_WORK_C] += 0.5 * P[r] * (ub + ua)
             if P[r] > 0.0 and not in_contact[r]:
                 onset = True
-    if friction:
+    if fr is not None and friction:
         _friction_records(n, m, v, v_new, G, active, fr, acc)
     if onset:
         _log_onsets(n, m, t, k, h, v, v_new, f, L, P, G, vfree, in_contact, gmax, fgap, rs, IMP, cnt, me, eqw)

@@ -80,11 +80,12 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
                  h: float, n_steps: int, *, step: int, solver, fallback, stride: int,
                  bar, energy: bool, tol: float, drift_control, flight_gap: np.ndarray,
                  gmax0: np.ndarray, energy_growth: tuple[float, float] | None = None,
-                 iteration: tuple[int, float] = (1, 0.0)) -> Trajectory:
+                 iteration: tuple[int, float] = (1, 0.0), full: bool | None = None) -> Trajectory:
     """Run ``n_steps`` steps compiled from a validated initial state (see :func:`moreau.simulate`,
     which calls this after :func:`~moreau.compiled.cache.ensure_compiled`); ``gmax0`` is each
     row's initial flight gap (``moreau.run.flights.initial_flight``); ``energy_growth`` the energy
-    check's ``(warn, stop)`` (None: no check); ``step``, ``iteration``: see ``_settings``."""
+    check's ``(warn, stop)`` (None: no check); ``step``, ``iteration``: see ``_settings``;
+    ``full``: the loop's variant (:func:`moreau.compiled.loop.variant`; None: the scene's)."""
     cs = lower(scene) if cs is None else cs
     n, m = scene.ndof, scene.nrows
     iset, fset, eligible, called = _settings(scene, t0, h, n_steps, step, solver, fallback, stride, energy, tol,
@@ -100,8 +101,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     T[0], Q[0], V[0] = t0, q0, v0
     q, v = q0.copy(), v0.copy()
     in_contact = np.zeros(m, dtype=np.bool_)
-    P_acc = np.zeros(m)
-    act_acc = np.zeros(m, dtype=np.bool_)
+    P_acc, act_acc = np.zeros(m), np.zeros(m, dtype=np.bool_)
     IMP = np.empty((max(64, 16 * m), 9))
     last_imp = np.full(m, -(1 << 62), dtype=np.int64)
     gmax = np.full(m, -np.inf)
@@ -112,11 +112,11 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     cnt[lay.C_REC] = 1
     acc = np.zeros(lay.N_ACCUMULATORS)
     fail = np.zeros((2, 6))
-    model = cs.arrays()
-    user = cs.user.addresses
-    run = lp.run_chunk
+    model, user = cs.arrays(), cs.user.addresses
     mf = int(cs.ints[lay.SC_MF])
-    work = lp.loop_workspace(n, m, mf, cs.friction, cs.tangent_row, me)
+    full = lp.variant(cs.ints, step, iteration[0]) if full is None else full
+    work = lp.loop_workspace(n, m, mf, cs.friction, cs.tangent_row, me, full)
+    fr, eqw = work[3], work[4]  # friction's and the bilateral rows' arrays, None without them
     PTS = np.zeros((n_rec, m) if mf else (1, m))
 
     status, message, interrupt = "completed", "", None
@@ -147,7 +147,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
             while cnt[lay.C_K] < n_steps:
                 k_before = int(cnt[lay.C_K])
                 c0 = time.perf_counter()
-                code = run(model, user, settings, state, lay.Records(T, Q, V, PS, ACT, GP, KE, PE, IMP, PTS),
+                code = lp.run_chunk(model, user, settings, state, lay.Records(T, Q, V, PS, ACT, GP, KE, PE, IMP, PTS),
                            tally, work, min(n_steps, k_before + chunk))
                 if bar is not None:
                     bar.update(int(cnt[lay.C_K]) - k_before)
@@ -172,8 +172,8 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
         try:
             traj, error = _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE, IMP,
                                     q, v, P_acc, act_acc, pen, cnt, acc, fail, cs, t0, h, stride, solver,
-                                    fallback, energy, wall, PTS if mf else None, work[3].PT_acc, tol, work[4].PE_acc,
-                                    int(iset[lay.S_ITER]), work[0][14], work[2][8],
+                                    fallback, energy, wall, PTS if mf else None, fr and fr.PT_acc, tol,
+                                    eqw and eqw.PE_acc, int(iset[lay.S_ITER]), work[0][14], work[2][8],
                                     tuple(c.error if c else "" for c in called))
             break
         except KeyboardInterrupt as exc:

@@ -218,7 +218,8 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     ``rs`` (m, 6, columns ``R_GAP`` ... ``R_SHIFT``) holds per row the gap at q_k, the gap
     the projection left, the pinned and bounced flags, a bounced row's h/2 − s and (2 s − h) a_n.
     ``fr``, ``eqw``: the friction and bilateral work arrays (``layout.FrictionWork``,
-    ``EqualityWork``); with bilateral rows every step solves the reduced problem in their null space.
+    ``EqualityWork``), None in a scene without them (their code is then not compiled); with
+    bilateral rows every step solves the reduced problem in their null space.
     ``check=False``: its answer unchecked, the problem left in ``lw`` (``implicit.checked``)."""
     ints, _, _, bkind, boff, brow, bnrows, pool, e, atol = model
     n, m = ints[SC_N], ints[SC_M]
@@ -246,9 +247,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
             rs[r, R_SHIFT] = 0.0
         P[r] = 0.0
     na = _count(active, m)
-    Q, R, piv, x, y, by, PE, F, eye, yv, _, cE, keep, _ = eqw
-    me = ints[SC_ME]
-    m0 = m + ints[SC_MF]
+    me, mf = ints[SC_ME], ints[SC_MF]
     if na == 0 and me == 0:
         if not locate:
             _free_acceleration(ints, pool, Minv, L, lw[9], cm, sm, f, rhs)
@@ -266,9 +265,9 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
         return -1
     b = lw[3]
     _momentum(ints, pool, h, M, cm, sm, v, f, b)
-    if na == 0:  # no contact row: the bilateral rows alone
-        return _eq_alone(n, m, m0, me, M, L, b, v, GA_all, P, v_new, Q, R, piv, x, y, by, PE, F, yv, cE, keep, cnt,
-                         fr.PT, fr.tangent_row)
+    if eqw is not None and me > 0 and na == 0:  # no contact row: the bilateral rows alone
+        return _eq_alone(n, m, m + ints[SC_MF], ints[SC_ME], M, L, b, v, GA_all, P, v_new, eqw.Q, eqw.R, eqw.piv,
+                         eqw.x, eqw.y, eqw.by, eqw.PE, eqw.F, eqw.yv, eqw.cE, eqw.rank, cnt)
     GA = lw[0]
     cA = lw[1]
     j = 0
@@ -298,16 +297,17 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     solved = 0
     Ms, Ls, bs = M, L, b
     rank = -1
-    if me > 0:  # bilateral rows: the contact rows solved in their null space (M = I there)
-        rank = _eq_prepare(n, m0, me, L, GA_all, v, b, Q, R, piv, x, y, by, cE, keep, cnt)
+    if eqw is not None and me > 0:  # bilateral rows: the contact rows solved in their null space (M = I there)
+        rank = _eq_prepare(n, m + ints[SC_MF], ints[SC_ME], L, GA_all, v, b, eqw.Q, eqw.R, eqw.piv, eqw.x, eqw.y,
+                           eqw.by, eqw.cE, eqw.rank, cnt)
         if rank < 0:
             return -1
-        _eq_reduce(L, Q, y, x, rank, GA, 0, na, cA)
-        Ms, Ls, bs = eye, eye, by
-    if ints[SC_MF] > 0:  # friction: the tangent rows join (Lemke's method)
+        _eq_reduce(L, eqw.Q, eqw.y, eqw.x, rank, GA, 0, na, cA)
+        Ms, Ls, bs = eqw.eye, eqw.eye, eqw.by
+    if fr is not None and mf > 0:  # friction: the tangent rows join (Lemke's method)
         solved = _friction_solve(n, m, Ms, Ls, bs, GA_all, GA, cA, active, na, v_new, PA, fset, acc, fail, fr, cnt,
                                  L, eqw, rank)
-    fresh = not again or locate or me > 0 or ints[SC_MF] > 0  # else the last Delassus matrix stands (same rows)
+    fresh = not again or locate or me > 0 or mf > 0  # else the last Delassus matrix stands
     chain = _chain_prepare(ints, pool, cm, sm, lw[9], GA, na, b, ws, fresh)
     if solved < 0 or (solved == 0 and not _contact_solve(Ms, Ls, bs, GA, cA, na, v_new, PA, iset, fset, cnt, acc,
                                                           fail, ws, fresh, check, chain)):
@@ -318,7 +318,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
         if active[r]:
             P[r] = PA[j]
             j += 1
-    if me > 0:
-        _eq_finish(n, m, me, rank, M, L, b, GA_all, P, v_new, Q, R, piv, x, PE, F, yv, solved == 1, fr.PT,
-                   fr.tangent_row)
+    if eqw is not None and me > 0:
+        _eq_finish(n, m, ints[SC_ME], rank, M, L, b, GA_all, P, v_new, eqw.Q, eqw.R, eqw.piv, eqw.x, eqw.PE, eqw.F,
+                   eqw.yv, solved == 1, fr)
     return 1

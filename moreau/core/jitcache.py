@@ -238,21 +238,29 @@ def seed(digest: str | None = None, prebuilt: str | None = None) -> int:
 
 
 @contextlib.contextmanager
-def compile_lock() -> Iterator[None]:
-    """Hold moreau's compile lock (an exclusive ``flock`` on a file in the cache
+def compile_lock(name: str = "") -> Iterator[None]:
+    """Hold moreau's compile lock ``name`` (an exclusive ``flock`` on a file in the cache
     directory) while the body runs; without a usable directory (or ``fcntl``), no lock."""
     d = cache_dir()
+    with _file_lock(None if d is None else os.path.join(d, f"{_LOCK}{name}")):
+        yield
+
+
+@contextlib.contextmanager
+def _file_lock(path: str | None) -> Iterator[None]:
+    """An exclusive ``flock`` on ``path`` while the body runs (none when path is None, or
+    without ``fcntl``; a file that cannot be locked: a warning, and no lock)."""
     try:
         import fcntl
     except ImportError:  # pragma: no cover - not POSIX
         fcntl = None  # type: ignore[assignment]
     fd = None
-    if d is not None and fcntl is not None:
+    if path is not None and fcntl is not None:
         try:
-            fd = os.open(os.path.join(d, _LOCK), os.O_RDWR | os.O_CREAT, 0o666)
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
             fcntl.flock(fd, fcntl.LOCK_EX)
         except OSError as exc:
-            log.warning("moreau: cannot lock %s (%s); compiling without the lock", d, exc)
+            log.warning("moreau: cannot lock %s (%s); going on without the lock", path, exc)
             if fd is not None:
                 os.close(fd)
             fd = None
@@ -262,6 +270,31 @@ def compile_lock() -> Iterator[None]:
         if fd is not None:
             fcntl.flock(fd, fcntl.LOCK_UN)
             os.close(fd)
+
+
+def lock_cache_saves() -> None:
+    """Make each save into numba's cache of a function of moreau's compiled modules hold a
+    lock on its cache directory. numba names a new entry's data file from the index it
+    has just read, so two processes saving entries of one function at once (two variants
+    of the loop compiled side by side, each under its own :func:`compile_lock`) could
+    both pick one file; under the lock each reads the other's index. Idempotent; called
+    when moreau is imported (numba's ``IndexDataCacheFile.save``, an internal API)."""
+    from numba.core import caching
+
+    cls = caching.IndexDataCacheFile
+    if getattr(cls.save, "_moreau_locked", False):
+        return
+    plain = cls.save
+    stems = {os.path.splitext(os.path.basename(p))[0] for p in compiled_sources()}
+
+    def save(self, key, data):
+        index = self._index_path
+        ours = os.path.basename(index).split(".", 1)[0] in stems
+        with _file_lock(os.path.join(os.path.dirname(index), f"{_LOCK}.save") if ours else None):
+            plain(self, key, data)
+
+    save._moreau_locked = True  # type: ignore[attr-defined]
+    setattr(cls, "save", save)  # noqa: B010 - numba's class, patched once
 
 
 _PROCESS_DIR: list[str] = []  # this process's temporary cache directory, once made

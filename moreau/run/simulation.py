@@ -10,8 +10,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from moreau.compiled.cache import ensure_compiled
+from moreau.compiled import cache
 from moreau.compiled.layout import STEP_ENERGY, STEP_MIDPOINT, STEP_THETA
+from moreau.compiled.loop import variant
+from moreau.compiled.lowering import lower
 from moreau.compiled.runner import run_compiled
 from moreau.contact.solvers import ContactSolver
 from moreau.core.errors import attach_trajectory
@@ -31,7 +33,7 @@ from moreau.step.integrator import (
     OneStepIntegrator,
 )
 
-__all__ = ["simulate"]
+__all__ = ["simulate", "ensure_compiled"]
 
 log = logging.getLogger(__name__)
 
@@ -205,6 +207,24 @@ def _plan(scene: Scene, t_span: tuple[float, float], h: float, tol: float, recor
                  initial_penetration, as_energy_growth(energy_growth), iteration)
 
 
+def ensure_compiled(*scenes: Scene, integrator: type[OneStepIntegrator] = MoreauJeanMidpoint) -> float:
+    """Load the compiled time loop from numba's cache, or compile it there (once per machine
+    and version, said in one logged line); returns the seconds it took.
+
+    The loop has two variants (:func:`moreau.compiled.loop.variant`): the plain midpoint
+    step's, and one with friction, bilateral rows and the later passes of
+    :class:`~moreau.MoreauJeanPredictorCorrector` and :class:`~moreau.MoreauJeanEnergyConsistent`;
+    a run compiles only the one its scene and ``integrator`` use. With ``scenes``: the
+    variants they run; without: both (to warm a cache: ``moreau compile``). Call it before
+    starting worker processes: they then load it, never two compiling.
+    """
+    if not scenes:
+        return cache.ensure_compiled(None)
+    step, iterations = _compiled_step(integrator), _iteration(integrator)[0]
+    return sum(cache.ensure_compiled(full) for full in sorted({variant(lower(s).ints, step, iterations)
+                                                               for s in scenes}))
+
+
 def _compiled_step(integrator: type[OneStepIntegrator]) -> int:
     """The compiled loop's code for the step of ``integrator`` (one of the three it has)."""
     if issubclass(integrator, MoreauJeanEnergyConsistent):
@@ -237,10 +257,11 @@ def _run(scene: Scene, plan: _Plan, q0: ArrayLike, v0: ArrayLike, integrator: ty
                  ", ".join(redundant))
     bar = None
     try:
-        ensure_compiled()  # before the progress bar moves: a first compile says so
+        step = _compiled_step(integrator)  # the loop's variant, before the progress bar moves: a compile says so
+        cache.ensure_compiled(variant(plan.cs.ints, step, plan.iteration[0]))
         bar = progress_bar(progress, plan.n_steps, scene.name)
         return run_compiled(scene, plan.cs, t0, q, v, plan.h, plan.n_steps,
-                            step=_compiled_step(integrator), iteration=plan.iteration,
+                            step=step, iteration=plan.iteration,
                             solver=plan.solver,
                             fallback=plan.fallback, stride=plan.stride, bar=bar, energy=energy, tol=plan.tol,
                             drift_control=drift_control, flight_gap=plan.flight_gap,
