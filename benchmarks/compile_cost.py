@@ -1,16 +1,21 @@
-"""What the compiled loop costs before its first step: compile time and memory.
+"""What the compiled loop costs before its first step: compile time and memory, per
+feature set (the loop's two variants, ``moreau.compiled.loop.variant``).
 
 Runs a probe in new processes (absolute times on a shared 2-core machine are noisy; run
 the script alone):
 
-1. **cold**: an empty ``NUMBA_CACHE_DIR`` — the first run on a new machine compiles the
-   time loop (``moreau.ensure_compiled``); wall time, CPU time and peak resident memory
-   of the process, and the compile time per kernel family (the module of the compiled
-   function: its own share, callees excluded);
-2. **warm**: the same cache again — the loop is loaded, not compiled;
-3. in both, two scenes of user ``@numba.njit`` callables (a ``FunctionForce``, a
-   ``FunctionBarrier``; the second scene with other functions): the seconds from
-   ``simulate()`` to its end (0.1 s of stepping), which is their own compile.
+1. **plain**: an empty ``NUMBA_CACHE_DIR``; the variant without friction, bilateral rows
+   and later passes (the frictionless piston's, the README's main job) is compiled;
+2. **full, after plain**: the same cache; the variant with them (a scene with friction,
+   joints, or the predictor–corrector / energy-consistent step) is compiled beside it;
+3. **full alone**: a new empty cache, the full variant only;
+4. **warm**: the first cache again, both variants loaded.
+
+Each row: the seconds of ``moreau.ensure_compiled`` for that variant, the process's wall
+and CPU time and peak resident memory; then the compile time per kernel family of rows 1
+and 2 (the module of the compiled function: its own share, callees excluded), and the
+seconds from ``simulate()`` to its end (0.1 s of stepping) of two scenes of user
+``@numba.njit`` callables (their own compile) in rows 1 and 4.
 
     python benchmarks/compile_cost.py
 """
@@ -54,7 +59,9 @@ _PROBE = textwrap.dedent('''
     import moreau as mo
     t_import = time.perf_counter() - t0
     t = time.perf_counter()
-    mo.ensure_compiled()
+    from moreau.compiled.cache import ensure_compiled
+    for full in json.loads(sys.argv[1]):
+        ensure_compiled(full)
     t_loop = time.perf_counter() - t
 
     def user_scene(k):
@@ -74,10 +81,10 @@ _PROBE = textwrap.dedent('''
                         [mo.Contact(mo.FunctionBarrier(gap, jac), 0.5)])
 
     users = []
-    for k in (1, 2):
+    for k in ((1, 2) if False in json.loads(sys.argv[1]) else ()):  # they run the plain variant
         scene = user_scene(k)
         t = time.perf_counter()
-        traj = mo.simulate(scene, (0.0, 0.1), [0.0, 1.0], [1.0, 0.0], 1e-3, backend="compiled")
+        traj = mo.simulate(scene, (0.0, 0.1), [0.0, 1.0], [1.0, 0.0], 1e-3)
         assert traj.completed
         users.append(time.perf_counter() - t)
     cpu = resource.getrusage(resource.RUSAGE_SELF)
@@ -86,10 +93,12 @@ _PROBE = textwrap.dedent('''
 ''')
 
 
-def probe(cache: str) -> dict:
-    """Run the probe in a new process with ``NUMBA_CACHE_DIR=cache``."""
+def probe(cache: str, variants: list[bool]) -> dict:
+    """Run the probe in a new process with ``NUMBA_CACHE_DIR=cache``, loading (or compiling)
+    the loop's ``variants`` (``full`` flags)."""
     env = dict(os.environ, NUMBA_CACHE_DIR=cache)
-    out = subprocess.run([sys.executable, "-c", _PROBE], capture_output=True, text=True, env=env)
+    out = subprocess.run([sys.executable, "-c", _PROBE, json.dumps(variants)], capture_output=True, text=True,
+                         env=env)
     if out.returncode != 0:
         raise RuntimeError(out.stderr[-3000:])
     return json.loads(out.stdout.strip().splitlines()[-1])
@@ -97,21 +106,24 @@ def probe(cache: str) -> dict:
 
 def main() -> None:
     t_start = time.perf_counter()
-    with tempfile.TemporaryDirectory() as cache:
-        cold = probe(cache)
-        warm = probe(cache)
-    print("\nthe compiled loop before its first step (new processes; cold: empty NUMBA_CACHE_DIR)")
-    print(f"{'':44s} {'cold':>9s} {'warm':>9s}")
-    rows = [("import moreau (s)", "import"), ("load or compile the loop (s)", "loop"),
-            ("process wall time (s)", "wall"), ("process CPU time (s)", "cpu"), ("peak resident memory (MB)", "rss_mb")]
-    for label, key in rows:
-        print(f"{label:44s} {cold[key]:9.2f} {warm[key]:9.2f}")
+    with tempfile.TemporaryDirectory() as cache, tempfile.TemporaryDirectory() as alone:
+        runs = [("plain midpoint step, empty cache", probe(cache, [False])),
+                ("full (friction, joints, passes), beside it", probe(cache, [True])),
+                ("full, empty cache", probe(alone, [True])),
+                ("both, warm cache", probe(cache, [False, True]))]
+    print("\nthe compiled loop before its first step, per variant (new processes; NUMBA_CACHE_DIR as said)")
+    print(f"{'':44s} {'loop (s)':>9s} {'wall (s)':>9s} {'CPU (s)':>9s} {'peak MB':>9s}")
+    for label, r in runs:
+        print(f"{label:44s} {r['loop']:9.2f} {r['wall']:9.2f} {r['cpu']:9.2f} {r['rss_mb']:9.0f}")
+    print(f"{'import moreau (s)':44s} {runs[0][1]['import']:9.2f}")
     for i in range(2):
         label = f"user scene {i + 1}: simulate() to its end (s)"
-        print(f"{label:44s} {cold['user'][i]:9.2f} {warm['user'][i]:9.2f}")
-    print("\ncold compile per kernel family (s, each function's own share, callees excluded)")
-    for fam, s in sorted(cold["own"].items(), key=lambda x: -x[1]):
-        print(f"  {fam:32s} {s:9.2f}")
+        print(f"{label:44s} cold {runs[0][1]['user'][i]:6.2f}   warm {runs[3][1]['user'][i]:6.2f}")
+    for label, r in runs[:2]:
+        print(f"\ncompile per kernel family, {label} (s, each function's own share, callees excluded)")
+        for fam, sec in sorted(r["own"].items(), key=lambda x: -x[1]):
+            if sec >= 0.05:
+                print(f"  {fam:32s} {sec:9.2f}")
     print(f"\n(benchmark wall time {time.perf_counter() - t_start:.0f} s)")
 
 

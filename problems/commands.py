@@ -130,8 +130,8 @@ def _engine_run_args(parser: argparse.ArgumentParser, cycles: int, h: float) -> 
                         help=f"time step (τ: the model's non-dimensional crank-angle time τ = ω t, "
                              f"ω = 2π·2000/60 rad/s, so 1e-4 τ = 1e-4 rad of crank angle = 0.48 µs; "
                              f"default {h:g})")
-    _solver_option(parser, "contact solver (default exact: the dual active-set method, which runs "
-                           "compiled; osqp, daqp and quadprog run on the Python path)")
+    _solver_option(parser, "contact solver (default exact: the dual active-set method, the loop's own; "
+                           "osqp, daqp and quadprog are called from the compiled loop)")
     add_backend_option(parser)
     parser.add_argument("--no-drift-control", action="store_true",
                         help="do not project positions back onto the cylinder after each step")

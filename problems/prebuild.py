@@ -14,6 +14,8 @@ does not match, so a package built on another machine is no worse than one witho
 from __future__ import annotations
 
 import logging
+import os
+import subprocess
 import sys
 import tempfile
 import time
@@ -24,17 +26,35 @@ __all__ = ["prebuild", "warm_up", "main"]
 log = logging.getLogger(__name__)
 
 
+_FULL = "import sys; sys.path.insert(0, sys.argv[1]); from moreau.compiled.cache import ensure_compiled; " \
+        "ensure_compiled(True)"
+
+
 def warm_up() -> None:
-    """Compile the time loop and the piston's kernels into numba's cache (the editable
-    install's build step calls this alone: its runs load them from there)."""
+    """Compile both variants of the time loop and the piston's kernels into numba's cache
+    (the editable install's build step calls this alone: its runs load them from there).
+    The full variant compiles in a second process, beside the plain one and the piston's
+    cycle (each under its own lock: :func:`moreau.compiled.cache.ensure_compiled`)."""
+    import moreau
     from moreau.compiled.cache import ensure_compiled
     from moreau.problems.piston.job import Case, run_cases
 
-    ensure_compiled()
-    with tempfile.TemporaryDirectory(prefix="moreau-prebuild-") as tmp:
-        rows = run_cases([Case(e=0.9, D=0.08004, h=1e-3, cycles=1, transient=0)], tmp, progress=False, workers=1)
-    if rows[0]["status"] != "completed":
-        log.warning("moreau prebuild: the piston's warm-up run ended %r", rows[0]["status"])
+    root = os.path.dirname(os.path.dirname(os.path.abspath(moreau.__file__)))
+    full = subprocess.Popen([sys.executable, "-c", _FULL, root])
+    try:
+        ensure_compiled(False)
+        with tempfile.TemporaryDirectory(prefix="moreau-prebuild-") as tmp:
+            rows = run_cases([Case(e=0.9, D=0.08004, h=1e-3, cycles=1, transient=0)], tmp, progress=False,
+                             workers=1)
+        if rows[0]["status"] != "completed":
+            log.warning("moreau prebuild: the piston's warm-up run ended %r", rows[0]["status"])
+        if full.wait() != 0:
+            log.warning("moreau prebuild: compiling the loop's full variant failed (exit %d); its first run "
+                        "compiles it", full.returncode)
+    finally:
+        if full.poll() is None:  # interrupted: the helper does not outlive this process
+            full.kill()
+            full.wait()
 
 
 def prebuild(out: str) -> int:
