@@ -79,7 +79,7 @@ def ensure_compiled(full: bool | None = None) -> float:
 
 def cached_variants() -> set[bool]:
     """The variants of the loop (``full``, see :func:`ensure_compiled`) in numba's cache for
-    this source (read from numba's index of :func:`moreau.compiled.loop._run_chunk`: its
+    this source (read from numba's index of ``moreau.compiled.loop._run_chunk``: its
     argument ``fr`` is None in the plain variant)."""
     from numba.core import types
 

@@ -47,7 +47,7 @@ def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fai
     m = model[0][SC_M]
     dtol = fset[F_DRIFT_TOL]
     combined = iset[S_DRIFT] == DRIFT_COMBINED
-    sel = lw[8]
+    sel = lw.sel
     need = False
     for r in range(m):
         if combined:
@@ -72,10 +72,10 @@ def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc
     keeps its contact solve and model evaluations out of the loop's own compile)."""
     ints, _, _, bkind, boff, brow, bnrows, pool, _, _ = model
     n, m = ints[SC_N], ints[SC_M]
-    sel = lw[8]
-    G = lw[5]
-    dq = lw[6]
-    zero = lw[7]
+    sel = lw.sel
+    G = lw.G
+    dq = lw.dq
+    zero = lw.zero
     for _ in range(iset[S_DRIFT_ITER]):
         if not combined:
             for r in range(m):
@@ -83,13 +83,13 @@ def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc
         na = _count(sel, m)
         if _user_failed(ev.mass(ints, pool, user, q, cq, sq, M), cnt):
             return False
-        if ev.factor(ints, pool, M, cq, sq, L, lw[9]) >= 0:
+        if ev.factor(ints, pool, M, cq, sq, L, lw.gen) >= 0:
             cnt[C_FAILKIND] = NOT_SPD
             return False
         if _user_failed(ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, G), cnt):
             return False
-        GA = lw[0]
-        cA = lw[1]
+        GA = lw.GA
+        cA = lw.cA
         j = 0
         for r in range(m):
             if sel[r]:
@@ -97,14 +97,14 @@ def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc
                     GA[j, i] = G[r, i]
                 cA[j] = -gq[r]
                 j += 1
-        PA = lw[4]
+        PA = lw.PA
         Ms, Ls = M, L
         if eqw is not None and ints[SC_ME] > 0:  # the QP in the bilateral rows' null space (M = I there)
             _eq_contact_rows(L, G, m + ints[SC_MF], ints[SC_ME], eqw.Q, eqw.R, eqw.piv, eqw.x, eqw.y, eqw.rank, GA,
                              na, cA)
             Ms, Ls = eqw.eye, eqw.eye
         if not _contact_solve(Ms, Ls, zero, GA, cA, na, dq, PA, iset, fset, cnt, acc, fail, ws):
-            cnt[C_FAILKIND] = PROJECTION_FAILED  # its rows: ``sel`` (lw[8])
+            cnt[C_FAILKIND] = PROJECTION_FAILED  # its rows: ``sel`` (lw.sel)
             return False
         if eqw is not None and ints[SC_ME] > 0:
             _eq_back(L, eqw.Q, eqw.yv, dq)

@@ -48,12 +48,12 @@ def velocity_passes(iset, ints):
 def energy_start(model, user, correct, q, v, cm, sm, M, ec, cnt):
     """``(status, s0)``: s0 = T(q_m, v_k) − T(q_k, v_k), the start's share of the step's
     kinetic-energy change (0 unless ``correct``: other steps make no call); ``M`` (n, n)
-    holds M(q_m), ``cm, sm`` cos/sin of q_m; M(q_k) is evaluated into ``ec[0]``, cos/sin
-    of q_k into ``ec[1]``/``ec[2]`` (``ec``: the loop's work arrays of this step), and a
-    chain's M_m v_k kept in ``ec[8]``. Status DONE or USER_FAILED."""
+    holds M(q_m), ``cm, sm`` cos/sin of q_m; M(q_k) is evaluated into ``ec.Ms``, cos/sin
+    of q_k into ``ec.c2``/``ec.s2`` (``ec``: the loop's work arrays of this step), and a
+    chain's M_m v_k kept in ``ec.mv``. Status DONE or USER_FAILED."""
     if not correct:
         return DONE, 0.0
-    return _energy_start(model, user, q, v, cm, sm, M, ec[0], ec[1], ec[2], ec[8], cnt)
+    return _energy_start(model, user, q, v, cm, sm, M, ec.Ms, ec.c2, ec.s2, ec.mv, cnt)
 
 
 @_call
@@ -174,18 +174,18 @@ def next_iterate(n, y, x, ylast, rlast, mixed, tol):
 @_part
 def pass_forces(model, user, npass, correct, t, h, q, v, qm, cm, sm, v_new, s0, M, ec, vbar, f, fb, cnt):
     """The forces of pass ``npass`` >= 1 into ``f`` (bias share ``fb``): f(t + h/2, q_m,
-    (v_k + x)/2) at the iterate x (``ec[5]``; the first is the first pass's answer
+    (v_k + x)/2) at the iterate x (``ec.x``; the first is the first pass's answer
     ``v_new``), plus the inertial correction when ``correct``; the part that does not
-    depend on v is the first pass's (``ec[9]``). Returns DONE or USER_FAILED."""
+    depend on v is the first pass's (``ec.fq``). Returns DONE or USER_FAILED."""
     ints, ekind, eoff = model[0], model[1], model[2]
-    Ms, c2, s2, qp, dq, x = ec[0], ec[1], ec[2], ec[3], ec[4], ec[5]
+    Ms, c2, s2, qp, dq, x = ec.Ms, ec.c2, ec.s2, ec.qp, ec.dq, ec.x
     iterate_from(ints[SC_N], npass, v, v_new, x, vbar)
-    # the forces that do not depend on v are the first pass's (``ec[9]``, same t and q_m)
-    if _user_failed(ev.velocity_forces(ints, ekind, eoff, model[7], user, t + 0.5 * h, qm, cm, sm, vbar, ec[9], f, fb),
+    # the forces that do not depend on v are the first pass's (``ec.fq``, same t and q_m)
+    if _user_failed(ev.velocity_forces(ints, ekind, eoff, model[7], user, t + 0.5 * h, qm, cm, sm, vbar, ec.fq, f, fb),
                     cnt):
         return USER_FAILED
     if correct:
-        return energy_correction(model, user, h, q, v, x, s0, cm, sm, M, Ms, c2, s2, qp, dq, ec[8], f, fb, cnt)
+        return energy_correction(model, user, h, q, v, x, s0, cm, sm, M, Ms, c2, s2, qp, dq, ec.mv, f, fb, cnt)
     return DONE
 
 
@@ -205,7 +205,7 @@ def checked(M, L, active, m, lw, ws, v_new, fset, acc):
     # stale; kept as a bool variable: the literal True would type (and compile) the check
     # a second time
     keep = k >= 0
-    kkt_residuals_kernel(M, L, lw[3], lw[0], lw[1], v_new, lw[4], k, res, ws[11], ws[12], ws[13], ws[14], ws[15],
+    kkt_residuals_kernel(M, L, lw.b, lw.GA, lw.cA, v_new, lw.PA, k, res, ws[11], ws[12], ws[13], ws[14], ws[15],
                          ws[18], ws[19], keep)
     worst = max(res[0], res[1], res[2], res[3])
     if worst <= fset[F_TOL]:
@@ -223,7 +223,7 @@ def end_of_pass(n, m, code, defer, mixed, v_new, ec, M, L, active, lw, ws, fset,
     (no friction, no bilateral rows) are checked only in the pass whose answer is kept. An
     answer that fails it: the same iterate again, with ``defer`` off (checked, with the
     fallback). ``mixed``: the next iterate is Anderson-mixed."""
-    if next_iterate(n, v_new, ec[5], ec[6], ec[7], mixed, fset[F_ITOL]):
+    if next_iterate(n, v_new, ec.x, ec.ylast, ec.rlast, mixed, fset[F_ITOL]):
         if not (defer and code == 1) or checked(M, L, active, m, lw, ws, v_new, fset, acc):
             return True, defer, mixed
         return False, False, mixed

@@ -116,3 +116,16 @@ FrictionWork = namedtuple("FrictionWork", "fidx muA PT PT_acc res lemke mu tange
 #: the reduced problem's vectors (x, y, by), impulses PE and F, the identity, yv, the impulses
 #: summed since the last record, cE, the rank (1,), and the velocity projection's rows S
 EqualityWork = namedtuple("EqualityWork", "Q R piv x y by PE F eye yv PE_acc cE rank S")
+#: the step's own work arrays (compiled.loop.loop_workspace): M(q_m) and its factor, cos/sin
+#: of q_m and of q⁺, q_m, the forces, v⁺, a spare vector, q⁺, the gaps at q_m and at q⁺,
+#: the impulses and closed rows, the Jacobian (all rows), the free velocity, the bias forces
+StepWork = namedtuple("StepWork", "M L cm sm cq sq qm f v_new vbar q_new gm gq P active G vfree fb")
+#: the contact problem's work arrays: the closed rows' Jacobian and targets, the free
+#: acceleration, M v + h f, the closed rows' impulses, the drift projection's Jacobian, step
+#: and zero vector, its rows, a chain's factor generators (4, n), and q, v where the energy
+#: check first warned
+LoopWork = namedtuple("LoopWork", "GA cA rhs b PA G dq zero sel gen q_warn v_warn")
+#: the later passes' work arrays (compiled.implicit): M(q_k), cos/sin of q_k, q at the pass,
+#: Δq, the iterate x, the last answer and residual (Anderson mixing), a chain's M_m v_k, and
+#: the forces that do not depend on v
+PassWork = namedtuple("PassWork", "Ms c2 s2 qp dq x ylast rlast mv fq")

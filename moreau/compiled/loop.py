@@ -66,9 +66,12 @@ from moreau.compiled.layout import (  # the loop's layout
     SC_N,
     SC_TRIG,
     USER_FAILED,
+    LoopWork,
+    PassWork,
     Records,
     RunState,
     Settings,
+    StepWork,
     Tally,
 )
 from moreau.compiled.layout import part as _part
@@ -92,14 +95,14 @@ def loop_workspace(n: int, m: int, mf: int, mu: np.ndarray, tangent_row: np.ndar
     mm = max(m, 1)
     mt = m + mf + me  # the rows of the gaps and the Jacobian: contacts, tangents, bilateral
     ma = max(mt, 1)
-    own = (np.empty((n, n)), np.empty((n, n)), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n),
+    own = StepWork(np.empty((n, n)), np.empty((n, n)), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n),
            np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.zeros(mt), np.zeros(mt),
            np.zeros(m), np.zeros(m, dtype=np.bool_), np.empty((mt, n)), np.empty(n), np.empty(n))
-    lw = (np.empty((ma, n)), np.empty(ma), np.empty(n), np.empty(n), np.empty(ma),
-          np.empty((ma, n)), np.empty(n), np.zeros(n), np.zeros(mm, dtype=np.bool_), np.empty((4, n)),
-          np.zeros(n), np.zeros(n))  # [10], [11]: q and v where the energy check first warned
-    ec = (np.empty((n, n)), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.zeros(n), np.zeros(n),
-          np.empty(n), np.zeros(n))  # the later passes' (implicit.pass_forces)
+    lw = LoopWork(np.empty((ma, n)), np.empty(ma), np.empty(n), np.empty(n), np.empty(ma),
+                  np.empty((ma, n)), np.empty(n), np.zeros(n), np.zeros(mm, dtype=np.bool_), np.empty((4, n)),
+                  np.zeros(n), np.zeros(n))
+    ec = PassWork(np.empty((n, n)), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.zeros(n),
+                  np.zeros(n), np.empty(n), np.zeros(n))
     if not full:
         return own, workspace(n, m), lw, None, None, None
     return own, workspace(n, m), lw, friction_work(n, m, mf, mu, tangent_row), equality_work(n, me, m + mf), ec
@@ -110,7 +113,7 @@ def variant(ints: np.ndarray, step: int, iterations: int = 1) -> bool:
     ``step`` (``layout.STEP_*``; ``iterations``: the energy-consistent step's iterates)
     runs the loop compiled with friction, bilateral rows and the step's later passes (the
     full variant: it has tangent rows, bilateral rows or a step of more than one velocity
-    update, :func:`moreau.compiled.implicit.velocity_passes`), or the one compiled
+    update, ``moreau.compiled.implicit.velocity_passes``), or the one compiled
     without them (the plain midpoint step).
 
     Two variants, not one per feature set: each compiles the loop function anew (30-45 s
@@ -127,7 +130,7 @@ def _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, gen, 
     """The midpoint q_m = q + h/2 v and the model there: M(q_m) factorized (unless
     constant; a chain's only as the O(n) generators ``gen`` of its factor, M and L are
     formed by the velocity update when a row closes), f(t + h/2, q_m, v) (a step with
-    later passes, ``ec`` not None: its part that does not depend on v also into ``ec[9]``) and
+    later passes, ``ec`` not None: its part that does not depend on v also into ``ec.fq``) and
     the gaps g(q_m); returns DONE or why not."""
     ints, ekind, eoff, bkind, boff, brow, bnrows, pool, _, _ = model
     n, m = ints[SC_N], ints[SC_M]
@@ -148,7 +151,7 @@ def _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, gen, 
     if _user_failed(ev.force(ints, ekind, eoff, pool, user, t + 0.5 * h, qm, cm, sm, v, f, fb), cnt):
         return USER_FAILED
     if ec is not None:
-        ev.position_forces(ints, ekind, eoff, pool, t + 0.5 * h, qm, cm, sm, v, ec[9])
+        ev.position_forces(ints, ekind, eoff, pool, t + 0.5 * h, qm, cm, sm, v, ec.fq)
     if m > 0:
         if _user_failed(ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, gm), cnt):
             return USER_FAILED
@@ -201,7 +204,7 @@ def _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc
                         fail, eligible, ws, lw, rs, in_contact, eqw):
             return cnt[C_FAILKIND]
         if eqw is not None and ints[SC_ME] > 0 and cnt[C_PROJ] > nproj:  # moved along the bilateral rows: restore
-            status = _eq_hold(ints, bkind, boff, brow, bnrows, pool, model[9], user, q_new, cq, sq, gq, lw[5], L,
+            status = _eq_hold(ints, bkind, boff, brow, bnrows, pool, model[9], user, q_new, cq, sq, gq, lw.G, L,
                               eqw.Q, eqw.R, eqw.piv, eqw.x, eqw.y, eqw.F, eqw.yv, eqw.cE, eqw.rank, cnt, acc)
             if status != DONE:
                 return status
@@ -314,7 +317,7 @@ def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact,
         k = cnt[C_K]
         t = t0 + k * h
         nimp = cnt[C_NIMP]
-        status = _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, lw[9], f, fb, ec, gm, cnt)
+        status = _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, lw.gen, f, fb, ec, gm, cnt)
         if status != DONE:
             return status
         s0 = 0.0
@@ -384,7 +387,7 @@ def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact,
         k += 1
         cnt[C_K] = k
         if echeck:
-            status = _energy_check(model, user, iset, fset, k, q, v, cq, sq, M, cnt, acc, lw[10], lw[11])
+            status = _energy_check(model, user, iset, fset, k, q, v, cq, sq, M, cnt, acc, lw.q_warn, lw.v_warn)
             if status != DONE:
                 return status
         if k % stride == 0 or k == nsteps:

@@ -173,7 +173,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
             traj, error = _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE, IMP,
                                     q, v, P_acc, act_acc, pen, cnt, acc, fail, cs, t0, h, stride, solver,
                                     fallback, energy, wall, PTS if mf else None, fr and fr.PT_acc, tol,
-                                    eqw and eqw.PE_acc, int(iset[lay.S_ITER]), work[0][14], work[2][8],
+                                    eqw and eqw.PE_acc, int(iset[lay.S_ITER]), work[0].active, work[2].sel,
                                     tuple(c.error if c else "" for c in called))
             break
         except KeyboardInterrupt as exc:
@@ -182,7 +182,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
                 message = "interrupted by the user while the result was assembled"
     if cnt[lay.C_EWARN] > 0:
         _energy_warning(scene, traj, int(cnt[lay.C_EWARN]), float(acc[lay.A_DU_WARN]), float(acc[lay.A_KEMAX_WARN]),
-                        h, work[2][10], work[2][11])
+                        h, work[2].q_warn, work[2].v_warn)
     if cnt[lay.C_PAINLEVE_STEP] > 0:  # one warning, kept in traj.warnings
         k0, row = int(cnt[lay.C_PAINLEVE_STEP]) - 1, int(cnt[lay.C_PAINLEVE_ROW])
         msg = painleve_message(t0 + k0 * h, k0, [scene.row_names[row]], [float(scene.friction[row])])

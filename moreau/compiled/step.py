@@ -226,9 +226,9 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     h = fset[F_H]
     combined = iset[S_DRIFT] == DRIFT_COMBINED
     locate = combined and iset[S_LOCATE] == 1
-    rhs = lw[2]
+    rhs = lw.rhs
     if locate:  # the free step's end gap, + h²/2 G M⁻¹ f, decides which rows close
-        _free_acceleration(ints, pool, Minv, L, lw[9], cm, sm, f, rhs)
+        _free_acceleration(ints, pool, Minv, L, lw.gen, cm, sm, f, rhs)
         if _user_failed(ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, qm, cm, sm, GA_all), cnt):
             return -1
     ahead = iset[S_STEP] == STEP_ENERGY and not combined  # rows reaching the barrier by the step end
@@ -250,26 +250,26 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     me, mf = ints[SC_ME], ints[SC_MF]
     if na == 0 and me == 0:
         if not locate:
-            _free_acceleration(ints, pool, Minv, L, lw[9], cm, sm, f, rhs)
+            _free_acceleration(ints, pool, Minv, L, lw.gen, cm, sm, f, rhs)
         for i in range(n):
             v_new[i] = v[i] + h * rhs[i]
         return 0
     if combined:
         if not locate:
-            _free_acceleration(ints, pool, Minv, L, lw[9], cm, sm, f, rhs)
+            _free_acceleration(ints, pool, Minv, L, lw.gen, cm, sm, f, rhs)
         k_now = cnt[C_K]
         memory = iset[S_MEMORY]
     if na > 0:
         cnt[C_SOLVES] += 1
-    if not _closed_model(model, user, qm, cm, sm, M, L, lw[9], GA_all, cnt, locate, again):
+    if not _closed_model(model, user, qm, cm, sm, M, L, lw.gen, GA_all, cnt, locate, again):
         return -1
-    b = lw[3]
+    b = lw.b
     _momentum(ints, pool, h, M, cm, sm, v, f, b)
     if eqw is not None and me > 0 and na == 0:  # no contact row: the bilateral rows alone
         return _eq_alone(n, m, m + ints[SC_MF], ints[SC_ME], M, L, b, v, GA_all, P, v_new, eqw.Q, eqw.R, eqw.piv,
                          eqw.x, eqw.y, eqw.by, eqw.PE, eqw.F, eqw.yv, eqw.cE, eqw.rank, cnt)
-    GA = lw[0]
-    cA = lw[1]
+    GA = lw.GA
+    cA = lw.cA
     j = 0
     for r in range(m):
         if active[r]:
@@ -293,7 +293,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
                         c = cr
             cA[j] = c
             j += 1
-    PA = lw[4]
+    PA = lw.PA
     solved = 0
     Ms, Ls, bs = M, L, b
     rank = -1
@@ -308,7 +308,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
         solved = _friction_solve(n, m, Ms, Ls, bs, GA_all, GA, cA, active, na, v_new, PA, fset, acc, fail, fr, cnt,
                                  L, eqw, rank)
     fresh = not again or locate or me > 0 or mf > 0  # else the last Delassus matrix stands
-    chain = _chain_prepare(ints, pool, cm, sm, lw[9], GA, na, b, ws, fresh)
+    chain = _chain_prepare(ints, pool, cm, sm, lw.gen, GA, na, b, ws, fresh)
     if solved < 0 or (solved == 0 and not _contact_solve(Ms, Ls, bs, GA, cA, na, v_new, PA, iset, fset, cnt, acc,
                                                           fail, ws, fresh, check, chain)):
         cnt[C_FAILKIND] = SOLVER_FAILED

@@ -257,7 +257,7 @@ def run_cases(cases: Sequence[Case], out: str, progress: bool = True, workers: i
                     raise interrupt_for_signal()
         else:
             # once, here, the loop's variants the cases run: the workers load them (never two compiling)
-            mo.ensure_compiled(*{piston_model(PistonParameters(mu=c.mu)).scene for c in cases})
+            mo.ensure_compiled(*(piston_model(PistonParameters(mu=mu)).scene for mu in {c.mu for c in cases}))
             run_jobs(run_case, jobs, workers, on_done)
     except KeyboardInterrupt as exc:
         exc.rows = [r if r is not None else summary_row(c, "not started") for r, c in zip(rows, cases)]
