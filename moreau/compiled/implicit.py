@@ -200,13 +200,13 @@ def checked(M, L, active, m, lw, ws, v_new, fset, acc):
     for r in range(m):
         if active[r]:
             k += 1
-    res = ws[16]
+    res = ws.res
     # √(M⁻¹)_jj: a chain's were formed with this M (step._chain_prepare), others flagged
     # stale; kept as a bool variable: the literal True would type (and compile) the check
     # a second time
     keep = k >= 0
-    kkt_residuals_kernel(M, L, lw.b, lw.GA, lw.cA, v_new, lw.PA, k, res, ws[11], ws[12], ws[13], ws[14], ws[15],
-                         ws[18], ws[19], keep)
+    kkt_residuals_kernel(M, L, lw.b, lw.GA, lw.cA, v_new, lw.PA, k, res, ws.Gv, ws.GtP, ws.rv, ws.d, ws.x,
+                         ws.X, ws.rd, keep)
     worst = max(res[0], res[1], res[2], res[3])
     if worst <= fset[F_TOL]:
         if worst > acc[A_WORST]:

@@ -83,7 +83,7 @@ def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail
     this M; the fallback reuses the main's. A
     step's later passes pass it, except with bilateral rows or friction (which solve other
     problems) and with ``S_LOCATE`` (whose closed rows depend on f)."""
-    res = ws[16]
+    res = ws.res
     tol = fset[F_TOL]
     # np.int64: numba would type the count as the literal 0 at one of the inlined call
     # sites and compile the solver and the check a second time
@@ -109,8 +109,8 @@ def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail
             # a later pass checks against the same M: the check's round-off floor keeps its
             # √(M⁻¹)_jj (O(n³)); not the fallback of a fresh pass (the main may have failed
             # before any check of this M), unless _chain_prepare formed them
-            kkt_residuals_kernel(M, L, b, GA, cA, v_out, P_out, k, res, ws[11], ws[12], ws[13], ws[14], ws[15],
-                                 ws[18], ws[19], not fresh or prepared)
+            kkt_residuals_kernel(M, L, b, GA, cA, v_out, P_out, k, res, ws.Gv, ws.GtP, ws.rv, ws.d, ws.x,
+                                 ws.X, ws.rd, not fresh or prepared)
             worst = max(res[0], res[1], res[2], res[3])
             if worst <= tol:
                 if worst > acc[A_WORST]:
@@ -129,9 +129,9 @@ def _chain_prepare(ints, pool, cm, sm, gen, GA, k, b, ws, fresh):
     """A chain's contact problem (without friction or bilateral rows; True when prepared)
     with its O(n) solve (:func:`moreau.core.kernels.chain_solve`, from the generators
     ``gen`` of M's factor at q_m, cos/sin ``cm, sm``) instead of the dense factor's: M⁻¹ b
-    into ``ws[1]`` and, when ``fresh``, M⁻¹ G_jᵀ (rows of ``ws[0]``), W = G M⁻¹ Gᵀ
-    (``ws[2]``, k x k, exactly symmetric) for the first k rows of ``GA``, and the KKT
-    check's √(M⁻¹)_jj (``ws[19]``, flagged kept; O(n) against O(n³)). Other scenes: a
+    into ``ws.vfree`` and, when ``fresh``, M⁻¹ G_jᵀ (rows of ``ws.MinvGt``), W = G M⁻¹ Gᵀ
+    (``ws.W``, k x k, exactly symmetric) for the first k rows of ``GA``, and the KKT
+    check's √(M⁻¹)_jj (``ws.rd``, flagged kept; O(n) against O(n³)). Other scenes: a
     fresh pass flags the check's kept √(M⁻¹)_jj stale (``implicit.checked`` keeps them), and
     so do chains under ``CHAIN_STRUCTURED_MIN`` (8) links: the dense solves cost as little there, and the dense floor,
     formed only when a check needs it, less (the 3-link chain's step on a floor was 5-7 %
@@ -139,14 +139,14 @@ def _chain_prepare(ints, pool, cm, sm, gen, GA, k, b, ws, fresh):
     n = ints[SC_N]
     if ints[SC_MASS_KIND] != _k.MASS_CHAIN or ints[SC_MF] > 0 or ints[SC_ME] > 0 or n < _k.CHAIN_STRUCTURED_MIN:
         if fresh:
-            ws[19][n] = 0.0
+            ws.rd[n] = 0.0
         return False
-    _k.chain_solve(pool, ints[SC_MASS_OFF], cm, sm, gen, b, ws[1])
+    _k.chain_solve(pool, ints[SC_MASS_OFF], cm, sm, gen, b, ws.vfree)
     if not fresh:
         return True
-    _k.chain_inverse_diagonal_sqrt(pool, ints[SC_MASS_OFF], cm, sm, gen, ws[19])
-    ws[19][n] = 1.0
-    MinvGt, W, X = ws[0], ws[2], ws[17]
+    _k.chain_inverse_diagonal_sqrt(pool, ints[SC_MASS_OFF], cm, sm, gen, ws.rd)
+    ws.rd[n] = 1.0
+    MinvGt, W, X = ws.MinvGt, ws.W, ws.Xt
     for j in range(k):
         _k.chain_solve(pool, ints[SC_MASS_OFF], cm, sm, gen, GA[j], MinvGt[j])
         for i in range(n):

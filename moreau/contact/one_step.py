@@ -6,23 +6,30 @@ Re-exported by :mod:`moreau.contact.lcp`."""
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
-from numba import njit
 
 from moreau.contact.active_set import OK, _inline, _jit, _solve_active, lcp_dual_active_set, lcp_enumerate
 from moreau.core.kernels import cho_solve, delassus
 
-__all__ = ["solve_one_step", "workspace"]
+__all__ = ["OneStepWork", "solve_one_step", "workspace"]
 
 
-@njit(cache=True, nogil=True)
-def workspace(n, m):
+#: the one-step problem's work arrays (:func:`workspace`): M⁻¹ Gᵀ by rows, M⁻¹ b, the
+#: Delassus matrix W and w = G M⁻¹ b − c; the LCP methods' (s, A, inA, rhs, r, sub, fac:
+#: the active set, its flags and the factor of its W_AA among them); the KKT check's (Gv,
+#: GtP, rv, d, x, its residuals res (4,), X (n, n), and rd (n + 1,): √(M⁻¹)_jj and whether
+#: they are kept); Xt (n, m): M⁻¹ Gᵀ by columns
+OneStepWork = namedtuple("OneStepWork", "MinvGt vfree W w s A inA rhs r sub fac Gv GtP rv d x res Xt X rd")
+
+
+def workspace(n: int, m: int) -> OneStepWork:
     """Work arrays for problems of up to m rows on n coordinates (allocated once per run;
     the LCP methods, the solve and the KKT check work on leading blocks of them, creating
-    no array views)."""
+    no array views). Plain numpy: allocating compiles nothing."""
     mm = max(m, 1)
-    return (np.empty((mm, n)), np.empty(n), np.empty((mm, mm)), np.empty(mm), np.empty(mm),
+    return OneStepWork(np.empty((mm, n)), np.empty(n), np.empty((mm, mm)), np.empty(mm), np.empty(mm),
             np.empty(mm, dtype=np.int64), np.zeros(mm, dtype=np.bool_), np.empty(mm), np.empty(mm),
             np.empty((mm, mm)), np.empty((mm, mm)), np.empty(mm), np.empty(n), np.empty(n),
             np.empty(n), np.empty(n), np.empty(4), np.empty((n, mm)), np.empty((n, n)), np.zeros(n + 1))
@@ -34,17 +41,17 @@ def solve_one_step(M, L, b, G, c, P, v, k, method, tol, ws, fresh=True, vready=F
     (0: dual active set, 1: enumeration); returns its status. ``L`` = chol(M), ``ws``
     from :func:`workspace`. ``fresh=False``: ``ws`` holds W = G M⁻¹ Gᵀ and M⁻¹ Gᵀ of
     this very M and G from the last call (a compiled step's later passes: only b
-    changes), and they are not formed again. ``vready``: ``ws[1]`` holds M⁻¹ b (a
+    changes), and they are not formed again. ``vready``: ``ws.vfree`` holds M⁻¹ b (a
     chain's, from its O(n) solve)."""
     n = M.shape[0]
-    MinvGt = ws[0]  # row j: M⁻¹ G_jᵀ
-    W = ws[2]
+    MinvGt = ws.MinvGt  # row j: M⁻¹ G_jᵀ
+    W = ws.W
     if fresh:
-        delassus(L, G, ws[17], MinvGt, W, k, n)  # W = G M⁻¹ Gᵀ, exactly symmetric
-    vfree = ws[1]
+        delassus(L, G, ws.Xt, MinvGt, W, k, n)  # W = G M⁻¹ Gᵀ, exactly symmetric
+    vfree = ws.vfree
     if not vready:
         cho_solve(L, b, vfree, n)
-    w = ws[3]
+    w = ws.w
     scale = 1e-300
     for i in range(k):
         t = -c[i]
@@ -53,9 +60,9 @@ def solve_one_step(M, L, b, G, c, P, v, k, method, tol, ws, fresh=True, vready=F
         w[i] = t
         scale = max(scale, abs(t), abs(c[i]))
     if method == 0:
-        status = lcp_dual_active_set(W, w, P, k, tol * scale, ws[4], ws[5], ws[6], ws[7], ws[8], ws[9], ws[10])
+        status = lcp_dual_active_set(W, w, P, k, tol * scale, ws.s, ws.A, ws.inA, ws.rhs, ws.r, ws.sub, ws.fac)
     else:
-        status = lcp_enumerate(W, w, P, k, tol * scale, ws[4], ws[5], ws[7], ws[8], ws[9], ws[10])
+        status = lcp_enumerate(W, w, P, k, tol * scale, ws.s, ws.A, ws.rhs, ws.r, ws.sub, ws.fac)
     for i in range(n):
         t = vfree[i]
         for j in range(k):
@@ -80,15 +87,15 @@ def _refine(G, c, P, v, k, W, MinvGt, ws, kept):
     off its bound c by round-off of the large terms; correct P and v by the residual.
     Returns ``(applied, max |G_i v − c_i| before the correction, max (|c_i| + |G_i||v|))``
     over those rows; nothing is applied when the residual is already at the round-off
-    of G v − c (64 ε of that scale). ``kept``: the rows flagged in ``ws[6]`` are listed in
-    ``ws[5]`` with the Cholesky factor of their W_AA in ``ws[10]`` (the dual active-set
+    of G v − c (64 ε of that scale). ``kept``: the rows flagged in ``ws.inA`` are listed in
+    ``ws.A`` with the Cholesky factor of their W_AA in ``ws.fac`` (the dual active-set
     method leaves them so, and so does a refinement); when they are the rows with P > 0,
     that factor is used instead of factoring W_AA again."""
-    A = ws[5]
-    inA = ws[6]
-    res = ws[4]
-    rhs = ws[7]
-    dP = ws[8]
+    A = ws.A
+    inA = ws.inA
+    res = ws.s
+    rhs = ws.rhs
+    dP = ws.r
     na = 0
     worst = 0.0
     scale = 0.0
@@ -115,13 +122,13 @@ def _refine(G, c, P, v, k, W, MinvGt, ws, kept):
         lo = math.inf
         hi = 0.0
         for a in range(na):
-            lo = min(lo, ws[10][a, a])
-            hi = max(hi, ws[10][a, a])
+            lo = min(lo, ws.fac[a, a])
+            hi = max(hi, ws.fac[a, a])
         same = hi <= 1e4 * lo
-    if same:  # A[:na] holds these rows, ws[10] the factor of their W_AA
+    if same:  # A[:na] holds these rows, ws.fac the factor of their W_AA
         for a in range(na):
             rhs[a] = -res[A[a]]
-        cho_solve(ws[10], rhs, dP, na)
+        cho_solve(ws.fac, rhs, dP, na)
     else:
         na = 0
         for i in range(k):
@@ -130,7 +137,7 @@ def _refine(G, c, P, v, k, W, MinvGt, ws, kept):
                 A[na] = i
                 rhs[na] = -res[i]
                 na += 1
-        if not _solve_active(W, A, na, rhs, dP, ws[9], ws[10]):
+        if not _solve_active(W, A, na, rhs, dP, ws.sub, ws.fac):
             for i in range(k):
                 inA[i] = False
             return False, worst, scale
