@@ -81,7 +81,7 @@ def _friction_solve(n, m, M, L, b, G, GA, cA, active, na, v_new, PA, fset, acc, 
         worst = max(worst, res[i])
     if worst > acc[A_WORST]:
         acc[A_WORST] = worst
-    W = fws[2]  # the step's Delassus matrix: normal rows, then tangent rows
+    W = fws.W  # the step's Delassus matrix: normal rows, then tangent rows
     painleve = -1
     f = 0
     j = 0

@@ -58,12 +58,13 @@ from numba import njit
 from moreau.contact import pgs as _pgs
 from moreau.contact.active_set import _inline, _jit
 from moreau.contact.friction_states import enumerate_states
+from moreau.contact.friction_work import FrictionWorkspace, friction_workspace
 from moreau.contact.kkt import kkt_residuals_rows
 from moreau.contact.lemke import FAILED, OK, RAY, lcp_lemke
 from moreau.core.kernels import cho_solve, delassus
 
-__all__ = ["friction_workspace", "solve_friction_step", "friction_residuals_kernel", "friction_one_step",
-           "friction_residuals", "FRICTION_RESIDUALS", "FRICTION_METHODS",
+__all__ = ["FrictionWorkspace", "friction_workspace", "solve_friction_step", "friction_residuals_kernel",
+           "friction_one_step", "friction_residuals", "FRICTION_RESIDUALS", "FRICTION_METHODS",
            "PGS_MIN_CONTACTS"]
 
 #: the pivot tolerances Lemke's method tries in turn (see :func:`solve_friction_step`)
@@ -81,21 +82,6 @@ PGS_MIN_CONTACTS = 32
 
 #: the names of the six residuals of :func:`friction_residuals_kernel`, in order
 FRICTION_RESIDUALS = ("primal", "dual", "complementarity", "stationarity", "cone", "slip")
-
-
-def friction_workspace(n: int, m: int, mf: int) -> tuple:
-    """Work arrays for up to m normal and mf tangential rows on n coordinates (numpy:
-    allocating compiles nothing)."""
-    r = max(m + mf, 1)
-    p = max(m + 3 * mf, 1)
-    return (np.empty((r, n)), np.empty(n), np.empty((r, r)), np.empty(r), np.zeros((p, p)), np.empty(p),
-            np.empty(p), np.empty((p, 2 * p + 2)), np.empty(p, dtype=np.int64), np.empty(p), np.empty((n, r)),
-            np.empty(r), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(6),
-            np.empty(6), np.empty(r), np.empty(n), np.empty((n, n)), np.zeros(n + 1),
-            # [23:]: the relaxation's U, Q, states, signs, rows, A, factor, r, x, tangent rows, impulses
-            np.empty(r), np.empty(r), np.zeros(max(m, 1), dtype=np.int64), np.zeros(r), np.empty(r, dtype=np.int64),
-            np.empty((r, r)), np.empty((r, r)), np.empty(r), np.empty(r), np.empty(max(m, 1), dtype=np.int64),
-            np.empty(r))
 
 
 @_inline
@@ -168,9 +154,9 @@ def solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, tol, res, ws, meth
     """
     n = M.shape[0]
     R = k + kf
-    MinvGt, vfree, W, w, A, qv, z, T, basis, xb = ws[0], ws[1], ws[2], ws[3], ws[4], ws[5], ws[6], ws[7], \
-        ws[8], ws[9]
-    delassus(L, G, ws[10], MinvGt, W, R, n)
+    MinvGt, vfree, W, w, A, qv, z, T, basis, xb = ws.MinvGt, ws.vfree, ws.W, ws.w, ws.A, ws.qv, ws.z, ws.T, \
+        ws.basis, ws.xb
+    delassus(L, G, ws.Xt, MinvGt, W, R, n)
     cho_solve(L, b, vfree, n)
     for i in range(R):
         t = -c[i]  # a tangential row's c: the slip velocity's offset (0 but with bilateral rows)
@@ -179,7 +165,7 @@ def solve_friction_step(M, L, b, G, c, mu, fidx, k, kf, P, v, tol, res, ws, meth
         w[i] = t
     # the attempts of the module docstring, each answer checked against the full law: the
     # first below GOOD is taken, else the best one (the caller's check decides on it)
-    cand, rb, Pb, vb = ws[17], ws[18], ws[19], ws[20]
+    cand, rb, Pb, vb = ws.cand, ws.rb, ws.Pb, ws.vb
     best = math.inf
     if method == FRICTION_PGS or (method == FRICTION_AUTO and k >= PGS_MIN_CONTACTS):
         best = _relaxed(M, L, b, G, c, mu, fidx, k, kf, P, v, vfree, MinvGt, W, w, cand, rb, Pb, vb, ws, best)
@@ -221,7 +207,8 @@ def _relaxed(M, L, b, G, c, mu, fidx, k, kf, P, v, vfree, MinvGt, W, w, cand, rb
     polished answer is checked against ``best`` so far (:func:`_keep_best`), the first
     passing ``GOOD`` ends it. Returns the best worst residual (answer in Pb, vb, rb)."""
     R = k + kf
-    U, Q, st, sgn, rows, A, Lr, r, x, tf, Pp = ws[23:34]  # the relaxation's (friction_workspace)
+    U, Q, st, sgn, rows, A, Lr, r, x, tf, Pp = (ws.U, ws.Q, ws.states, ws.signs, ws.rows, ws.AA, ws.Lr, ws.rr, ws.xr,
+                                                ws.tf, ws.Pp)  # the relaxation's
     for j in range(k):
         tf[j] = -1
     for f in range(kf):
@@ -286,8 +273,8 @@ def friction_residuals_kernel(M, L, b, G, c, mu, fidx, v, P, k, kf, out, ws):
     turns an impulse into the velocity it makes; ``vel`` the velocity scale of the KKT
     check). All dimensionless; ``ws`` from :func:`friction_workspace`."""
     R = k + kf
-    Gv = ws[11]
-    vel = kkt_residuals_rows(M, L, b, G, c, v, P, R, k, out, Gv, ws[12], ws[13], ws[14], ws[15], ws[21], ws[22],
+    Gv = ws.Gv
+    vel = kkt_residuals_rows(M, L, b, G, c, v, P, R, k, out, Gv, ws.GtP, ws.rv, ws.d, ws.x, ws.X, ws.rd,
                              False)
     cone = 0.0
     slip = 0.0
