@@ -44,7 +44,7 @@ def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fai
     :mod:`moreau.contact.equality`; ``eqw`` their work arrays, None without them), as
     ``EqualityRows.project_contacts`` does: the contacts are projected along the
     constraints, and the hold after it restores them to second order."""
-    m = model[0][SC_M]
+    m = model.ints[SC_M]
     dtol = fset[F_DRIFT_TOL]
     combined = iset[S_DRIFT] == DRIFT_COMBINED
     sel = lw.sel
@@ -70,7 +70,7 @@ def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc
     """The projection itself, when a selected row penetrates beyond the tolerance: a call
     from the loop, not inlined into it (it runs in few steps; compiled once, apart, it
     keeps its contact solve and model evaluations out of the loop's own compile)."""
-    ints, _, _, bkind, boff, brow, bnrows, pool, _, _ = model
+    ints, bkind, boff, brow, bnrows, pool = model.ints, model.bkind, model.boff, model.brow, model.bnrows, model.pool
     n, m = ints[SC_N], ints[SC_M]
     sel = lw.sel
     G = lw.G

@@ -30,9 +30,9 @@ from moreau.core import kernels as _k
 def _kinetic_energy(model, user, q, v, cq, sq, M, cnt):
     """``(status, T)``: T = ½ vᵀ M(q) v with M(q) evaluated into ``M``; status DONE, or
     USER_FAILED when a user mass matrix failed."""
-    ints = model[0]
+    ints = model.ints
     n = ints[SC_N]
-    if _user_failed(ev.mass(ints, model[7], user, q, cq, sq, M), cnt):
+    if _user_failed(ev.mass(ints, model.pool, user, q, cq, sq, M), cnt):
         return USER_FAILED, 0.0
     ke = 0.0
     for i in range(n):
@@ -54,8 +54,8 @@ def _energy_check(model, user, iset, fset, k, q, v, cq, sq, M, cnt, acc, q_warn,
     into ``M[0]``: no reader expects M(q) in ``M`` after the step, a chain's M being formed
     where a step needs it), for chains of ``CHAIN_STRUCTURED_MIN`` (8) links or more (the 3-link chain's and the
     piston's steps were 13-15 % slower with it, measured interleaved)."""
-    if model[0][SC_MASS_KIND] == _k.MASS_CHAIN and model[0][SC_N] >= _k.CHAIN_STRUCTURED_MIN:
-        status, ke = DONE, ev.chain_kinetic(model[0], model[7], cq, sq, v, M[0])
+    if model.ints[SC_MASS_KIND] == _k.MASS_CHAIN and model.ints[SC_N] >= _k.CHAIN_STRUCTURED_MIN:
+        status, ke = DONE, ev.chain_kinetic(model.ints, model.pool, cq, sq, v, M[0])
     else:
         status, ke = _kinetic_energy(model, user, q, v, cq, sq, M, cnt)
     if status != DONE:

@@ -61,7 +61,7 @@ def _energy_start(model, user, q, v, cm, sm, M, Ms, c2, s2, mv, cnt):
     """:func:`energy_start`'s evaluation (a call, out of the loop's own code); the chain's
     from two O(n) products M v in one sweep (:func:`moreau.core.kernels.chain_product_pair`), not from M,
     M_m v_k kept in ``mv`` (n,)."""
-    ints, pool = model[0], model[7]
+    ints, pool = model.ints, model.pool
     n = ints[SC_N]
     if ints[SC_TRIG]:
         _k.trig(q, c2, s2)
@@ -93,7 +93,7 @@ def energy_correction(model, user, h, q, v, v_new, s0, cm, sm, M, Ms, c2, s2, qp
     chain's products are its O(n) ones, both in one sweep (:func:`moreau.core.kernels.chain_product_pair`), without
     M(q_k + Δq), and M_m Δq = h/2 (M_m v_k + M_m v⁺) with M_m v_k from the step's start
     (``mv``). Returns DONE or USER_FAILED."""
-    ints, pool = model[0], model[7]
+    ints, pool = model.ints, model.pool
     n = ints[SC_N]
     for i in range(n):
         dq[i] = 0.5 * h * (v[i] + v_new[i])
@@ -177,12 +177,12 @@ def pass_forces(model, user, npass, correct, t, h, q, v, qm, cm, sm, v_new, s0, 
     (v_k + x)/2) at the iterate x (``ec.x``; the first is the first pass's answer
     ``v_new``), plus the inertial correction when ``correct``; the part that does not
     depend on v is the first pass's (``ec.fq``). Returns DONE or USER_FAILED."""
-    ints, ekind, eoff = model[0], model[1], model[2]
+    ints, ekind, eoff = model.ints, model.ekind, model.eoff
     Ms, c2, s2, qp, dq, x = ec.Ms, ec.c2, ec.s2, ec.qp, ec.dq, ec.x
     iterate_from(ints[SC_N], npass, v, v_new, x, vbar)
     # the forces that do not depend on v are the first pass's (``ec.fq``, same t and q_m)
-    if _user_failed(ev.velocity_forces(ints, ekind, eoff, model[7], user, t + 0.5 * h, qm, cm, sm, vbar, ec.fq, f, fb),
-                    cnt):
+    if _user_failed(ev.velocity_forces(ints, ekind, eoff, model.pool, user, t + 0.5 * h, qm, cm, sm, vbar, ec.fq, f,
+                                       fb), cnt):
         return USER_FAILED
     if correct:
         return energy_correction(model, user, h, q, v, x, s0, cm, sm, M, Ms, c2, s2, qp, dq, ec.mv, f, fb, cnt)

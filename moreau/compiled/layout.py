@@ -129,3 +129,7 @@ LoopWork = namedtuple("LoopWork", "GA cA rhs b PA G dq zero sel gen q_warn v_war
 #: Δq, the iterate x, the last answer and residual (Anderson mixing), a chain's M_m v_k, and
 #: the forces that do not depend on v
 PassWork = namedtuple("PassWork", "Ms c2 s2 qp dq x ylast rlast mv fq")
+#: the lowered scene's arrays (compiled.lowering.CompiledScene.arrays): the int settings, the
+#: effects' kinds and offsets, the barriers' kinds, offsets, first rows and row counts, the
+#: parameter pool, each row's restitution and activation tolerance
+ModelArrays = namedtuple("ModelArrays", "ints ekind eoff bkind boff brow bnrows pool e atol")

@@ -132,7 +132,8 @@ def _midpoint_model(model, user, t, h, const_mass, q, v, qm, cm, sm, M, L, gen, 
     formed by the velocity update when a row closes), f(t + h/2, q_m, v) (a step with
     later passes, ``ec`` not None: its part that does not depend on v also into ``ec.fq``) and
     the gaps g(q_m); returns DONE or why not."""
-    ints, ekind, eoff, bkind, boff, brow, bnrows, pool, _, _ = model
+    ints, ekind, eoff, bkind, boff, brow, bnrows, pool = (model.ints, model.ekind, model.eoff, model.bkind,
+                                                          model.boff, model.brow, model.bnrows, model.pool)
     n, m = ints[SC_N], ints[SC_M]
     for i in range(n):
         qm[i] = q[i] + 0.5 * h * v[i]
@@ -194,7 +195,7 @@ def _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc
               in_contact, pen, gmax, eqw):
     """The gaps at q⁺, drift control, the deepest penetration and each row's largest gap
     since its last contact; returns DONE or why not."""
-    ints, _, _, bkind, boff, brow, bnrows, pool, _, _ = model
+    ints, bkind, boff, brow, bnrows, pool = model.ints, model.bkind, model.boff, model.brow, model.bnrows, model.pool
     m = ints[SC_M]
     if _user_failed(ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, q_new, cq, sq, gq), cnt):
         return USER_FAILED
@@ -204,7 +205,7 @@ def _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc
                         fail, eligible, ws, lw, rs, in_contact, eqw):
             return cnt[C_FAILKIND]
         if eqw is not None and ints[SC_ME] > 0 and cnt[C_PROJ] > nproj:  # moved along the bilateral rows: restore
-            status = _eq_hold(ints, bkind, boff, brow, bnrows, pool, model[9], user, q_new, cq, sq, gq, lw.G, L,
+            status = _eq_hold(ints, bkind, boff, brow, bnrows, pool, model.atol, user, q_new, cq, sq, gq, lw.G, L,
                               eqw.Q, eqw.R, eqw.piv, eqw.x, eqw.y, eqw.F, eqw.yv, eqw.cE, eqw.rank, cnt, acc)
             if status != DONE:
                 return status
@@ -225,7 +226,7 @@ def _record(model, user, iset, fset, k, q, v, cq, sq, M, P_acc, act_acc, gq, T, 
             fr, PTS, eqw):
     """Record the state after step k (and the impulses and activity summed since the last
     record, the gaps and, when asked, the energies); returns DONE or USER_FAILED."""
-    ints, ekind, eoff, _, _, _, _, pool, _, _ = model
+    ints, ekind, eoff, pool = model.ints, model.ekind, model.eoff, model.pool
     n, m = ints[SC_N], ints[SC_M]
     rec = cnt[C_REC]
     T[rec] = fset[F_T0] + k * fset[F_H]
@@ -293,7 +294,7 @@ def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact,
     """The steps of :func:`run_chunk`, on the fields of its named tuples; ``fr``, ``eqw``,
     ``ec``: friction's, the bilateral rows' and the later passes' arrays, or None (their
     code pruned at compile time: one compiled variant per feature set)."""
-    ints, ekind, eoff, _, _, _, _, pool, _, _ = model
+    ints, pool = model.ints, model.pool
     n, m = ints[SC_N], ints[SC_M]
     h, t0 = fset[F_H], fset[F_T0]
     stride, nsteps = iset[S_STRIDE], iset[S_NSTEPS]
@@ -365,8 +366,9 @@ def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact,
         if ints[SC_TRIG] and (m > 0 or me > 0 or iset[S_ENERGY] == 1 or echeck):
             _k.trig(q_new, cq, sq)
         if eqw is not None and me > 0:  # positions held on the bilateral rows (before the contacts' drift control)
-            status = _eq_hold(ints, model[3], model[4], model[5], model[6], pool, model[9], user, q_new, cq, sq, gq, G,
-                              L, eqw.Q, eqw.R, eqw.piv, eqw.x, eqw.y, eqw.F, eqw.yv, eqw.cE, eqw.rank, cnt, acc)
+            status = _eq_hold(ints, model.bkind, model.boff, model.brow, model.bnrows, pool, model.atol, user, q_new,
+                              cq, sq, gq, G, L, eqw.Q, eqw.R, eqw.piv, eqw.x, eqw.y, eqw.F, eqw.yv, eqw.cE, eqw.rank,
+                              cnt, acc)
             if status != DONE:
                 return status
         if m > 0:
@@ -375,9 +377,9 @@ def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact,
             if status != DONE:
                 return status
         if eqw is not None and me > 0:  # v onto the bilateral rows at q⁺ (work['constraint_projection'])
-            w = _eq_project_velocity(ints, model[3], model[4], model[5], model[6], pool, user, q_new, cq, sq, v_new, G,
-                                     M, L, eqw.Q, eqw.R, eqw.piv, eqw.x, eqw.y, eqw.yv, eqw.F, eqw.cE, eqw.S,
-                                     code == 1, P, fr, cnt)
+            w = _eq_project_velocity(ints, model.bkind, model.boff, model.brow, model.bnrows, pool, user, q_new, cq,
+                                     sq, v_new, G, M, L, eqw.Q, eqw.R, eqw.piv, eqw.x, eqw.y, eqw.yv, eqw.F, eqw.cE,
+                                     eqw.S, code == 1, P, fr, cnt)
             if w != w:
                 return cnt[C_FAILKIND]
             acc[A_WORK_EV] += w

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from moreau.compiled.layout import ModelArrays
 from moreau.compiled.usercalls import UserKernels, user_kernels
 from moreau.core import kernels as _k
 from moreau.model.scene import Scene
@@ -87,9 +88,9 @@ class CompiledScene:
     user_callables: dict = field(default_factory=dict)
     python_potentials: bool = False
 
-    def arrays(self) -> tuple:
-        return (self.ints, self.ekind, self.eoff, self.bkind, self.boff, self.brow, self.bnrows,
-                self.pool, self.restitution, self.activation_tol)
+    def arrays(self) -> ModelArrays:
+        return ModelArrays(self.ints, self.ekind, self.eoff, self.bkind, self.boff, self.brow, self.bnrows,
+                           self.pool, self.restitution, self.activation_tol)
 
 
 class _Pool:

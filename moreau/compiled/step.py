@@ -193,7 +193,7 @@ def _closed_model(model, user, qm, cm, sm, M, L, gen, G, cnt, locate, again):
     passes close the same rows): a chain's M and factor (from the generators ``gen``)
     and G(q_m) (again in every pass with bilateral rows or friction, whose solves work on
     G's rows; with ``locate`` it is already there). False when a user callable failed."""
-    ints, _, _, bkind, boff, brow, bnrows, pool, _, _ = model
+    ints, bkind, boff, brow, bnrows, pool = model.ints, model.bkind, model.boff, model.brow, model.bnrows, model.pool
     if ints[SC_MASS_KIND] == _k.MASS_CHAIN and not again:
         ev.chain_dense(ints, pool, cm, sm, gen, M, L)
     if locate or (again and ints[SC_ME] == 0 and ints[SC_MF] == 0):
@@ -218,10 +218,10 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     ``rs`` (m, 6, columns ``R_GAP`` ... ``R_SHIFT``) holds per row the gap at q_k, the gap
     the projection left, the pinned and bounced flags, a bounced row's h/2 − s and (2 s − h) a_n.
     ``fr``, ``eqw``: the friction and bilateral work arrays (``layout.FrictionWork``,
-    ``EqualityWork``), None in a scene without them (their code is then not compiled); with
-    bilateral rows every step solves the reduced problem in their null space.
-    ``check=False``: its answer unchecked, the problem left in ``lw`` (``implicit.checked``)."""
-    ints, _, _, bkind, boff, brow, bnrows, pool, e, atol = model
+    ``EqualityWork``), None in a scene without them (not compiled then; with bilateral rows
+    every step solves in their null space). ``check=False``: unchecked (``implicit.checked``)."""
+    ints, bkind, boff, brow, bnrows, pool, e, atol = (model.ints, model.bkind, model.boff, model.brow, model.bnrows,
+                                                      model.pool, model.e, model.atol)
     n, m = ints[SC_N], ints[SC_M]
     h = fset[F_H]
     combined = iset[S_DRIFT] == DRIFT_COMBINED
