@@ -116,7 +116,7 @@ def variant(ints: np.ndarray, step: int, iterations: int = 1) -> bool:
     update, ``moreau.compiled.implicit.velocity_passes``), or the one compiled
     without them (the plain midpoint step).
 
-    Two variants, not one per feature set: each compiles the loop function anew (30-45 s
+    Two variants, not one per feature set: each compiles the loop function anew (27-46 s
     here, benchmarks/compile_cost.py), and the test suite, which runs every feature,
     would compile up to eight."""
     iset = np.zeros(N_SETTINGS, dtype=np.int64)
@@ -303,7 +303,7 @@ def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact,
     if ec is not None:
         passes, iterate, correct = velocity_passes(iset, ints)
     own, ws, lw = work
-    me = ints[SC_ME]
+    me, friction = ints[SC_ME], ints[SC_MF] > 0
     M, L, cm, sm, cq, sq, qm, f, v_new, vbar, q_new, gm, gq, P, active, G, vfree, fb = own
     bias_work = iset[S_ECHECK] > 0 and ints[SC_HAS_BIAS] != 0
     if const_mass:
@@ -328,7 +328,7 @@ def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact,
                 return status
         # one call site of the velocity update, so the contact solve is compiled (inlined) once;
         # its later passes see the forces at (v_k + x)/2 for an iterate x (implicit.pass_forces)
-        code, mixed, defer = 0, False, iterate and ints[SC_MF] == 0 and me == 0  # (implicit.end_of_pass)
+        code, mixed, defer = 0, False, iterate and not friction and me == 0  # (implicit.end_of_pass)
         for npass in range(passes):
             if ec is not None and npass >= 1:
                 status = pass_forces(model, user, npass, correct, t, h, q, v, qm, cm, sm, v_new, s0, M, ec, vbar,
@@ -358,7 +358,7 @@ def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact,
                 wb += fb[i] * (v[i] + v_new[i])
             acc[A_WORK_B] += 0.5 * h * wb
         _contact_records(n, m, t, k, h, code == 1, v, v_new, f, L, P, active, G, vfree, P_acc, act_acc,
-                         in_contact, last_imp, gmax, fgap, rs, IMP, cnt, acc, ints[SC_MF] > 0, fr, me, eqw)
+                         in_contact, last_imp, gmax, fgap, rs, IMP, cnt, acc, friction, fr, me, eqw)
         if not _end_position(n, m, h, code == 1, iset, qm, v_new, L, P, G, rs, vbar, vfree, q_new):
             return NONFINITE
         # the energy check: every S_ECHECK steps, and after a step with a logged impact

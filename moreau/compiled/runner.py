@@ -110,8 +110,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     pen = np.zeros((2, m))  # per row: the deepest penetration, the count of steps at its end
     cnt = np.zeros(lay.N_COUNTERS, dtype=np.int64)
     cnt[lay.C_REC] = 1
-    acc = np.zeros(lay.N_ACCUMULATORS)
-    fail = np.zeros((2, 6))
+    acc, fail = np.zeros(lay.N_ACCUMULATORS), np.zeros((2, 6))
     model, user = cs.arrays(), cs.user.addresses
     mf = int(cs.ints[lay.SC_MF])
     full = lp.variant(cs.ints, step, iteration[0]) if full is None else full
@@ -172,8 +171,9 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
         try:
             traj, error = _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE, IMP,
                                     q, v, P_acc, act_acc, pen, cnt, acc, fail, cs, t0, h, stride, solver,
-                                    fallback, energy, wall, PTS if mf else None, fr and fr.PT_acc, tol,
-                                    eqw and eqw.PE_acc, int(iset[lay.S_ITER]), work[0].active, work[2].sel,
+                                    fallback, energy, wall, PTS if mf else None, None if fr is None else fr.PT_acc,
+                                    tol, None if eqw is None else eqw.PE_acc, int(iset[lay.S_ITER]), work[0].active,
+                                    work[2].sel,
                                     tuple(c.error if c else "" for c in called))
             break
         except KeyboardInterrupt as exc:

@@ -266,8 +266,8 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     b = lw.b
     _momentum(ints, pool, h, M, cm, sm, v, f, b)
     if eqw is not None and me > 0 and na == 0:  # no contact row: the bilateral rows alone
-        return _eq_alone(n, m, m + ints[SC_MF], ints[SC_ME], M, L, b, v, GA_all, P, v_new, eqw.Q, eqw.R, eqw.piv,
-                         eqw.x, eqw.y, eqw.by, eqw.PE, eqw.F, eqw.yv, eqw.cE, eqw.rank, cnt)
+        return _eq_alone(n, m, m + mf, me, M, L, b, v, GA_all, P, v_new, eqw.Q, eqw.R, eqw.piv, eqw.x, eqw.y,
+                         eqw.by, eqw.PE, eqw.F, eqw.yv, eqw.cE, eqw.rank, cnt)
     GA = lw.GA
     cA = lw.cA
     j = 0
@@ -298,8 +298,8 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     Ms, Ls, bs = M, L, b
     rank = -1
     if eqw is not None and me > 0:  # bilateral rows: the contact rows solved in their null space (M = I there)
-        rank = _eq_prepare(n, m + ints[SC_MF], ints[SC_ME], L, GA_all, v, b, eqw.Q, eqw.R, eqw.piv, eqw.x, eqw.y,
-                           eqw.by, eqw.cE, eqw.rank, cnt)
+        rank = _eq_prepare(n, m + mf, me, L, GA_all, v, b, eqw.Q, eqw.R, eqw.piv, eqw.x, eqw.y, eqw.by, eqw.cE,
+                           eqw.rank, cnt)
         if rank < 0:
             return -1
         _eq_reduce(L, eqw.Q, eqw.y, eqw.x, rank, GA, 0, na, cA)
@@ -319,6 +319,6 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
             P[r] = PA[j]
             j += 1
     if eqw is not None and me > 0:
-        _eq_finish(n, m, ints[SC_ME], rank, M, L, b, GA_all, P, v_new, eqw.Q, eqw.R, eqw.piv, eqw.x, eqw.PE, eqw.F,
-                   eqw.yv, solved == 1, fr)
+        _eq_finish(n, m, me, rank, M, L, b, GA_all, P, v_new, eqw.Q, eqw.R, eqw.piv, eqw.x, eqw.PE, eqw.F, eqw.yv,
+                   solved == 1, fr)
     return 1
