@@ -55,6 +55,7 @@ from .model.system import FunctionSystem, MechanicalSystem
 from .results import diagnostics
 from .results.trajectory import ImpactLog, SolverStats, Trajectory, load
 from .run.simulation import ensure_compiled, simulate
+from .step.control import StepControl
 from .step.drift import CombinedProjection, PositionProjection
 from .step.integrator import (
     MoreauJeanEnergyConsistent,
@@ -70,7 +71,7 @@ __all__ = [
     "SimulationError", "SolverError",
     "ConstantForce", "Effect", "FourierLoad", "FunctionForce", "HarmonicForce", "LinearDamping", "LinearSpring",
     "MoreauJeanMidpoint", "MoreauJeanPredictorCorrector", "MoreauJeanEnergyConsistent", "OneStepIntegrator",
-    "PositionProjection", "CombinedProjection",
+    "PositionProjection", "CombinedProjection", "StepControl",
     "NewtonImpact",
     "NewtonImpactFriction",
     "OneStepProblem", "Residuals",

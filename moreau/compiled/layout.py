@@ -19,6 +19,8 @@ CONSTRAINTS_INCONSISTENT, CONSTRAINTS_NOT_HELD = 8, 9
 NOT_CONVERGED = 10
 # (drift control's position projection: its contact solve failed, main and fallback)
 PROJECTION_FAILED = 11
+# (step-size control: the record buffers are full; the runner grows them and calls again)
+RECORDS_FULL = 12
 # settings (int array)
 S_STEP, S_DRIFT, S_DRIFT_ITER, S_STRIDE, S_NSTEPS, S_METHOD, S_FALLBACK, S_ENERGY, S_MEMORY, S_LOCATE = range(10)
 # (S_ECHECK: the energy check's interval in steps, 0 = off; see moreau.run.energy)
@@ -28,7 +30,10 @@ S_ITER = 11
 # (S_EXTERNAL, S_EXTERNAL + 1: the addresses of the main and the fallback solver where their
 # method is METHOD_EXTERNAL, a solver called back in Python: compiled.callbacks.SolverCallback)
 S_EXTERNAL = 12
-N_SETTINGS = 14
+# (S_RECORD: with step-size control, record every this many accepted steps; the steps'
+# own S_STRIDE and S_NSTEPS then never record)
+S_RECORD = 14
+N_SETTINGS = 15
 # the LCP methods (S_METHOD, S_FALLBACK): dual active set, enumeration, called back; -1 none
 METHOD_EXACT, METHOD_ENUM, METHOD_EXTERNAL = 0, 1, 2
 # the step (S_STEP): midpoint, predictor-corrector, energy-consistent
@@ -60,7 +65,10 @@ C_UPDATES = 15
 # (C_EOK: the step of the last energy check that passed, below both bounds: a run the check
 # stops is kept up to it)
 C_EOK = 16
-N_COUNTERS = 17
+# (step-size control, moreau.compiled.adaptive: steps accepted, attempts rejected, steps
+# accepted at the smallest step above the tolerance)
+C_ACCEPTED, C_REJECTED, C_FORCED = 17, 18, 19
+N_COUNTERS = 20
 # accumulators (float array)
 # (the energy check: kinetic energy at the start, the largest so far, the unaccounted energy
 # at the warning and at the last check, the work of the bias terms)
@@ -74,6 +82,11 @@ A_WORK_E, A_EQRES, A_WORK_EV = 9, 10, 11
 # warning quotes)
 A_KEMAX_WARN = 12
 N_ACCUMULATORS = 13
+# step-size control's state (float array): the step to try next, the time reached, the end
+# time, the tolerances (absolute, relative), the largest and smallest step, the start of the
+# step of the last energy check that passed
+K_H, K_T, K_END, K_ATOL, K_RTOL, K_HMAX, K_HMIN, K_TOK = range(8)
+N_CONTROL = 8
 
 # The step's parts are inlined into the loop by numba (IR level), as are the evaluation
 # functions (moreau.compiled.evaluate); the kernels and LCP routines they call are inlined by LLVM
@@ -129,6 +142,12 @@ LoopWork = namedtuple("LoopWork", "GA cA rhs b PA G dq zero sel gen q_warn v_war
 #: Δq, the iterate x, the last answer and residual (Anderson mixing), a chain's M_m v_k, and
 #: the forces that do not depend on v
 PassWork = namedtuple("PassWork", "Ms c2 s2 qp dq x ylast rlast mv fq")
+#: step-size control's snapshot of a step's start (restored when an attempt is rejected: the
+#: run state, counters, accumulators and friction's and the bilateral rows' sums since the last
+#: record), the coarse step's end (q, v, gaps), the closed rows of the coarse and the first fine
+#: step, and each row's time of its deepest penetration
+Snapshot = namedtuple("Snapshot", "q v in_contact P_acc act_acc last_imp gmax rs pen cnt acc PT_acc PE_acc "
+                      "qc vc gc closed_c closed_f pen_t")
 #: the lowered scene's arrays (compiled.lowering.CompiledScene.arrays): the int settings, the
 #: effects' kinds and offsets, the barriers' kinds, offsets, first rows and row counts, the
 #: parameter pool, each row's restitution and activation tolerance

@@ -154,6 +154,12 @@ class SolverStats:
         Velocity updates computed: one per step with the midpoint step, two with the
         predictor–corrector (velocity-dependent forces), and with the energy-consistent step
         one plus its iterates (``velocity_updates / steps`` is its cost factor).
+    rejected : int
+        Steps step-size control took again with a smaller step (three velocity updates an
+        attempt: one step of H, two of H/2; see :class:`moreau.StepControl`).
+    forced : int
+        Steps step-size control accepted at its smallest step with the local error above
+        its tolerance (a warning says so).
     """
 
     solver: str = ""
@@ -167,6 +173,8 @@ class SolverStats:
     wall_time: float = 0.0
     backend: str = "python"
     velocity_updates: int = 0
+    rejected: int = 0
+    forced: int = 0
 
     @property
     def us_per_step(self) -> float:

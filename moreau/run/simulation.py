@@ -26,6 +26,7 @@ from moreau.run.flights import flight_gaps, initial_flight
 from moreau.run.progress import progress_bar
 from moreau.run.trust import check_jacobians, constraint_rank, penetration_warnings, redundancy_warnings
 from moreau.step.checks import check_initial_state
+from moreau.step.control import StepControl
 from moreau.step.integrator import (
     MoreauJeanEnergyConsistent,
     MoreauJeanMidpoint,
@@ -63,8 +64,10 @@ def simulate(
     flight_gap: ArrayLike = 0.0,
     initial_penetration: float = 1e-12,
     energy_growth: tuple[float, float] | None = DEFAULT_ENERGY_GROWTH,
+    step_control: StepControl | None = None,
 ) -> Trajectory:
-    """Integrate a scene with a fixed step from ``t_span[0]`` to ``t_span[1]``.
+    """Integrate a scene from ``t_span[0]`` to ``t_span[1]``, with a fixed step or, with
+    ``step_control``, a step that adapts to a local error tolerance.
 
     Parameters
     ----------
@@ -72,13 +75,13 @@ def simulate(
         System, effects and contacts.
     t_span : (float, float)
         Start and end time; ``t1 > t0``. The run takes ``N = ceil((t1 - t0)/h)`` steps
-        (to within 1e-9 h) and ends at ``t0 + N h``.
+        (to within 1e-9 h) and ends at ``t0 + N h``; with ``step_control`` it ends at t1.
     q0, v0 : array_like, shape (n,)
         Initial coordinates and velocities. A state that penetrates a barrier is
         refused (``ValueError``); an approaching velocity on a closed contact is
         resolved by the first step's impact.
     h : float
-        Step size (> 0).
+        Step size (> 0); with ``step_control`` the largest step.
     backend : {"auto", "compiled"}
         Kept for existing code: every scene runs in the compiled loop
         (:mod:`moreau.compiled.loop`); ``"python"`` is deprecated (``DeprecationWarning``)
@@ -97,7 +100,8 @@ def simulate(
     integrator : OneStepIntegrator subclass
         The time-stepper (default :class:`MoreauJeanMidpoint`).
     record_every : int
-        Record every k-th step (and the last). Impulses are summed and activity is
+        Record every k-th step (and the last); with ``step_control`` every k-th accepted
+        step, so that ``traj.t`` is not uniform. Impulses are summed and activity is
         or-ed over the steps between records; impacts are logged at every step.
     progress : bool or dict or None
         Show a tqdm progress bar. None: only for long runs on a terminal. A dict shows
@@ -120,17 +124,17 @@ def simulate(
         distance its impacts travel in one step. A run beyond it warns
         (``RuntimeWarning``) and says so in ``traj.warnings``.
     flight_gap : float or array_like, shape (m,)
-        The flight gap of each row (gap units, >= 0; default 0): a contact onset is an
-        *impact* (``traj.impacts``) when, since the row last carried an impulse, its gap
-        exceeded this at the end of some step. Set it to a small fraction of the
-        problem's length scale to count only bounces that lift the contact visibly (the
-        bundled piston uses 2 % of the clearance); with 0 every bounce the step
-        resolves counts. See :class:`moreau.ImpactLog`.
+        Per row (gap units, >= 0; default 0): a contact onset is an *impact*
+        (``traj.impacts``, :class:`moreau.ImpactLog`) when the row's gap exceeded this at
+        the end of a step since its last impulse (the piston: 2 % of the clearance).
     energy_growth : (float, float) or None
         The energy check (:mod:`moreau.model.stability`): energy unaccounted for by the
         work of the applied forces above ``warn`` (default 0.05) times the largest kinetic
         energy so far warns once; above ``stop`` (0.1) the run stops (``SimulationError``
         naming a stable step). None: no check.
+    step_control : StepControl, optional
+        Adapt the step to a local error tolerance (:class:`StepControl`); ``tol`` above
+        stays the contact solve's residual.
 
     Returns
     -------
@@ -151,11 +155,10 @@ def simulate(
         ``exc.trajectory`` holds the run up to the last good step.
     KeyboardInterrupt
         Re-raised after Ctrl-C with the part computed so far as ``exc.trajectory``
-        (``status == "interrupted"``): nothing computed is lost, and a script that
-        loops over runs stops.
+        (``status == "interrupted"``): nothing computed is lost.
     """
     plan = _plan(scene, t_span, h, tol, record_every, integrator, backend, solver, fallback, drift_control,
-                 check_jacobian, penetration_limit, flight_gap, initial_penetration, energy_growth)
+                 check_jacobian, penetration_limit, flight_gap, initial_penetration, energy_growth, step_control)
     redundant = redundancy_warnings(scene, q0)
     traj = _run(scene, plan, q0, v0, integrator, drift_control, check_jacobian, progress, energy)
     traj.warnings = redundant + traj.warnings + penetration_warnings(scene, traj, plan.h, plan.penetration_limit)
@@ -181,13 +184,15 @@ class _Plan:
     energy_growth: tuple[float, float] | None
     #: (max_iterations, iteration_tol) of an iterating step, checked
     iteration: tuple[int, float] = (1, 0.0)
+    #: step-size control's (t_end, atol, rtol, h_min), or None for fixed steps
+    control: tuple[float, float, float, float] | None = None
 
 
 def _plan(scene: Scene, t_span: tuple[float, float], h: float, tol: float, record_every: int,
           integrator: type[OneStepIntegrator], backend: str, solver: str | ContactSolver | None,
           fallback: str | ContactSolver | None, drift_control: DriftControl | None, check_jacobian: bool,
           penetration_limit: float | None, flight_gap: ArrayLike, initial_penetration: float,
-          energy_growth: Any) -> _Plan:
+          energy_growth: Any, step_control: StepControl | None = None) -> _Plan:
     """Validate every argument once (``ValueError`` naming the bad one) and choose the path."""
     if not isinstance(scene, Scene):
         raise ValueError(f"scene must be a Scene, got {scene!r}")
@@ -202,9 +207,14 @@ def _plan(scene: Scene, t_span: tuple[float, float], h: float, tol: float, recor
         raise ValueError(f"check_jacobian must be True or False, got {check_jacobian!r}")
     fg = flight_gaps(flight_gap, scene.nrows)
     initial_penetration = as_positive(initial_penetration, "initial_penetration", allow_zero=True)
+    control = None
+    if step_control is not None:
+        if not isinstance(step_control, StepControl):
+            raise ValueError(f"step_control must be a StepControl or None, got {step_control!r}")
+        control = (as_time_span(t_span)[1], step_control.tol, step_control.rtol, step_control.smallest(h))
     cs, solver, fallback = choose_backend(backend, scene, integrator, solver, fallback, drift_control)
     return _Plan(t0, h, tol, n_steps, stride, n_rec, cs, solver, fallback, fg, penetration_limit,
-                 initial_penetration, as_energy_growth(energy_growth), iteration)
+                 initial_penetration, as_energy_growth(energy_growth), iteration, control)
 
 
 def ensure_compiled(*scenes: Scene, integrator: type[OneStepIntegrator] = MoreauJeanMidpoint) -> float:
@@ -265,7 +275,8 @@ def _run(scene: Scene, plan: _Plan, q0: ArrayLike, v0: ArrayLike, integrator: ty
                             solver=plan.solver,
                             fallback=plan.fallback, stride=plan.stride, bar=bar, energy=energy, tol=plan.tol,
                             drift_control=drift_control, flight_gap=plan.flight_gap,
-                            gmax0=initial_flight(scene, q, v), energy_growth=plan.energy_growth)
+                            gmax0=initial_flight(scene, q, v), energy_growth=plan.energy_growth,
+                            control=plan.control)
     except KeyboardInterrupt as exc:  # before the loop took over: the initial state is the run
         if getattr(exc, "trajectory", None) is None:
             attach_trajectory(exc, initial_state_only(scene, t0, q, v, plan.h, plan.stride, plan.solver,

@@ -1,0 +1,163 @@
+"""What step-size control (``mo.StepControl``) costs against fixed steps, at the same error.
+
+Prints, in one run (wall times: the best of up to three runs below 0.5 s; compare within
+one table, absolute times on a shared 2-core machine are noisy):
+
+1. the bouncing ball (e = 0.8, from 1 m, 4.5 s): the largest error of the first 6 impact
+   times against the analytic ones (``BallSolution``), fixed h against ``StepControl(tol)``
+   (h = 1e-2 the largest step), and each run's time over that of fixed h = 1e-6;
+2. the damped pendulum without a wall (damping 0.5, 2 s): the final state's error against
+   DOP853 at rtol = atol = 1e-13, per tol; and the extrapolated step at fixed H (every
+   step accepted, ``StepControl(1e6)``), with its observed order;
+3. the woodpecker (Glocker's state, 0.45 s): the error of the three returns' times, ydot
+   and phidot against fixed h = 1e-6 (``benchmarks/wp_friction.py``'s metrics);
+4. with ``--piston``: the e = 0 piston over 2 cycles, the side-change angles of the last
+   cycle against fixed h = 1e-5 (``benchmarks/wp_problems.py``'s metric).
+
+    python benchmarks/step_control.py [--piston]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))
+from wp_configs import _timed  # noqa: E402
+from wp_friction import _returns  # noqa: E402
+from wp_problems import _angle_distance  # noqa: E402
+
+import moreau as mo  # noqa: E402
+
+
+def _row(label, err, traj, wall, base):
+    st = traj.stats
+    print(f"  {label:<18} {err:10.3e} {st.steps:9d} {st.rejected:8d} {st.velocity_updates:10d} {wall:9.4f} "
+          f"{wall / base:8.4f}")
+
+
+def _header(what):
+    print(f"  {'run':<18} {what:>10} {'steps':>9} {'rejected':>8} {'updates':>10} {'wall (s)':>9} {'/ fixed':>8}")
+
+
+def ball():
+    from moreau.problems.bouncing_ball import BallSolution, bouncing_ball
+
+    scene, sol = bouncing_ball(0.8), BallSolution(1.0, 0.8)
+    t_ref = np.array([sol.impact_time(k) for k in range(1, 7)])
+    from moreau.problems.event_driven import moreau_impact_times
+
+    print("\n1. Bouncing ball e = 0.8, 4.5 s: error of the first 6 impact times (s); '/ fixed': wall / fixed h = 1e-6")
+    _header("error")
+    run = lambda h, **kw: _timed(lambda: mo.simulate(scene, (0.0, 4.5), [1.0], [0.0], h, energy=False, **kw),  # noqa: E731
+                                 repeat_below=0.5)
+    ref, base, _ = run(1e-6)
+    rows = [(f"fixed h = {h:g}", *run(h)[:2], moreau_impact_times) for h in (1e-4, 1e-5)]
+    rows.append(("fixed h = 1e-06", ref, base, moreau_impact_times))
+    rows += [(f"tol = {tol:g}", *run(1e-2, step_control=mo.StepControl(tol))[:2], lambda t: t.impacts.t)
+             for tol in (1e-3, 1e-4, 1e-5, 1e-6)]
+    for label, traj, wall, times in rows:
+        _row(label, float(np.abs(times(traj)[:6] - t_ref).max()), traj, wall, base)
+
+
+def pendulum():
+    from scipy.integrate import solve_ivp
+
+    from moreau.problems.pendulum_wall import pendulum_rhs, pendulum_wall
+
+    scene = pendulum_wall(wall_x=None, damping=0.5)
+    y = solve_ivp(pendulum_rhs(damping=0.5), (0, 2.0), (1.0, 0.5), method="DOP853", rtol=1e-13, atol=1e-13).y[:, -1]
+    run = lambda h, **kw: _timed(lambda: mo.simulate(scene, (0.0, 2.0), [1.0], [0.5], h, energy=False, **kw),  # noqa: E731
+                                 repeat_below=0.5)
+    err = lambda t: max(abs(t.q[-1, 0] - y[0]), abs(t.v[-1, 0] - y[1]))  # noqa: E731
+    print("\n2. Damped pendulum, 2 s: error of the final state against DOP853; '/ fixed': wall / fixed h = 1e-4")
+    _header("error")
+    ref, base, _ = run(1e-4)
+    _row("fixed h = 1e-4", err(ref), ref, base, base)
+    for tol in (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8):
+        traj, wall, _ = run(0.1, step_control=mo.StepControl(tol))
+        _row(f"tol = {tol:g}", err(traj), traj, wall, base)
+    print("   extrapolated at fixed H (every step accepted):")
+    last = None
+    for h in (4e-2, 2e-2, 1e-2, 5e-3):
+        traj, wall, _ = run(h, step_control=mo.StepControl(1e6))
+        e = err(traj)
+        order = "" if last is None else f"   order {math.log2(last / e):.2f}"
+        print(f"  H = {h:<14g} {e:10.3e}{order}")
+        last = e
+
+
+def woodpecker():
+    from moreau.problems.woodpecker import GLOCKER_STATE, woodpecker
+
+    scene, (q0, v0) = woodpecker(), GLOCKER_STATE
+    run = lambda h, **kw: _timed(lambda: mo.simulate(scene, (0.0, 0.45), q0, v0, h, energy=False, **kw),  # noqa: E731
+                                 repeat_below=0.5)
+    ref = _returns(run(1e-6)[0])
+    print("\n3. Woodpecker, 0.45 s: error of the returns' times (s) [ydot, phidot] against h = 1e-6; "
+          "'/ fixed': wall / fixed h = 1e-5")
+    _header("time error")
+    rows = [(f"fixed h = {h:g}", *run(h)[:2]) for h in (1e-4, 3e-5, 1e-5)]
+    base = rows[-1][2]
+    rows += [(f"tol = {tol:g}", *run(1e-3, step_control=mo.StepControl(tol))[:2]) for tol in (1e-3, 1e-4, 1e-5)]
+    for label, traj, wall in rows:
+        d = np.abs(_returns(traj) - ref).max(axis=0)
+        _row(label, float(d[0]), traj, wall, base)
+        print(f"  {'':<18} [{d[1]:.2e}, {d[2]:.2e}]")
+
+
+def piston():
+    from moreau.problems.piston.analysis import cycle_figures
+    from moreau.problems.piston.model import piston_model
+    from moreau.problems.piston.params import PistonParameters
+
+    params = PistonParameters(e=0.0)
+    model = piston_model(params)
+
+    def run(h, **kw):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return _timed(lambda: model.simulate(2, h, energy=False, **kw), repeat_below=0.5)
+
+    angles = lambda t: cycle_figures(t, params)[-1].change_angles_deg  # noqa: E731
+    ref = angles(run(1e-5, record_every=50)[0])
+    print("\n4. Piston e = 0, 2 cycles: side-change angles of the last cycle (deg) against h = 1e-5; "
+          "'/ fixed': wall / fixed h = 1e-4")
+    _header("angles")
+    rows = [(f"fixed h = {h:g}", *run(h, record_every=max(1, round(5e-4 / h)))[:2]) for h in (3.2e-4, 1e-4, 3.2e-5)]
+    base = rows[1][2]
+    rows += [(f"tol = {tol:g}", *run(1e-3, step_control=mo.StepControl(tol))[:2]) for tol in (1e-4, 1e-5, 1e-6)]
+    for label, traj, wall in rows:
+        _row(label, _angle_distance(angles(traj), ref), traj, wall, base)
+
+
+def _warm_up() -> None:
+    """Compile (or load) step-size control's driver for both loop variants before timing."""
+    from moreau.problems.bouncing_ball import bouncing_ball
+    from moreau.problems.woodpecker import GLOCKER_STATE, woodpecker
+
+    control = mo.StepControl(1e-3)
+    mo.simulate(bouncing_ball(0.8), (0.0, 0.01), [1.0], [0.0], 1e-3, step_control=control)
+    mo.simulate(woodpecker(), (0.0, 0.01), *GLOCKER_STATE, 1e-3, step_control=control)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--piston", action="store_true", help="also the e = 0 piston (about 20 s more)")
+    args = ap.parse_args()
+    mo.ensure_compiled()
+    _warm_up()
+    ball()
+    pendulum()
+    woodpecker()
+    if args.piston:
+        piston()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,307 @@
+"""Step-size control in the compiled loop: each step taken once with H and twice with H/2
+(step doubling, Studer, Leine & Glocker, IJNME 76(11), 2008), compared, and accepted or
+taken again with a smaller H.
+
+The steps are the loop's own (``moreau.compiled.loop._run_chunk``, called for one
+step at a time): the step is written once. The comparison of the two answers x_c (one
+step of H) and x_f (two of H/2), x = (q, v), gives the local error of x_f, scaled
+componentwise as ``err = max |x_f − x_c| / (c (atol + rtol |x_f|))``, where c depends on
+the kind of step:
+
+- *smooth*: no row closed in any of the three steps and none in contact at the start:
+  c = 2^p − 1 for a scheme of order p (2; 1 for the midpoint step with velocity-dependent
+  forces), and the step is extrapolated (Richardson): x = x_f + (x_f − x_c)/(2^p − 1),
+  one order higher;
+- *persistent contact*: the same rows closed in all three and no impact: c = 1, order 1;
+- *switching*: a row closes or opens, or an impact is logged: c = 1, and
+  x_f − x_c ~ (jump of v) H, so the step shrinks until the switching time is resolved to
+  the tolerance; a row not in contact that ends the step inside its barrier (the contact
+  closes at the midpoint of the next step) counts its penetration as error too
+  (err >= −g / atol), so that the barrier is crossed at most ``atol`` deep.
+
+An attempt with err <= 1 is accepted, and the next H is H · min(4, 0.9 err^(−1/(order+1)))
+(at most ``K_HMAX``); a rejected one is taken again with H · max(0.1, min(0.9,
+0.9 err^(−1/(order+1)))). Below ``K_HMIN`` an attempt is accepted anyway and counted
+(``C_FORCED``). The state of a rejected attempt is restored from ``layout.Snapshot``;
+the work it did is kept in the counters of solves and velocity updates.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+
+import numpy as np
+from numba import njit
+
+from moreau.compiled.layout import (
+    C_ACCEPTED,
+    C_EOK,
+    C_FALLBACKS,
+    C_FORCED,
+    C_K,
+    C_NIMP,
+    C_REC,
+    C_REJECTED,
+    C_SOLVES,
+    C_UPDATES,
+    DONE,
+    F_H,
+    F_T0,
+    IMPACTS_FULL,
+    K_ATOL,
+    K_END,
+    K_H,
+    K_HMAX,
+    K_HMIN,
+    K_RTOL,
+    K_T,
+    K_TOK,
+    R_GAP,
+    RECORDS_FULL,
+    S_RECORD,
+    S_STEP,
+    SC_M,
+    SC_ME,
+    SC_MF,
+    SC_N,
+    SC_VELOCITY_DEPENDENT,
+    STEP_MIDPOINT,
+    USER_FAILED,
+    Snapshot,
+)
+from moreau.compiled.layout import part as _part
+from moreau.compiled.loop import _record, _run_chunk
+from moreau.core.jitcache import call_recovering, compile_lock
+
+log = logging.getLogger(__name__)
+
+# the counters a rejected attempt keeps: the work it did
+_KEPT = (C_SOLVES, C_FALLBACKS, C_UPDATES, C_ACCEPTED, C_REJECTED, C_FORCED)
+
+
+def snapshot(n: int, m: int, mf: int, me: int) -> Snapshot:
+    """The arrays of a ``layout.Snapshot`` for n coordinates, m rows (mf tangent
+    rows, me bilateral rows); allocated once per run."""
+    from moreau.compiled.layout import N_ACCUMULATORS, N_COUNTERS
+
+    return Snapshot(np.empty(n), np.empty(n), np.zeros(m, dtype=np.bool_), np.zeros(m), np.zeros(m, dtype=np.bool_),
+                    np.zeros(m, dtype=np.int64), np.zeros(m), np.zeros((m, 6)), np.zeros((2, m)),
+                    np.zeros(N_COUNTERS, dtype=np.int64), np.zeros(N_ACCUMULATORS), np.zeros(m if mf else 0),
+                    np.zeros(me), np.empty(n), np.empty(n), np.zeros(m + mf + me), np.zeros(m, dtype=np.bool_),
+                    np.zeros(m, dtype=np.bool_), np.full(m, np.nan))
+
+
+@_part
+def _swap(save, q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, pen, cnt, acc, fr, eqw, sn):
+    """Copy the run state into the snapshot ``sn`` (``save``) or back from it."""
+    for a, b in ((q, sn.q), (v, sn.v), (P_acc, sn.P_acc), (gmax, sn.gmax)):
+        for i in range(a.shape[0]):
+            if save:
+                b[i] = a[i]
+            else:
+                a[i] = b[i]
+    for a, b in ((in_contact, sn.in_contact), (act_acc, sn.act_acc)):
+        for i in range(a.shape[0]):
+            if save:
+                b[i] = a[i]
+            else:
+                a[i] = b[i]
+    for i in range(last_imp.shape[0]):
+        if save:
+            sn.last_imp[i] = last_imp[i]
+        else:
+            last_imp[i] = sn.last_imp[i]
+    for a, b in ((rs, sn.rs), (pen, sn.pen)):
+        for i in range(a.shape[0]):
+            for j in range(a.shape[1]):
+                if save:
+                    b[i, j] = a[i, j]
+                else:
+                    a[i, j] = b[i, j]
+    for i in range(acc.shape[0]):
+        if save:
+            sn.acc[i] = acc[i]
+        else:
+            acc[i] = sn.acc[i]
+    for i in range(cnt.shape[0]):
+        if save:
+            sn.cnt[i] = cnt[i]
+        else:
+            kept = False
+            for c in _KEPT:
+                kept = kept or i == c
+            if not kept:
+                cnt[i] = sn.cnt[i]
+    if fr is not None:
+        for i in range(sn.PT_acc.shape[0]):
+            if save:
+                sn.PT_acc[i] = fr.PT_acc[i]
+            else:
+                fr.PT_acc[i] = sn.PT_acc[i]
+    if eqw is not None:
+        for i in range(sn.PE_acc.shape[0]):
+            if save:
+                sn.PE_acc[i] = eqw.PE_acc[i]
+            else:
+                eqw.PE_acc[i] = sn.PE_acc[i]
+
+
+@_part
+def _error(q, v, sn, atol, rtol, c):
+    """The scaled local error max |x_f − x_c| / (c (atol + rtol |x_f|)) of the fine answer
+    (q, v) against the coarse one kept in ``sn``."""
+    err = 0.0
+    for a, b in ((q, sn.qc), (v, sn.vc)):
+        for i in range(a.shape[0]):
+            e = abs(a[i] - b[i]) / (c * (atol + rtol * abs(a[i])))
+            if e > err or e != e:
+                err = e if e == e else math.inf
+    return err
+
+
+@_part
+def _kind(m, in_contact0, active, sn, nimp0, nimp):
+    """0 smooth, 1 persistent contact, 2 switching (see the module docstring), from the
+    rows in contact at the start, the closed rows of the three steps and the impacts."""
+    closed, changed = False, nimp > nimp0
+    for r in range(m):
+        a = active[r]
+        if a or sn.closed_c[r] or sn.closed_f[r] or in_contact0[r]:
+            closed = True
+        if a != sn.closed_c[r] or a != sn.closed_f[r] or a != in_contact0[r]:
+            changed = True
+    return 2 if changed else (1 if closed else 0)
+
+
+@_part
+def _crossing(m, in_contact0, rs0, gq, gc):
+    """How much deeper than at the start (gap ``rs0[r, R_GAP]``) a row not in contact at the
+    start ends the coarse or the fine steps inside its barrier: a barrier crossed inside
+    the step (0 if none)."""
+    d = 0.0
+    for r in range(m):
+        if not in_contact0[r]:
+            d = max(d, min(-gq[r], -gc[r]) - max(0.0, -rs0[r, R_GAP]))
+    return d
+
+
+@njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]  # numba's internal flag
+def _run_adaptive(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
+                  T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work, PTS,
+                  fr, eqw, ec, ctl, sn):
+    """Accepted steps until ``cnt[C_ACCEPTED] == k_end`` or the end time ``ctl[K_END]``; the
+    arguments of ``moreau.compiled.loop._run_chunk`` and the controller's state ``ctl``
+    (``layout.K_*``) and snapshot ``sn``. Returns a status (``RECORDS_FULL``,
+    ``IMPACTS_FULL``: grow the buffers and call again, nothing lost)."""
+    ints = model.ints
+    n, m = ints[SC_N], ints[SC_M]
+    active, gq = work[0].active, work[0].gq
+    mg = m + ints[SC_MF] + ints[SC_ME]
+    p = 1 if iset[S_STEP] == STEP_MIDPOINT and ints[SC_VELOCITY_DEPENDENT] != 0 else 2
+    stride = iset[S_RECORD]
+    atol, rtol, hmax, hmin, t_end = ctl[K_ATOL], ctl[K_RTOL], ctl[K_HMAX], ctl[K_HMIN], ctl[K_END]
+    while cnt[C_ACCEPTED] < k_end and ctl[K_T] < t_end:
+        if cnt[C_REC] + 1 >= T.shape[0]:
+            return RECORDS_FULL
+        if cnt[C_NIMP] + 3 * m > IMP.shape[0]:  # room for three steps' impacts: an attempt is never cut
+            return IMPACTS_FULL
+        t = ctl[K_T]
+        H = ctl[K_H]
+        last = H >= (t_end - t) * (1.0 - 1e-9)  # the end, not a sliver of a step after it
+        if last:
+            H = t_end - t
+        k0, nimp0, eok0 = cnt[C_K], cnt[C_NIMP], cnt[C_EOK]
+        _swap(True, q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, pen, cnt, acc, fr, eqw, sn)
+        # one step of H, then back to the start
+        fset[F_H] = H
+        fset[F_T0] = t - k0 * H
+        status = _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k0 + 1, in_contact, P_acc, act_acc,
+                            T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work,
+                            PTS, fr, eqw, ec)
+        if status != DONE:
+            return status
+        for i in range(n):
+            sn.qc[i] = q[i]
+            sn.vc[i] = v[i]
+        for r in range(mg):
+            sn.gc[r] = gq[r]
+        for r in range(m):
+            sn.closed_c[r] = active[r]
+        _swap(False, q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, pen, cnt, acc, fr, eqw, sn)
+        # two steps of H/2
+        fset[F_H] = 0.5 * H
+        fset[F_T0] = t - k0 * 0.5 * H
+        for j in range(2):
+            status = _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k0 + 1 + j, in_contact, P_acc,
+                                act_acc, T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax,
+                                fgap, rs, work, PTS, fr, eqw, ec)
+            if status != DONE:
+                return status
+            if j == 0:
+                for r in range(m):
+                    sn.closed_f[r] = active[r]
+        kind = _kind(m, sn.in_contact, active, sn, nimp0, cnt[C_NIMP])
+        crossed = _crossing(m, sn.in_contact, sn.rs, gq, sn.gc) / atol
+        if crossed > 0.0:
+            kind = 2
+        c = (2.0 ** p - 1.0) if kind == 0 else 1.0
+        order = p if kind == 0 else (1 if kind == 1 else 0)
+        err = max(_error(q, v, sn, atol, rtol, c), crossed)
+        if err > 1.0 and 0.5 * H > hmin:  # rejected: back to the start, a smaller step
+            cnt[C_REJECTED] += 1
+            _swap(False, q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, pen, cnt, acc, fr, eqw, sn)
+            ctl[K_H] = max(hmin, H * max(0.1, min(0.9, 0.9 * err ** (-1.0 / (order + 1)))))
+            continue
+        if err > 1.0:
+            cnt[C_FORCED] += 1
+        if kind == 0:  # Richardson: one order more (the gaps alike, to second order in the change)
+            for i in range(n):
+                q[i] += (q[i] - sn.qc[i]) / c
+                v[i] += (v[i] - sn.vc[i]) / c
+            for r in range(mg):
+                gq[r] += (gq[r] - sn.gc[r]) / c
+            for r in range(m):
+                rs[r, R_GAP] = gq[r]
+        for r in range(m):
+            if pen[0, r] > sn.pen[0, r]:
+                sn.pen_t[r] = t + H
+        if cnt[C_EOK] != eok0:
+            ctl[K_TOK] = t
+        cnt[C_ACCEPTED] += 1
+        ctl[K_T] = t_end if last else t + H
+        grow = 4.0 if err == 0.0 else min(4.0, 0.9 * err ** (-1.0 / (order + 1)))
+        ctl[K_H] = min(hmax, max(hmin, H * max(grow, 0.1)))
+        if cnt[C_ACCEPTED] % stride == 0 or last:
+            rec = cnt[C_REC]
+            if _record(model, user, iset, fset, cnt[C_K], q, v, work[0].cq, work[0].sq, work[0].M, P_acc, act_acc,
+                       gq, T, Q, V, PS, ACT, GP, KE, PE, cnt, fr, PTS, eqw) != DONE:
+                return USER_FAILED
+            T[rec] = ctl[K_T]
+    return DONE
+
+
+def run_adaptive(model: tuple, user: np.ndarray, settings, state, records, tally, work: tuple, k_end: int,
+                 control: np.ndarray, snap: Snapshot) -> int:
+    """Accepted steps with step-size control up to ``k_end`` of them, or to the end time
+    (see the module docstring); the arguments of :func:`moreau.compiled.loop.run_chunk`,
+    the controller's state ``control`` (``layout.K_*``) and its snapshot arrays
+    (:func:`snapshot`). Returns a status."""
+    st, rec = state, records
+    own, ws, lw, fr, eqw, ec = work
+    args = (model, user, settings.iset, settings.fset, settings.Minv, settings.eligible, st.q, st.v, k_end,
+            st.in_contact, st.P_acc, st.act_acc, rec.T, rec.Q, rec.V, rec.PS, rec.ACT, rec.GP, rec.KE, rec.PE,
+            rec.IMP, st.pen, tally.cnt, tally.acc, tally.fail, st.last_imp, st.gmax, settings.fgap, st.rs,
+            (own, ws, lw), rec.PTS, fr, eqw, ec, control, snap)
+    if len(_run_adaptive.overloads) >= 2:
+        return _run_adaptive(*args)
+    # the first call of a process loads the driver (one per variant) or compiles it, one
+    # process at a time: others wait and load it; a damaged cache file is compiled again
+    t0 = time.perf_counter()
+    with compile_lock(".adaptive." + ("plain" if fr is None else "full")):
+        status = call_recovering(_run_adaptive, *args)
+    if time.perf_counter() - t0 > 2.0:  # a compile (a load takes a fraction of a second)
+        log.info("moreau: step-size control's driver compiled in %.0f s, once for this machine",
+                 time.perf_counter() - t0)
+    return status

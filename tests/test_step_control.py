@@ -1,0 +1,99 @@
+"""Step-size control (mo.StepControl): errors against analytic and reference solutions,
+the order of the extrapolated step, and runs cut into chunks equal to uncut ones."""
+
+import numpy as np
+import pytest
+
+import moreau as mo
+from moreau.compiled import runner
+
+
+@pytest.fixture(scope="module")
+def ball():
+    from moreau.problems.bouncing_ball import BallSolution, bouncing_ball
+
+    sol = BallSolution(1.0, 0.8)
+    return bouncing_ball(0.8), np.array([sol.impact_time(k) for k in range(1, 7)])
+
+
+@pytest.fixture(scope="module")
+def smooth_pendulum():
+    from scipy.integrate import solve_ivp
+
+    from moreau.problems.pendulum_wall import pendulum_rhs, pendulum_wall
+
+    ref = solve_ivp(pendulum_rhs(damping=0.5), (0, 2.0), (1.0, 0.5), method="DOP853", rtol=1e-13, atol=1e-13)
+    return pendulum_wall(wall_x=None, damping=0.5), ref.y[:, -1]
+
+
+def test_ball_impact_times_follow_the_tolerance(ball):
+    """The first 6 impact times of the e = 0.8 ball (analytic) within 10x tol, and the
+    error falls with tol; steps shrink only around impacts."""
+    scene, t_ref = ball
+    errors = []
+    for tol in (1e-3, 1e-4, 1e-5, 1e-6):
+        traj = mo.simulate(scene, (0.0, 4.5), [1.0], [0.0], 1e-2, energy=False, step_control=mo.StepControl(tol))
+        assert traj.status == "completed" and traj.t[-1] == 4.5
+        err = np.abs(traj.impacts.t[:6] - t_ref).max()
+        assert err <= 10 * tol, (tol, err)
+        errors.append(err)
+        assert traj.stats.steps < 5000  # against 4.5e6 steps of h = 1e-6 for an error of 2.6e-6
+        assert np.diff(traj.t).max() == pytest.approx(1e-2)  # the largest step in flight
+    assert errors[-1] < errors[1] < errors[0]
+
+
+def test_ball_never_crosses_the_floor_deeper_than_tol(ball):
+    scene, _ = ball
+    traj = mo.simulate(scene, (0.0, 2.0), [1.0], [0.0], 1e-2, energy=False, step_control=mo.StepControl(1e-5))
+    assert traj.gaps.min() >= -1.01e-5
+
+
+def test_extrapolated_steps_are_second_order(smooth_pendulum):
+    """The damped pendulum (velocity-dependent force: the midpoint step is first order): with
+    every step accepted at H (a tolerance never met) the extrapolated step is second order."""
+    scene, y_end = smooth_pendulum
+    err = []
+    for h in (2e-2, 1e-2, 5e-3):
+        traj = mo.simulate(scene, (0.0, 2.0), [1.0], [0.5], h, energy=False, step_control=mo.StepControl(1e6))
+        assert traj.stats.steps == round(2.0 / h) and traj.stats.rejected == 0
+        err.append(max(abs(traj.q[-1, 0] - y_end[0]), abs(traj.v[-1, 0] - y_end[1])))
+    orders = np.log2(np.array(err[:-1]) / np.array(err[1:]))
+    assert orders.min() > 1.9, orders
+
+
+def test_smooth_error_falls_with_the_tolerance(smooth_pendulum):
+    """Error against DOP853 within 20x tol over five decades, and falling with it."""
+    scene, y_end = smooth_pendulum
+    errors = []
+    for tol in (1e-3, 1e-4, 1e-5, 1e-6, 1e-7):
+        traj = mo.simulate(scene, (0.0, 2.0), [1.0], [0.5], 0.1, energy=False, step_control=mo.StepControl(tol))
+        errors.append(max(abs(traj.q[-1, 0] - y_end[0]), abs(traj.v[-1, 0] - y_end[1])))
+        assert errors[-1] <= 20 * tol, (tol, errors[-1])
+    assert all(b < a for a, b in zip(errors, errors[1:])), errors
+
+
+@pytest.mark.parametrize("control", [None, mo.StepControl(1e-6)], ids=["fixed", "adaptive"])
+def test_a_run_cut_into_chunks_equals_the_uncut_run(ball, monkeypatch, control):
+    """The runner resumes the loop chunk after chunk (Ctrl-C is honoured between them): a run
+    cut after 1, 3, 7, ... steps equals the run in one chunk, bit for bit."""
+    scene, _ = ball
+    run = lambda: mo.simulate(scene, (0.0, 1.5), [1.0], [0.0], 1e-3, step_control=control)  # noqa: E731
+    whole = run()
+    monkeypatch.setattr(runner, "FIRST_CHUNK", 1)
+    cut = run()
+    for name in ("t", "q", "v", "impulses", "gaps"):
+        np.testing.assert_array_equal(getattr(cut, name), getattr(whole, name))
+    np.testing.assert_array_equal(cut.impacts.t, whole.impacts.t)
+    assert (cut.stats.steps, cut.stats.rejected) == (whole.stats.steps, whole.stats.rejected)
+
+
+def test_step_control_refuses_bad_values(ball):
+    scene, _ = ball
+    for kwargs, word in (({"tol": 0.0}, "tol"), ({"tol": 1e-6, "rtol": -1.0}, "rtol"),
+                         ({"tol": float("nan")}, "tol"), ({"tol": 1e-6, "h_min": 0.0}, "h_min")):
+        with pytest.raises(ValueError, match=word):
+            mo.StepControl(**kwargs)
+    with pytest.raises(ValueError, match="h_min"):
+        mo.simulate(scene, (0.0, 0.1), [1.0], [0.0], 1e-3, step_control=mo.StepControl(1e-6, h_min=1e-2))
+    with pytest.raises(ValueError, match="step_control"):
+        mo.simulate(scene, (0.0, 0.1), [1.0], [0.0], 1e-3, step_control=1e-6)
