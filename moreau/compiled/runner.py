@@ -99,6 +99,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     n_rec = n_steps // stride + 1 + (1 if n_steps % stride else 0)
     me, mf = scene.nconstraints, int(cs.ints[lay.SC_MF])
     recs = _records(min(n_rec, 4096) if control else n_rec, n, m, me, mf, q0, v0, t0)
+    box = [recs]  # the buffers, grown in place of the first when they fill (kept on Ctrl-C too)
     q, v = q0.copy(), v0.copy()
     in_contact = np.zeros(m, dtype=np.bool_)
     P_acc, act_acc = np.zeros(m), np.zeros(m, dtype=np.bool_)
@@ -146,14 +147,14 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
             warnings.simplefilter("ignore", category=_experimental_warning())
             if energy:
                 fset[lay.F_PE0] = _potential_offset(scene, cs, q0)
-            code, recs = _chunks(cs, called, bar, model, user, settings, state, recs, tally, work, n_steps, h,
-                                 ctl, snap)
+            code = _chunks(cs, called, bar, model, user, settings, state, box, tally, work, n_steps, h, ctl, snap)
     except KeyboardInterrupt as exc:
         k = int(cnt[lay.C_K])
         t_now = t0 + k * h if ctl is None else float(ctl[lay.K_T])
         status, message = "interrupted", f"{str(exc) or 'interrupted by the user'} at step {k} (t = {t_now:.9g})"
         interrupt = exc
     wall = time.perf_counter() - wall0
+    recs = box[0]
     while True:  # an interrupt arriving while the result is assembled waits for it
         try:
             traj, error = _assemble(scene, status, message, code, recs.T.shape[0], *recs[:9],
@@ -201,15 +202,17 @@ def _grown(recs: lay.Records, impacts: bool) -> lay.Records:
     return recs._replace(**grown)
 
 
-def _chunks(cs, called, bar, model, user, settings, state, recs, tally, work, n_steps, h, ctl, snap):
+def _chunks(cs, called, bar, model, user, settings, state, box, tally, work, n_steps, h, ctl, snap):
     """Call the loop chunk after chunk (each about a quarter of a second) to the end, growing
-    the buffers when they fill, advancing the progress bar; returns the last status and the
-    buffers. With step-size control (``ctl``) a chunk counts accepted steps and the bar
-    advances by ``h`` of time a unit."""
+    the buffers ``box[0]`` when they fill (replaced there at once, so that an interrupt
+    keeps the ones in use), advancing the progress bar; returns the last status. With
+    step-size control (``ctl``) a chunk counts accepted steps and the bar advances by ``h``
+    of time a unit."""
     cnt = tally.cnt
     chunk, code, done = FIRST_CHUNK, lay.DONE, 0
     while cnt[lay.C_K] < n_steps if ctl is None else ctl[lay.K_T] < ctl[lay.K_END]:
         c0 = time.perf_counter()
+        recs = box[0]
         if ctl is None:
             k_before = int(cnt[lay.C_K])
             code = lp.run_chunk(model, user, settings, state, recs, tally, work, min(n_steps, k_before + chunk))
@@ -224,7 +227,7 @@ def _chunks(cs, called, bar, model, user, settings, state, recs, tally, work, n_
         if (code == lay.USER_FAILED and _interrupted(cs)) or any(c and c.interrupted for c in called):
             raise KeyboardInterrupt  # Ctrl-C inside a Python callback
         if code in (lay.IMPACTS_FULL, lay.RECORDS_FULL):
-            recs = _grown(recs, code == lay.IMPACTS_FULL)
+            box[0] = _grown(recs, code == lay.IMPACTS_FULL)
             continue
         if code != lay.DONE:
             break
@@ -233,7 +236,7 @@ def _chunks(cs, called, bar, model, user, settings, state, recs, tally, work, n_
             chunk = min(chunk * 2, 1 << 22)
         elif elapsed > 0.5 and chunk > 100:
             chunk //= 2
-    return code, recs
+    return code
 
 
 def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE, IMP, q, v, P_acc, act_acc,

@@ -145,3 +145,38 @@ def test_piston_command_with_workers_stops_promptly_on_interrupt(tmp_path):
     assert not list(out.glob("piston_*mm.npz"))
     assert t_exit < 10.0
     assert rc == 130 and "Traceback" not in err
+
+
+@pytest.mark.parametrize("control", [None, mo.StepControl(1e-5)], ids=["fixed", "adaptive"])
+def test_an_interrupt_after_the_buffers_grew_keeps_what_they_hold(monkeypatch, control):
+    """Ctrl-C a chunk after the impact log (4 entries here) grew: the partial trajectory
+    holds the impacts logged in the grown buffer, those of the uninterrupted run (before,
+    it read the old buffer: rows out of range)."""
+    from moreau.compiled import runner
+
+    run = lambda: mo.simulate(bouncing_ball(0.8), (0.0, 4.5), [1.0], [0.0], 1e-3, step_control=control)  # noqa: E731
+    whole = run()
+    real_records, real_grown = runner._records, runner._grown
+    calls = []  # chunks called since the log grew
+    monkeypatch.setattr(runner, "_records", lambda *a: real_records(*a)._replace(IMP=np.empty((4, 9))))
+    monkeypatch.setattr(runner, "_grown", lambda recs, impacts: calls.append(0) or real_grown(recs, impacts))
+    monkeypatch.setattr(runner, "FIRST_CHUNK", 200)
+
+    def interrupted_after_growth(chunk):
+        def run_chunk(*args, **kwargs):
+            if len(calls) >= 2:
+                raise KeyboardInterrupt
+            if calls:
+                calls.append(0)
+            return chunk(*args, **kwargs)
+        return run_chunk
+
+    monkeypatch.setattr(runner.lp, "run_chunk", interrupted_after_growth(runner.lp.run_chunk))
+    monkeypatch.setattr(runner.ad, "run_adaptive", interrupted_after_growth(runner.ad.run_adaptive))
+    with pytest.raises(KeyboardInterrupt) as info:
+        run()
+    got = info.value.trajectory.impacts
+    # the log grows when it lacks room for a step's impacts (1 row), or an attempt's three
+    assert (4 if control is None else 2) < len(got) < len(whole.impacts)
+    np.testing.assert_array_equal(got.row, 0)
+    np.testing.assert_array_equal(got.t, whole.impacts.t[:len(got)])
