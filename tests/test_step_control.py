@@ -97,3 +97,42 @@ def test_step_control_refuses_bad_values(ball):
         mo.simulate(scene, (0.0, 0.1), [1.0], [0.0], 1e-3, step_control=mo.StepControl(1e-6, h_min=1e-2))
     with pytest.raises(ValueError, match="step_control"):
         mo.simulate(scene, (0.0, 0.1), [1.0], [0.0], 1e-3, step_control=1e-6)
+
+
+@pytest.mark.slow
+def test_friction_and_impacts_follow_the_tolerance():
+    """The woodpecker (friction, impacts, the full loop variant): the times of its returns
+    to Glocker's state within 3x tol of a fixed h = 1e-6 run, in fewer steps than h = 1e-4."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks"))
+    from wp_friction import _returns
+
+    from moreau.problems.woodpecker import GLOCKER_STATE, woodpecker
+
+    scene, (q0, v0) = woodpecker(), GLOCKER_STATE
+    ref = _returns(mo.simulate(scene, (0.0, 0.45), q0, v0, 1e-6, energy=False))
+    traj = mo.simulate(scene, (0.0, 0.45), q0, v0, 1e-3, energy=False, step_control=mo.StepControl(1e-5))
+    got = _returns(traj)
+    assert got.shape == ref.shape
+    assert np.abs(got[:, 0] - ref[:, 0]).max() <= 3e-5
+    assert traj.stats.steps < 4500
+
+
+@pytest.mark.slow
+def test_a_closed_loop_with_a_stop_under_step_control_stays_closed():
+    """The four-bar with a stop (bilateral rows, an impact through the loop, drift control,
+    the predictor–corrector): the loop stays closed to 1e-10, the energy lost is the
+    contact work to 1e-3 of it, and the stop holds to the tolerance."""
+    from moreau.problems.four_bar import four_bar
+
+    fb = four_bar(stop=0.75, e=0.5)
+    q0, v0 = fb.initial_state(0.3, 5.0)
+    traj = mo.simulate(fb.scene, (0.0, 3.0), q0, v0, 1e-2, energy=True, integrator=mo.MoreauJeanPredictorCorrector,
+                       drift_control=mo.CombinedProjection(), step_control=mo.StepControl(1e-6))
+    assert traj.completed and len(traj.impacts) >= 2
+    assert np.abs(traj.constraint_residuals).max() <= 1e-10
+    lost = traj.energy[0] - traj.energy[-1]
+    assert traj.work["contacts"] < 0 and abs(lost + traj.work["contacts"]) <= 1e-3 * abs(traj.work["contacts"])
+    assert traj.gaps.min() >= -1e-6

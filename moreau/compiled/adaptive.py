@@ -11,7 +11,7 @@ the kind of step:
 - *smooth*: no row closed in any of the three steps and none in contact at the start:
   c = 2^p − 1 for a scheme of order p (2; 1 for the midpoint step with velocity-dependent
   forces), and the step is extrapolated (Richardson): x = x_f + (x_f − x_c)/(2^p − 1),
-  one order higher;
+  one order higher (not with bilateral rows: the extrapolated q would leave them);
 - *persistent contact*: the same rows closed in all three and no impact: c = 1, order 1;
 - *switching*: a row closes or opens, or an impact is logged: c = 1, and
   x_f − x_c ~ (jump of v) H, so the step shrinks until the switching time is resolved to
@@ -90,7 +90,7 @@ def snapshot(n: int, m: int, mf: int, me: int) -> Snapshot:
                     np.zeros(m, dtype=np.int64), np.zeros(m), np.zeros((m, 6)), np.zeros((2, m)),
                     np.zeros(N_COUNTERS, dtype=np.int64), np.zeros(N_ACCUMULATORS), np.zeros(m if mf else 0),
                     np.zeros(me), np.empty(n), np.empty(n), np.zeros(m + mf + me), np.zeros(m, dtype=np.bool_),
-                    np.zeros(m, dtype=np.bool_), np.full(m, np.nan))
+                    np.zeros(m, dtype=np.bool_), np.zeros(m, dtype=np.bool_), np.full(m, np.nan))
 
 
 @_part
@@ -162,28 +162,29 @@ def _error(q, v, sn, atol, rtol, c):
 
 
 @_part
-def _kind(m, in_contact0, active, sn, nimp0, nimp):
+def _kind(m, active, sn, nimp0, nimp):
     """0 smooth, 1 persistent contact, 2 switching (see the module docstring), from the
-    rows in contact at the start, the closed rows of the three steps and the impacts."""
+    rows in contact at the start, the closed rows of the step before and of the three
+    steps, and the impacts logged."""
     closed, changed = False, nimp > nimp0
     for r in range(m):
         a = active[r]
-        if a or sn.closed_c[r] or sn.closed_f[r] or in_contact0[r]:
+        if a or sn.closed_c[r] or sn.closed_f[r] or sn.closed0[r] or sn.in_contact[r]:
             closed = True
-        if a != sn.closed_c[r] or a != sn.closed_f[r] or a != in_contact0[r]:
+        if a != sn.closed_c[r] or a != sn.closed_f[r] or a != sn.closed0[r]:
             changed = True
     return 2 if changed else (1 if closed else 0)
 
 
 @_part
-def _crossing(m, in_contact0, rs0, gq, gc):
-    """How much deeper than at the start (gap ``rs0[r, R_GAP]``) a row not in contact at the
-    start ends the coarse or the fine steps inside its barrier: a barrier crossed inside
-    the step (0 if none)."""
+def _crossing(m, sn, gq):
+    """How much deeper than at the start (gap ``sn.rs[r, R_GAP]``) a row neither closed nor
+    in contact at the start ends the coarse or the fine steps inside its barrier: a barrier
+    crossed inside the step (0 if none)."""
     d = 0.0
     for r in range(m):
-        if not in_contact0[r]:
-            d = max(d, min(-gq[r], -gc[r]) - max(0.0, -rs0[r, R_GAP]))
+        if not (sn.in_contact[r] or sn.closed0[r]):
+            d = max(d, min(-gq[r], -sn.gc[r]) - max(0.0, -sn.rs[r, R_GAP]))
     return d
 
 
@@ -214,6 +215,8 @@ def _run_adaptive(model, user, iset, fset, Minv, eligible, q, v, k_end, in_conta
             H = t_end - t
         k0, nimp0, eok0 = cnt[C_K], cnt[C_NIMP], cnt[C_EOK]
         _swap(True, q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, pen, cnt, acc, fr, eqw, sn)
+        for r in range(m):
+            sn.closed0[r] = active[r]
         # one step of H, then back to the start
         fset[F_H] = H
         fset[F_T0] = t - k0 * H
@@ -242,8 +245,8 @@ def _run_adaptive(model, user, iset, fset, Minv, eligible, q, v, k_end, in_conta
             if j == 0:
                 for r in range(m):
                     sn.closed_f[r] = active[r]
-        kind = _kind(m, sn.in_contact, active, sn, nimp0, cnt[C_NIMP])
-        crossed = _crossing(m, sn.in_contact, sn.rs, gq, sn.gc) / atol
+        kind = _kind(m, active, sn, nimp0, cnt[C_NIMP])
+        crossed = _crossing(m, sn, gq) / atol
         if crossed > 0.0:
             kind = 2
         c = (2.0 ** p - 1.0) if kind == 0 else 1.0
@@ -252,11 +255,15 @@ def _run_adaptive(model, user, iset, fset, Minv, eligible, q, v, k_end, in_conta
         if err > 1.0 and 0.5 * H > hmin:  # rejected: back to the start, a smaller step
             cnt[C_REJECTED] += 1
             _swap(False, q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, pen, cnt, acc, fr, eqw, sn)
+            for r in range(m):
+                active[r] = sn.closed0[r]
             ctl[K_H] = max(hmin, H * max(0.1, min(0.9, 0.9 * err ** (-1.0 / (order + 1)))))
             continue
         if err > 1.0:
             cnt[C_FORCED] += 1
-        if kind == 0:  # Richardson: one order more (the gaps alike, to second order in the change)
+        # Richardson: one order more (the gaps alike, to second order in the change); not
+        # with bilateral rows, whose g_E(q) = 0 the extrapolated q would leave
+        if kind == 0 and ints[SC_ME] == 0:
             for i in range(n):
                 q[i] += (q[i] - sn.qc[i]) / c
                 v[i] += (v[i] - sn.vc[i]) / c

@@ -144,10 +144,10 @@ LoopWork = namedtuple("LoopWork", "GA cA rhs b PA G dq zero sel gen q_warn v_war
 PassWork = namedtuple("PassWork", "Ms c2 s2 qp dq x ylast rlast mv fq")
 #: step-size control's snapshot of a step's start (restored when an attempt is rejected: the
 #: run state, counters, accumulators and friction's and the bilateral rows' sums since the last
-#: record), the coarse step's end (q, v, gaps), the closed rows of the coarse and the first fine
-#: step, and each row's time of its deepest penetration
+#: record), the coarse step's end (q, v, gaps), the closed rows of the step before, of the coarse
+#: and of the first fine step, and each row's time of its deepest penetration
 Snapshot = namedtuple("Snapshot", "q v in_contact P_acc act_acc last_imp gmax rs pen cnt acc PT_acc PE_acc "
-                      "qc vc gc closed_c closed_f pen_t")
+                      "qc vc gc closed0 closed_c closed_f pen_t")
 #: the lowered scene's arrays (compiled.lowering.CompiledScene.arrays): the int settings, the
 #: effects' kinds and offsets, the barriers' kinds, offsets, first rows and row counts, the
 #: parameter pool, each row's restitution and activation tolerance
