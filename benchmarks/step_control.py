@@ -31,6 +31,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from wp_configs import _timed  # noqa: E402
 from wp_friction import _returns  # noqa: E402
 from wp_problems import _angle_distance  # noqa: E402
+from wp_study import _warm_up_step_control  # noqa: E402
 
 import moreau as mo  # noqa: E402
 
@@ -136,22 +137,12 @@ def piston():
         _row(label, _angle_distance(angles(traj), ref), traj, wall, base)
 
 
-def _warm_up() -> None:
-    """Compile (or load) step-size control's driver for both loop variants before timing."""
-    from moreau.problems.bouncing_ball import bouncing_ball
-    from moreau.problems.woodpecker import GLOCKER_STATE, woodpecker
-
-    control = mo.StepControl(1e-3)
-    mo.simulate(bouncing_ball(0.8), (0.0, 0.01), [1.0], [0.0], 1e-3, step_control=control)
-    mo.simulate(woodpecker(), (0.0, 0.01), *GLOCKER_STATE, 1e-3, step_control=control)
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--piston", action="store_true", help="also the e = 0 piston (about 20 s more)")
     args = ap.parse_args()
     mo.ensure_compiled()
-    _warm_up()
+    _warm_up_step_control()
     ball()
     pendulum()
     woodpecker()

@@ -48,6 +48,12 @@ Impact times of a moreau run are read from the impact log as the crossing time o
 step in which the impact happened, ``t_k + g(q_k)/(−G v_k)`` (:func:`impact_times`):
 the start of the step alone would add an O(h) quantization noise that hides the order.
 
+Step-size control (``mo.StepControl``, the configurations labelled ``/tol``) runs the
+midpoint step over a ladder of tolerances instead of steps, on every problem but the
+chain (its error is read on a uniform grid of records); its "order" is the slope of the
+error in tol (1: the error proportional to tol), and a table compares the cheapest run
+with it and without it at each target error.
+
 Loose OSQP tolerances are run *unchecked* (``fallback=None`` and no KKT acceptance
 test): with moreau's default checks (``tol=1e-6``, fallback ``enum``) a loose answer is
 rejected and re-solved exactly, which costs time but no accuracy; the comparison on the
@@ -97,10 +103,12 @@ from wp_report import (  # noqa: E402
     cheapest,
     format_cheapest,
     format_drift,
+    format_gain,
     format_orders,
     format_osqp,
     format_table,
     plot,
+    step_control_gain,
     write_csv,
 )
 from wp_study import (  # noqa: E402
@@ -148,6 +156,8 @@ def main(argv=None) -> int:
     print(format_orders(runs, problems))
     print("\nwhat buys an accuracy at least cost (primary error; targets 10x, 100x, 1000x below the largest)")
     print(format_cheapest(cheapest(runs, problems)))
+    print("\nstep-size control against fixed steps: the cheapest run of each reaching a target, and the ratio")
+    print(format_gain(step_control_gain(runs, problems)))
     pistons = [p for p in problems if isinstance(p, PistonProblem)]
     for p in pistons:
         print(f"\n{p.name} reference ({p.ref_config.label}, h = {p.h_ref:g}, {p.ref_wall:.0f} s): "

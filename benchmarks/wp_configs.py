@@ -59,6 +59,9 @@ class Config:
     integrator: str
     solver: str
     drift: str = "none"
+    #: step-size control: the ladder's values are the tolerance of ``mo.StepControl`` and the
+    #: step is at most ``h_max`` (a problem's own, see :meth:`run_args`)
+    adaptive: bool = False
 
     def __post_init__(self) -> None:
         d = {False: "none", True: "proj"}[self.drift] if isinstance(self.drift, bool) else self.drift
@@ -68,7 +71,15 @@ class Config:
 
     @property
     def label(self) -> str:
-        return f"{self.integrator}/{self.solver}/{self.drift}"
+        return f"{self.integrator}/{self.solver}/{self.drift}" + ("/tol" if self.adaptive else "")
+
+    def run_args(self, x: float, h_max: float = 1e-2) -> tuple[float, dict]:
+        """``(h, simulate's keyword arguments)`` of the ladder value ``x``: the step ``x``, or
+        with ``adaptive`` the largest step ``h_max`` and ``StepControl(x)``."""
+        kw = self.simulate_kwargs()
+        if not self.adaptive:
+            return x, kw
+        return h_max, {**kw, "step_control": mo.StepControl(x)}
 
     def simulate_kwargs(self) -> dict:
         kw = SOLVERS[self.solver].simulate_kwargs()

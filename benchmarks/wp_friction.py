@@ -42,9 +42,9 @@ class BlockProblem(Problem):
         return self.v0 * tt - 0.5 * self.mu * G * tt**2
 
     def run(self, config, h):
+        hs, kw = config.run_args(h)
         traj, wall, status = _timed(lambda: mo.simulate(
-            self.scene, (0.0, self.t_end), [0.0, 0.0], [self.v0, 0.0], h, energy=False, **config.simulate_kwargs()),
-            repeat_below=0.5)
+            self.scene, (0.0, self.t_end), [0.0, 0.0], [self.v0, 0.0], hs, energy=False, **kw), repeat_below=0.5)
         m = {}
         if status == "completed":
             m["position"] = float(np.abs(traj.q[:, 0] - self.exact(traj.t)).max())
@@ -81,8 +81,9 @@ class WoodpeckerProblem(Problem):
         self.ref = None
 
     def _simulate(self, config, h):
-        return _timed(lambda: mo.simulate(self.scene, (0.0, self.t_end), self.q0, self.v0, h, energy=False,
-                                          **config.simulate_kwargs()), repeat_below=0.5)
+        hs, kw = config.run_args(h, h_max=1e-3)
+        return _timed(lambda: mo.simulate(self.scene, (0.0, self.t_end), self.q0, self.v0, hs, energy=False, **kw),
+                      repeat_below=0.5)
 
     def prepare(self):
         if self.ref is None:

@@ -59,9 +59,9 @@ class BallProblem(Problem):
         self.scene = bouncing_ball(e)
 
     def run(self, config, h):
+        hs, kw = config.run_args(h)
         traj, wall, status = _timed(lambda: mo.simulate(
-            self.scene, (0.0, self.t_end), [self.h0], [0.0], h, energy=False, **config.simulate_kwargs()),
-            repeat_below=0.5)
+            self.scene, (0.0, self.t_end), [self.h0], [0.0], hs, energy=False, **kw), repeat_below=0.5)
         m = {}
         if status == "completed":
             sol, K = self.exact, self.K
@@ -107,9 +107,9 @@ class PendulumWallProblem(Problem):
 
     def run(self, config, h):
         self.prepare()
+        hs, kw = config.run_args(h)
         traj, wall, status = _timed(lambda: mo.simulate(
-            self.scene, (0.0, self.t_end), [0.0], [self.omega0], h, energy=False, **config.simulate_kwargs()),
-            repeat_below=0.5)
+            self.scene, (0.0, self.t_end), [0.0], [self.omega0], hs, energy=False, **kw), repeat_below=0.5)
         m = {}
         if status == "completed":
             ti = impact_times(traj)
@@ -144,12 +144,12 @@ class SmoothPendulumProblem(Problem):
         self.y_end = ref.y[:, -1]
 
     def run(self, config, h):
-        n = round(self.t_end / h)
+        hs, kw = config.run_args(h, h_max=0.1)
+        t_end = self.t_end if config.adaptive else round(self.t_end / h) * h
         traj, wall, status = _timed(lambda: mo.simulate(
-            self.scene, (0.0, n * h), [self.y0[0]], [self.y0[1]], h, energy=False, **config.simulate_kwargs()),
-            repeat_below=0.5)
+            self.scene, (0.0, t_end), [self.y0[0]], [self.y0[1]], hs, energy=False, **kw), repeat_below=0.5)
         m = {}
-        if status == "completed" and abs(n * h - self.t_end) < 1e-12:
+        if status == "completed" and abs(t_end - self.t_end) < 1e-12:
             m["state"] = float(max(abs(traj.q[-1, 0] - self.y_end[0]), abs(traj.v[-1, 0] - self.y_end[1])))
         return self._run(config, h, traj, wall, status, m)
 
@@ -200,9 +200,10 @@ class PistonProblem(Problem):
         are cached by (config, h) so that the comparisons reuse the sweep's runs."""
         key = (config, float(h))
         if key not in self._cache:
-            rec = max(1, int(round(self.record_dt / h)))
+            rec = 1 if config.adaptive else max(1, int(round(self.record_dt / h)))
+            hs, kw = config.run_args(h, h_max=1e-3)  # adaptive: the largest step the clearance allows
             traj, wall, status = _timed(lambda: self.model.simulate(
-                self.cycles, h, record_every=rec, energy=False, **config.simulate_kwargs()))
+                self.cycles, hs, record_every=rec, energy=False, **kw))
             f = self.figures(traj) if status == "completed" else {}
             self._cache[key] = (f, wall, status, traj.stats, traj.message)
         return self._cache[key]

@@ -65,6 +65,41 @@ def cheapest(runs: Sequence[Run], problems: Sequence[Problem], decades: int = 3)
     return out
 
 
+def step_control_gain(runs: Sequence[Run], problems: Sequence[Problem], decades: int = 3) -> list[dict]:
+    """Per problem with step-size control runs and target error (as in :func:`cheapest`):
+    the cheapest fixed-step run and the cheapest run with step-size control that reach
+    it, and the ratio of their wall times."""
+    out = []
+    for p in problems:
+        rs = [r for r in runs if r.problem == p.name and r.status == "completed" and np.isfinite(r.error)
+              and r.error > 0]
+        if not any(r.config.adaptive for r in rs):
+            continue
+        top = max(r.error for r in rs)
+        for k in range(1, decades + 1):
+            target = top / 10.0**k
+            fixed = [r for r in rs if r.error <= target and not r.config.adaptive]
+            tol = [r for r in rs if r.error <= target and r.config.adaptive]
+            f = min(fixed, key=lambda r: r.wall) if fixed else None
+            a = min(tol, key=lambda r: r.wall) if tol else None
+            out.append({"problem": p.name, "target": target, "fixed": f, "adaptive": a,
+                        "ratio": a.wall / f.wall if a and f else float("nan")})
+    return out
+
+
+def format_gain(rows: Sequence[dict]) -> str:
+    head = (f"{'problem':<16} {'target error':>12}  {'cheapest fixed h':<30} {'wall[s]':>8}  "
+            f"{'cheapest with StepControl':<28} {'wall[s]':>8} {'ratio':>7}")
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        f, a = r["fixed"], r["adaptive"]
+        fs = f"{f.config.label} h={f.h:.2g}" if f else "not reached"
+        as_ = f"{a.config.label} tol={a.h:.2g}" if a else "not reached"
+        lines.append(f"{r['problem']:<16} {r['target']:12.3g}  {fs:<30} {f.wall if f else float('nan'):8.3f}  "
+                     f"{as_:<28} {a.wall if a else float('nan'):8.3f} {r['ratio']:7.3f}")
+    return "\n".join(lines)
+
+
 def format_cheapest(rows: Sequence[dict]) -> str:
     head = f"{'problem':<16} {'target error':>12}  {'cheapest configuration':<24} {'h':>8} {'wall[s]':>8} {'error':>10}"
     lines = [head, "-" * len(head)]
@@ -126,11 +161,12 @@ def write_csv(runs: Sequence[Run], orders: dict, path: str) -> None:
                 names.append(k)
     with open(path, "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(["problem", "integrator", "solver", "checked", "drift", "h", "wall_s", "steps", "fallbacks",
-                    "status", "error", "order", *names])
+        # adaptive rows (step-size control): "h" is StepControl's tol, "order" the slope in tol
+        w.writerow(["problem", "integrator", "solver", "checked", "drift", "adaptive", "h", "wall_s", "steps",
+                    "fallbacks", "status", "error", "order", *names])
         for r in runs:
             c = r.config
-            w.writerow([r.problem, c.integrator, c.solver, SOLVERS[c.solver].checked, c.drift, f"{r.h:.6g}",
+            w.writerow([r.problem, c.integrator, c.solver, SOLVERS[c.solver].checked, c.drift, c.adaptive, f"{r.h:.6g}",
                         f"{r.wall:.4f}", r.steps, r.fallbacks, r.status, f"{r.error:.6g}",
                         f"{orders[(r.problem, c.label)]:.3f}",
                         *[("" if r.metrics.get(k) is None else f"{r.metrics[k]:.6g}") for k in names]])
@@ -160,7 +196,8 @@ def plot(runs: Sequence[Run], orders: dict, problems: Sequence[Problem], path: s
             if not rs:
                 continue
             ax.loglog([r.wall for r in rs], [r.error for r in rs], styles[c.integrator], marker=markers[c.drift],
-                      color=colors.get(c.solver, "k"), ms=4, lw=1.1, alpha=0.85,
+                      color="k" if c.adaptive else colors.get(c.solver, "k"), ms=4, lw=2.2 if c.adaptive else 1.1,
+                      alpha=0.85,
                       label=f"{c.label}  p={orders[(p.name, c.label)]:.2f}")
         ax.set_title(f"{p.name}: {p.primary} error")
         ax.set_xlabel("wall time (s)")
@@ -187,6 +224,7 @@ def plot(runs: Sequence[Run], orders: dict, problems: Sequence[Problem], path: s
     for ax in axes[n + 1:]:
         ax.axis("off")
     handles = [Line2D([], [], color=v, label=k) for k, v in colors.items()]
+    handles += [Line2D([], [], color="k", lw=2.2, label="StepControl(tol): p = slope in tol")]
     handles += [Line2D([], [], color="k", ls=v, label=k) for k, v in styles.items()]
     names = {"none": "no drift control", "proj": "PositionProjection", "comb": "CombinedProjection"}
     handles += [Line2D([], [], color="k", marker=v, ls="", label=names[k]) for k, v in markers.items()]

@@ -23,8 +23,19 @@ from wp_problems import (
 from moreau.results.diagnostics import convergence_order
 
 
+def _with_step_control(problem: Problem, tols: Sequence[float]) -> Problem:
+    """The problem with one more configuration, the midpoint step with step-size control
+    (the exact solver, no drift control), over the tolerances ``tols``."""
+    c = Config("mid", "exact", "none", adaptive=True)
+    problem.configs.append(c)
+    problem.ladders = {**getattr(problem, "ladders", {}), c: [float(t) for t in tols]}
+    return problem
+
+
 def make_problems(quick: bool = False) -> list[Problem]:
-    """The study's problems with their ladders and configurations (quick: smaller)."""
+    """The study's problems with their ladders and configurations (quick: smaller); the
+    midpoint step with step-size control on every problem but the chain (whose error is
+    read on a uniform grid of records)."""
     if quick:
         lad = [1e-2, 5e-3, 2e-3, 1e-3, 5e-4, 2e-4]
         small = configs(solvers=("osqp", "osqp1e-3", "enum"))
@@ -32,11 +43,14 @@ def make_problems(quick: bool = False) -> list[Problem]:
                 Config("mid", "osqp", False)]
         plad = [1e-2, 6e-3, 4e-3, 2.5e-3, 1.5e-3]
         return [
-            BallProblem(lad, small),
+            _with_step_control(BallProblem(lad, small), [1e-3, 1e-4, 1e-5]),
             PendulumWallProblem(lad, small, t_end=6.0),
-            SmoothPendulumProblem([0.02, 0.01, 0.005, 0.0025, 0.00125], configs(solvers=("enum",), drifts=(False,))),
+            _with_step_control(SmoothPendulumProblem([0.02, 0.01, 0.005, 0.0025, 0.00125],
+                                                     configs(solvers=("enum",), drifts=(False,))), [1e-3, 1e-4, 1e-5]),
             BlockProblem(lad, configs(solvers=("osqp", "enum"), drifts=(False,))),  # OSQP: Tresca, 5 s a run
-            WoodpeckerProblem([1e-3, 5e-4, 2e-4], configs(solvers=("exact", "enum"), drifts=(False,)), h_ref=2e-5),
+            _with_step_control(WoodpeckerProblem([1e-3, 5e-4, 2e-4], configs(solvers=("exact", "enum"),
+                                                                            drifts=(False,)), h_ref=2e-5),
+                               [1e-3, 1e-4]),
             PistonProblem(plad, pist, e=0.0, h_ref=5e-4),
             PistonProblem(plad, pist, e=0.9, h_ref=5e-4),
         ]
@@ -63,22 +77,39 @@ def make_problems(quick: bool = False) -> list[Problem]:
         p.ladders = {c: (plad if c.solver == "exact" else [h for h in plad if h >= 1e-4]) for c in pist}
         pistons.append(p)
     chain_ladder = [1e-2, 5e-3, 2e-3, 1e-3, 5e-4, 2e-4, 1e-4, 5e-5, 2e-5, 1e-5]  # divisors of 0.01 s
+    tols = [1e-3, 1e-4, 1e-5, 1e-6, 1e-7]
+    pistons[0] = _with_step_control(pistons[0], [1e-4, 1e-5, 1e-6])
     return [
-        both(BallProblem),
-        both(PendulumWallProblem, t_end=12.0),
+        _with_step_control(both(BallProblem), tols),
+        _with_step_control(both(PendulumWallProblem, t_end=12.0), tols),
         # the energy-consistent step where its terms act: configuration-dependent M, damping
         ChainWallsProblem(chain_ladder, compiled + configs(integrators=("ec",), solvers=("exact",),
                                                            drifts=("none", "comb"))),
-        SmoothPendulumProblem([0.04, 0.02, 0.01, 0.005, 0.0025, 0.00125, 4e-4],
-                              configs(integrators=("mid", "theta", "ec"), solvers=("exact",), drifts=(False,))),
-        both(BlockProblem),
-        both(WoodpeckerProblem),
+        _with_step_control(SmoothPendulumProblem([0.04, 0.02, 0.01, 0.005, 0.0025, 0.00125, 4e-4],
+                                                 configs(integrators=("mid", "theta", "ec"), solvers=("exact",),
+                                                         drifts=(False,))), tols + [1e-8]),
+        _with_step_control(both(BlockProblem), tols[:4]),
+        _with_step_control(both(WoodpeckerProblem), tols[:4]),
         *pistons,
     ]
 
 
+def _warm_up_step_control() -> None:
+    """Compile (or load) step-size control's driver for both loop variants, so that no
+    timed run pays for it (the bouncing ball: the plain variant; the woodpecker: the full)."""
+    import moreau as mo
+    from moreau.problems.bouncing_ball import bouncing_ball
+    from moreau.problems.woodpecker import GLOCKER_STATE, woodpecker
+
+    control = mo.StepControl(1e-3)
+    mo.simulate(bouncing_ball(0.8), (0.0, 0.01), [1.0], [0.0], 1e-3, step_control=control)
+    mo.simulate(woodpecker(), (0.0, 0.01), *GLOCKER_STATE, 1e-3, step_control=control)
+
+
 def run_study(problems: Sequence[Problem], log: Callable[[str], None] | None = None) -> list[Run]:
     """Run every problem's configurations over its ladder; returns the runs in order."""
+    if any(c.adaptive for p in problems for c in p.configs):
+        _warm_up_step_control()
     runs = []
     for p in problems:
         t0 = time.perf_counter()
@@ -126,7 +157,7 @@ def drift_cost(runs: Sequence[Run], solver: str | None = None) -> list[dict]:
     out = []
     for r in runs:
         c = r.config
-        if not r.problem.startswith("piston") or c.drift != "none" or c.solver not in (
+        if not r.problem.startswith("piston") or c.drift != "none" or c.adaptive or c.solver not in (
                 (solver,) if solver else ("exact", "enum")):
             continue
         w = by.get((r.problem, Config(c.integrator, c.solver, "comb"), r.h))

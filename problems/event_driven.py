@@ -314,11 +314,16 @@ def moreau_impact_times(traj) -> np.ndarray:
     Parameters
     ----------
     traj : moreau.Trajectory
-        A run recorded at every step (``record_every == 1``).
+        A run recorded at every step (``record_every == 1``). A run with step-size control
+        (steps of different sizes) gives its impact log's times as they are: the steps
+        around an impact are as short as its tolerance asks.
     """
     im = traj.impacts
     if len(im) == 0:
         return np.zeros(0)
+    steps = np.diff(traj.t)
+    if steps.size > 1 and np.ptp(steps[:-1]) > 1e-6 * traj.h:  # step-size control: the steps around an
+        return im.t.copy()  # impact are as short as the tolerance asks, and its start is the time
     if traj.record_every != 1:
         raise ValueError("moreau_impact_times needs a trajectory recorded at every step (record_every=1)")
     g = traj.gaps[im.step, im.row]

@@ -149,6 +149,25 @@ def test_quick_benchmark_runs_and_prints_the_table():
     text = out.stdout
     for what in ("== ball", "== pendulum", "== pendulum-smooth", "== block", "== woodpecker", "== piston-e0 ",
                  "== piston-e0.9",
-                 "observed order", "drift control on the piston", "OSQP tolerances"):
+                 "observed order", "drift control on the piston", "OSQP tolerances",
+                 "step-size control against fixed steps"):
         assert what in text, what
-    assert "mid/enum/none" in text and "theta/enum/none" in text
+    assert "mid/enum/none" in text and "theta/enum/none" in text and "mid/exact/none/tol" in text
+
+
+def test_step_control_gain_compares_the_cheapest_runs_reaching_each_target(wp):
+    """The gain table: per target, the cheapest fixed-step and step-control runs at or
+    below it and the ratio of their times; a target one of them misses gives NaN."""
+    fixed, tol = wp.Config("mid", "exact", "none"), wp.Config("mid", "exact", "none", adaptive=True)
+    assert tol.label == "mid/exact/none/tol" and tol.run_args(1e-5, h_max=0.1)[0] == 0.1
+    assert isinstance(tol.run_args(1e-5)[1]["step_control"], mo.StepControl) and fixed.run_args(1e-3)[0] == 1e-3
+    runs = [wp.Run("x", fixed, 1e-2, 1.0, 10, 0, "completed", 1.0), wp.Run("x", fixed, 1e-3, 10.0, 100, 0,
+                                                                           "completed", 0.1),
+            wp.Run("x", fixed, 1e-4, 100.0, 1000, 0, "completed", 0.01), wp.Run("x", tol, 1e-3, 0.5, 20, 0,
+                                                                                 "completed", 0.05)]
+    problem = type("P", (), {"name": "x"})()
+    rows = wp.step_control_gain(runs, [problem], decades=2)
+    assert [r["target"] for r in rows] == pytest.approx([0.1, 0.01])
+    assert rows[0]["fixed"].wall == 10.0 and rows[0]["adaptive"].wall == 0.5 and rows[0]["ratio"] == 0.05
+    assert rows[1]["adaptive"] is None and np.isnan(rows[1]["ratio"])
+    assert "not reached" in wp.format_gain(rows)
