@@ -136,3 +136,13 @@ def test_a_closed_loop_with_a_stop_under_step_control_stays_closed():
     lost = traj.energy[0] - traj.energy[-1]
     assert traj.work["contacts"] < 0 and abs(lost + traj.work["contacts"]) <= 1e-3 * abs(traj.work["contacts"])
     assert traj.gaps.min() >= -1e-6
+
+
+def test_the_impact_log_names_accepted_steps(ball):
+    """With step control the log's step is the index of the accepted step (the record it
+    starts from at record_every=1), and its time lies in that step."""
+    scene, _ = ball
+    traj = mo.simulate(scene, (0.0, 2.0), [1.0], [0.0], 1e-2, energy=False, step_control=mo.StepControl(1e-5))
+    im = traj.impacts
+    assert len(im) >= 2 and im.step.max() < traj.stats.steps
+    assert np.all(traj.t[im.step] <= im.t) and np.all(im.t < traj.t[im.step + 1])

@@ -49,6 +49,7 @@ from moreau.compiled.layout import (
     DONE,
     F_H,
     F_T0,
+    I_STEP,
     IMPACTS_FULL,
     K_ATOL,
     K_END,
@@ -66,6 +67,7 @@ from moreau.compiled.layout import (
     SC_ME,
     SC_MF,
     SC_N,
+    SC_TRIG,
     SC_VELOCITY_DEPENDENT,
     STEP_MIDPOINT,
     USER_FAILED,
@@ -73,6 +75,7 @@ from moreau.compiled.layout import (
 )
 from moreau.compiled.layout import part as _part
 from moreau.compiled.loop import _record, _run_chunk
+from moreau.core import kernels as _k
 from moreau.core.jitcache import call_recovering, compile_lock
 
 log = logging.getLogger(__name__)
@@ -271,6 +274,10 @@ def _run_adaptive(model, user, iset, fset, Minv, eligible, q, v, k_end, in_conta
                 gq[r] += (gq[r] - sn.gc[r]) / c
             for r in range(m):
                 rs[r, R_GAP] = gq[r]
+            if ints[SC_TRIG]:  # cos q, sin q of the extrapolated q (the record's energies)
+                _k.trig(q, work[0].cq, work[0].sq)
+        for j in range(nimp0, cnt[C_NIMP]):  # the log's step: the accepted step's index
+            IMP[j, I_STEP] = cnt[C_ACCEPTED]
         for r in range(m):
             if pen[0, r] > sn.pen[0, r]:
                 sn.pen_t[r] = t + H

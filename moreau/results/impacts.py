@@ -43,9 +43,11 @@ class ImpactLog:
     Attributes
     ----------
     t : ndarray
-        Time at the start of the impact step (time unit ``units["t"]``).
+        Time at the start of the impact step (time unit ``units["t"]``; with step-size
+        control, of the half step it happened in).
     step : ndarray of int
-        Index of the step (0 = the step from t0).
+        Index of the step (0 = the step from t0; with step-size control, of the accepted
+        step).
     row : ndarray of int
         Contact row (see ``Trajectory.row_names``).
     U_before, U_after : ndarray
