@@ -97,58 +97,41 @@ def snapshot(n: int, m: int, mf: int, me: int) -> Snapshot:
 
 
 @_part
+def _copy(save, a, b):
+    """``a`` into ``b`` (``save``) or ``b`` into ``a``, element by element (1-D)."""
+    for i in range(a.shape[0]):
+        if save:
+            b[i] = a[i]
+        else:
+            a[i] = b[i]
+
+
+@_part
+def _copy2(save, a, b):
+    """As :func:`_copy`, for 2-D arrays."""
+    for i in range(a.shape[0]):
+        _copy(save, a[i], b[i])
+
+
+@_part
 def _swap(save, q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, pen, cnt, acc, fr, eqw, sn):
-    """Copy the run state into the snapshot ``sn`` (``save``) or back from it."""
-    for a, b in ((q, sn.q), (v, sn.v), (P_acc, sn.P_acc), (gmax, sn.gmax)):
-        for i in range(a.shape[0]):
-            if save:
-                b[i] = a[i]
-            else:
-                a[i] = b[i]
+    """Copy the run state into the snapshot ``sn`` (``save``) or back from it; the counters
+    of the work done (``_KEPT``) are not restored."""
+    for a, b in ((q, sn.q), (v, sn.v), (P_acc, sn.P_acc), (gmax, sn.gmax), (acc, sn.acc)):
+        _copy(save, a, b)
     for a, b in ((in_contact, sn.in_contact), (act_acc, sn.act_acc)):
-        for i in range(a.shape[0]):
-            if save:
-                b[i] = a[i]
-            else:
-                a[i] = b[i]
-    for i in range(last_imp.shape[0]):
-        if save:
-            sn.last_imp[i] = last_imp[i]
-        else:
-            last_imp[i] = sn.last_imp[i]
-    for a, b in ((rs, sn.rs), (pen, sn.pen)):
-        for i in range(a.shape[0]):
-            for j in range(a.shape[1]):
-                if save:
-                    b[i, j] = a[i, j]
-                else:
-                    a[i, j] = b[i, j]
-    for i in range(acc.shape[0]):
-        if save:
-            sn.acc[i] = acc[i]
-        else:
-            acc[i] = sn.acc[i]
-    for i in range(cnt.shape[0]):
-        if save:
-            sn.cnt[i] = cnt[i]
-        else:
-            kept = False
-            for c in _KEPT:
-                kept = kept or i == c
-            if not kept:
-                cnt[i] = sn.cnt[i]
+        _copy(save, a, b)
+    _copy(save, last_imp, sn.last_imp)
+    _copy2(save, rs, sn.rs)
+    _copy2(save, pen, sn.pen)
+    if not save:
+        for c in _KEPT:
+            sn.cnt[c] = cnt[c]
+    _copy(save, cnt, sn.cnt)
     if fr is not None:
-        for i in range(sn.PT_acc.shape[0]):
-            if save:
-                sn.PT_acc[i] = fr.PT_acc[i]
-            else:
-                fr.PT_acc[i] = sn.PT_acc[i]
+        _copy(save, fr.PT_acc, sn.PT_acc)
     if eqw is not None:
-        for i in range(sn.PE_acc.shape[0]):
-            if save:
-                sn.PE_acc[i] = eqw.PE_acc[i]
-            else:
-                eqw.PE_acc[i] = sn.PE_acc[i]
+        _copy(save, eqw.PE_acc, sn.PE_acc)
 
 
 @_part
@@ -308,14 +291,15 @@ def run_adaptive(model: tuple, user: np.ndarray, settings, state, records, tally
             st.in_contact, st.P_acc, st.act_acc, rec.T, rec.Q, rec.V, rec.PS, rec.ACT, rec.GP, rec.KE, rec.PE,
             rec.IMP, st.pen, tally.cnt, tally.acc, tally.fail, st.last_imp, st.gmax, settings.fgap, st.rs,
             (own, ws, lw), rec.PTS, fr, eqw, ec, control, snap)
-    if len(_run_adaptive.overloads) >= 2:
+    known = len(_run_adaptive.overloads)
+    if known >= 2:
         return _run_adaptive(*args)
-    # the first call of a process loads the driver (one per variant) or compiles it, one
-    # process at a time: others wait and load it; a damaged cache file is compiled again
+    # until both variants are loaded: a new one is loaded (or compiled) one process at a
+    # time, others wait and load it; a damaged cache file is compiled again
     t0 = time.perf_counter()
     with compile_lock(".adaptive." + ("plain" if fr is None else "full")):
         status = call_recovering(_run_adaptive, *args)
-    if time.perf_counter() - t0 > 2.0:  # a compile (a load takes a fraction of a second)
+    if len(_run_adaptive.overloads) > known and time.perf_counter() - t0 > 2.0:  # compiled, not loaded
         log.info("moreau: step-size control's driver compiled in %.0f s, once for this machine",
                  time.perf_counter() - t0)
     return status
