@@ -191,6 +191,14 @@ def test_linear_time_chain_kernels_match_the_dense_matrix(rng, lateral):
             k.chain_solve(chain._pm, 0, c, s, gen, sol, sol)  # in place, from the generators alone
             ref = np.linalg.solve(M, x)
             assert np.abs(sol - ref).max() <= 1e-14 * np.linalg.cond(M) * np.abs(ref).max()
+            B = rng.normal(size=(n, 5))  # five right-hand sides side by side: each as chain_solve alone
+            X = B.copy()
+            k.chain_solve_columns(chain._pm, 0, c, s, gen, X, 4, np.empty(5), np.empty(5))
+            for j in range(4):
+                one = np.empty(n)
+                k.chain_solve(chain._pm, 0, c, s, gen, B[:, j].copy(), one)
+                assert np.array_equal(X[:, j], one)
+            assert np.array_equal(X[:, 4], B[:, 4])  # only the first k columns
             rd = np.empty(n)  # √ of M⁻¹'s diagonal (the KKT check's round-off floor), O(n)
             k.chain_inverse_diagonal_sqrt(chain._pm, 0, c, s, gen, rd)
             ref = np.sqrt(np.diag(np.linalg.inv(M)))

@@ -147,10 +147,13 @@ def _chain_prepare(ints, pool, cm, sm, gen, GA, k, b, ws, fresh):
     _k.chain_inverse_diagonal_sqrt(pool, ints[SC_MASS_OFF], cm, sm, gen, ws.rd)
     ws.rd[n] = 1.0
     MinvGt, W, X = ws.MinvGt, ws.W, ws.Xt
+    for i in range(n):  # the k right-hand sides side by side (their solves vectorize)
+        for j in range(k):
+            X[i, j] = GA[j, i]
+    _k.chain_solve_columns(pool, ints[SC_MASS_OFF], cm, sm, gen, X, k, ws.s, ws.r)
     for j in range(k):
-        _k.chain_solve(pool, ints[SC_MASS_OFF], cm, sm, gen, GA[j], MinvGt[j])
         for i in range(n):
-            X[i, j] = MinvGt[j, i]
+            MinvGt[j, i] = X[i, j]
     _k.delassus_product(GA, X, W, k, n)
     return True
 

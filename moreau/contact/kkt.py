@@ -8,7 +8,7 @@ import math
 from numba import njit
 
 from moreau.contact.active_set import _jit
-from moreau.core.kernels import cho_solve
+from moreau.core.kernels import cho_solve_pair
 
 __all__ = ["kkt_residuals_kernel", "kkt_residuals_rows"]
 
@@ -53,43 +53,46 @@ def kkt_residuals_rows(M, L, b, G, c, v, P, k, kn, out, Gv, GtP, r, d, x, X, rd,
         rd[n] = 0.0
     for j in range(n):
         GtP[j] = 0.0
-    for i in range(k):
-        t = 0.0
-        for j in range(n):
-            t += G[i, j] * v[j]
-            GtP[j] += G[i, j] * P[i]
-        Gv[i] = t
+        d[j] = 1.0 / M[j, j]  # (d is free until the stationarity solve below)
     # the floor keeps vel² representable: a row whose Jacobian vanishes (a pendulum tip
     # touching a floor at the bottom of its swing) has every velocity scale 0, and
     # 1e-300² underflowed to 0 (a ZeroDivisionError in the complementarity residual)
     vel = 1e-150
     for i in range(k):
-        vel = max(vel, abs(c[i]), abs(Gv[i]))
-        a = 0.0
+        t = 0.0
         f = 0.0
         for j in range(n):
-            a += abs(G[i, j]) * abs(GtP[j]) / M[j, j]
+            t += G[i, j] * v[j]
             f += abs(G[i, j]) * abs(v[j])
-        vel = max(vel, a, 1e-9 * f)
-    primal = 0.0
+            GtP[j] += G[i, j] * P[i]
+        Gv[i] = t
+        vel = max(vel, abs(c[i]), abs(t), 1e-9 * f)
+    primal = 0.0  # the largest −slack, −P_i w_i and |P_i w_i slack|; scaled by vel once it is known
     dual = 0.0
     comp = 0.0
-    for i in range(kn):
-        slack = Gv[i] - c[i]
+    for i in range(k):
+        a = 0.0
         wi = 0.0
         for j in range(n):
-            wi += G[i, j] * G[i, j] / M[j, j]
-        pw = P[i] * wi
-        primal = max(primal, -slack / vel)
-        dual = max(dual, -pw / vel)
-        comp = max(comp, abs(pw * slack) / (vel * vel))
+            a += abs(G[i, j]) * abs(GtP[j]) * d[j]
+            wi += G[i, j] * G[i, j] * d[j]
+        vel = max(vel, a)
+        if i < kn:
+            slack = Gv[i] - c[i]
+            pw = P[i] * wi
+            primal = max(primal, -slack)
+            dual = max(dual, -pw)
+            comp = max(comp, abs(pw * slack))
+    primal /= vel
+    dual /= vel
+    comp /= vel * vel
     for i in range(n):
-        t = -b[i] - GtP[i]
-        for j in range(n):
-            t += M[i, j] * v[j]
-        r[i] = t
-    cho_solve(L, r, d, n)
-    cho_solve(L, b, x, n)
+        r[i] = -b[i] - GtP[i]
+    for j in range(n):  # r += M v by columns: independent updates, not one long sum
+        vj = v[j]
+        for i in range(n):
+            r[i] += M[i, j] * vj
+    cho_solve_pair(L, r, d, b, x, n)
     out[0] = primal
     out[1] = dual
     out[2] = comp

@@ -21,7 +21,7 @@ import math
 from moreau.core.kernels.jit import jit as _jit
 
 __all__ = ["chain_mass", "add_chain_bias", "chain_product", "chain_product_pair", "chain_generators", "chain_fill",
-           "chain_factor", "chain_solve", "chain_inverse_diagonal_sqrt", "CHAIN_STRUCTURED_MIN"]
+           "chain_factor", "chain_solve", "chain_solve_columns", "chain_inverse_diagonal_sqrt", "CHAIN_STRUCTURED_MIN"]
 
 #: Chains of at least this many links take the O(n) forms where a step could also use
 #: dense ones (the contact problem from the chain's solve, points against lines, the energy
@@ -214,6 +214,41 @@ def chain_solve(p, o, c, s, gen, b, out):
         be, ga = p[g + 2 * n + j], p[g + 3 * n + j]
         zx += (be * c[j] - ga * s[j]) * x
         zy += (be * s[j] + ga * c[j]) * x
+
+
+@_jit
+def chain_solve_columns(p, o, c, s, gen, X, k, zx, zy):
+    """X[:, :k] = M(q)⁻¹ X[:, :k] in place: :func:`chain_solve` of k right-hand sides side
+    by side, each column bit for bit as alone (the inner loops run over the columns,
+    contiguous and independent, so they vectorize); ``zx, zy`` (>= k) are work."""
+    n = c.shape[0]
+    g = o + 2 * n * n
+    for j in range(k):
+        zx[j] = 0.0
+        zy[j] = 0.0
+    for i in range(n):
+        be, ga = p[g + 2 * n + i], p[g + 3 * n + i]
+        wx = be * c[i] - ga * s[i]
+        wy = be * s[i] + ga * c[i]
+        gx, gy, d = gen[1, i], gen[2, i], gen[3, i]
+        for j in range(k):
+            y = (X[i, j] - (wx * zx[j] + wy * zy[j])) * d
+            X[i, j] = y
+            zx[j] += gx * y
+            zy[j] += gy * y
+    for j in range(k):
+        zx[j] = 0.0
+        zy[j] = 0.0
+    for i in range(n - 1, -1, -1):
+        be, ga = p[g + 2 * n + i], p[g + 3 * n + i]
+        wx = be * c[i] - ga * s[i]
+        wy = be * s[i] + ga * c[i]
+        gx, gy, d = gen[1, i], gen[2, i], gen[3, i]
+        for j in range(k):
+            x = (X[i, j] - (gx * zx[j] + gy * zy[j])) * d
+            X[i, j] = x
+            zx[j] += wx * x
+            zy[j] += wy * x
 
 
 @_jit

@@ -7,8 +7,8 @@ import math
 
 from moreau.core.kernels.jit import jit as _jit
 
-__all__ = ["cholesky", "lt_solve", "cho_solve", "sym_product", "delassus", "delassus_product", "symmetry_defect",
-           "expm_taylor"]
+__all__ = ["cholesky", "lt_solve", "cho_solve", "cho_solve_pair", "sym_product", "delassus", "delassus_product",
+           "symmetry_defect", "expm_taylor"]
 
 
 # -- dense linear algebra for small SPD systems (leading k x k blocks, no views) -----------
@@ -53,6 +53,28 @@ def cho_solve(L, b, out, k):
             t -= L[i, l] * out[l]
         out[i] = t / L[i, i]
     lt_solve(L, out, k)
+
+
+@_jit
+def cho_solve_pair(L, b1, out1, b2, out2, k):
+    """:func:`cho_solve` of two right-hand sides at once, each bit for bit as alone (two
+    independent sums per row instead of one: the substitutions are bound by latency)."""
+    for i in range(k):
+        t1 = b1[i]
+        t2 = b2[i]
+        for l in range(i):
+            t1 -= L[i, l] * out1[l]
+            t2 -= L[i, l] * out2[l]
+        out1[i] = t1 / L[i, i]
+        out2[i] = t2 / L[i, i]
+    for i in range(k - 1, -1, -1):
+        t1 = out1[i]
+        t2 = out2[i]
+        for l in range(i + 1, k):
+            t1 -= L[l, i] * out1[l]
+            t2 -= L[l, i] * out2[l]
+        out1[i] = t1 / L[i, i]
+        out2[i] = t2 / L[i, i]
 
 
 @_jit
@@ -104,12 +126,15 @@ def delassus(L, G, X, MinvGt, W, k, n):
 @_jit
 def delassus_product(G, X, W, k, n):
     """W[:k, :k] = G X for X = M⁻¹ Gᵀ (n x >= k), exactly symmetric: W_ij = Σ_l G_il X_lj
-    for j <= i, mirrored; the k sums of a row side by side (contiguous, they vectorize)."""
+    for j <= i, mirrored; the k sums of a row side by side (contiguous, they vectorize),
+    skipping G's zeros (a chain's rows touch the links up to their own)."""
     for i in range(k):
         for j in range(i + 1):
             W[i, j] = 0.0
         for l in range(n):
             a = G[i, l]
+            if a == 0.0:
+                continue
             for j in range(i + 1):
                 W[i, j] += a * X[l, j]
         for j in range(i):
