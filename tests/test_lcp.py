@@ -150,6 +150,81 @@ def test_osqp_runs_a_whole_piston_cycle_with_drift_control_without_fallbacks():
     assert traj.stats.fallbacks == 0
 
 
+@pytest.mark.parametrize("k", [8, 20, 60])
+def test_many_row_lcps_match_nonnegative_least_squares(k):
+    """From ``BLOCK_MIN`` rows the dual method is started by block principal pivoting, which
+    gives up on hard problems. On positive definite W (condition up to 1e6, random
+    eigenvectors) with about half the rows active, and with every row pushed (w < 0), P
+    equals the independent answer of scipy's NNLS: min |R P + R⁻ᵀ w| over P >= 0 for
+    W = RᵀR is the same LCP."""
+    from scipy.optimize import nnls
+
+    from moreau.contact.active_set import BLOCK_MIN, lcp_dual_active_set
+    from moreau.contact.one_step import workspace
+
+    assert k >= BLOCK_MIN
+    rng = np.random.default_rng(k)
+    for trial in range(20):
+        Q, _ = np.linalg.qr(rng.normal(size=(k, k)))
+        W = Q @ np.diag(10.0 ** rng.uniform(-3, 3, k)) @ Q.T
+        W = 0.5 * (W + W.T)
+        w = -np.abs(rng.normal(size=k)) if trial % 4 == 0 else rng.normal(size=k)
+        ws = workspace(1, k)
+        P = np.empty(k)
+        assert lcp_dual_active_set(W, w, P, k, 1e-12, ws.s, ws.A, ws.inA, ws.rhs, ws.r, ws.sub, ws.fac) == 0
+        R = np.linalg.cholesky(W).T
+        ref, _ = nnls(R, -np.linalg.solve(R.T, w), maxiter=50 * k)
+        assert rel(P, ref) <= 1e-8
+        slack = w + W @ P
+        assert P.min() >= 0.0 and slack.min() >= -1e-10 * np.abs(w).max()
+        assert np.abs(P * slack).max() <= 1e-10 * np.abs(P).max() * np.abs(w).max()
+
+
+@pytest.mark.parametrize("N", [8, 20, 40])
+def test_a_chain_on_a_floor_is_solved_by_block_pivoting_alone(N):
+    """The one-step problems of an N-link chain lying on a floor, shaken (random angles
+    and velocities: from none to all rows pushed into the floor): block pivoting alone
+    solves each (its Python form; no fallback to the dual method), and agrees with
+    scipy's NNLS."""
+    from scipy.optimize import nnls
+
+    from moreau.contact.active_set import _block_pivoting
+    from moreau.contact.one_step import workspace
+    from moreau.model.chain import ChainGravity, Link, PendulumChain, PointLineBarrier, PointLineRow
+
+    chain = PendulumChain([Link.rod(m=1.0 / N, l=1.0 / N) for _ in range(N)])
+    floor = PointLineBarrier(chain, [PointLineRow(i, (1.0 / N, 0.0), line_point=(0.0, 0.0), normal=(0.0, 1.0))
+                                     for i in range(N)])
+    gravity = ChainGravity(chain)
+    rng = np.random.default_rng(N)
+    for trial in range(10):
+        q = np.pi / 2 + 0.05 * rng.normal(size=N)
+        M, G = chain.mass_matrix(q), floor.jacobian(q)
+        W = G @ np.linalg.solve(M, G.T)
+        w = G @ (0.3 * trial / 9 * rng.normal(size=N) + 1e-3 * np.linalg.solve(M, gravity.force(0.0, q, 0 * q)))
+        ws = workspace(1, N)
+        P = np.empty(N)
+        assert _block_pivoting.py_func(W, w, P, N, 1e-12, ws.s, ws.A, ws.inA, ws.rhs, ws.r, ws.sub, ws.fac)
+        R = np.linalg.cholesky(W).T
+        ref, _ = nnls(R, -np.linalg.solve(R.T, w), maxiter=50 * N)
+        assert rel(P, ref) <= 1e-10
+
+
+def test_many_dependent_rows_fall_back_to_the_dual_method():
+    """Sixteen rows on four coordinates (W = G M⁻¹ Gᵀ of rank 4): block pivoting meets a
+    singular W_AA and gives up; the dual method solves, and the engine's check passes."""
+    rng = np.random.default_rng(7)
+    n, k = 4, 16
+    A = rng.normal(size=(n, n))
+    M = A @ A.T + n * np.eye(n)
+    G = rng.normal(size=(k, n))
+    b = M @ rng.normal(size=n)
+    c = G @ rng.normal(size=n) - 0.1  # feasible: some velocity clears every row
+    v, P = mo.ExactSolver().solve(M, b, G, c, np.arange(k))
+    assert kkt_residuals(M, b, G, c, v, P).worst <= 1e-9
+    assert (P > 0).sum() >= 2
+
+
 @pytest.mark.parametrize("seed, index", [(1, 347), (1, 2761), (5, 2705), (5, 2915)])
 def test_nearly_dependent_active_rows_are_refined_to_the_checks_tolerance(seed, index):
     """Scaled random problems whose active rows are nearly dependent (cond(W_AA) 6.6e11 …

@@ -66,6 +66,70 @@ def _direction(W, A, na, p, fac, y, r):
     return schur
 
 
+#: problems of at least this many rows try block principal pivoting first (a chain lying on a
+#: floor closes all its rows at once: one factorization instead of one append per row)
+BLOCK_MIN = 8
+#: block pivoting gives up after this many factorizations, at most about the dual
+#: method's work (k³/2) lost when it does
+BLOCK_ITER = 3
+
+
+@_inline
+def _block_pivoting(W, w, P, k, tol, s, A, inA, rhs, r, sub, fac):
+    """Block principal pivoting (Júdice & Pires, Optim. Methods Softw. 1994) on ``0 <= P ⟂
+    w + W P >= 0``, from the rows the free motion violates: solve W_AA P_A = −w_A and swap
+    every row that is wrong (P < 0 inside, slack < −tol outside) while their number
+    falls. True when solved, with ``A`` (the active rows in increasing order), ``inA``
+    and ``fac`` (the factor of W_AA) as :func:`lcp_dual_active_set` leaves them; False
+    when W_AA is not positive definite (dependent rows), when the number of wrong rows
+    does not fall, or after ``BLOCK_ITER`` factorizations (the caller then runs the dual
+    method, which always ends)."""
+    for i in range(k):
+        inA[i] = w[i] < -tol
+    best = k + 1
+    for _ in range(BLOCK_ITER):
+        na = 0
+        for i in range(k):
+            if inA[i]:
+                A[na] = i
+                rhs[na] = -w[i]
+                na += 1
+        for a in range(na):
+            for b in range(na):
+                sub[a, b] = W[A[a], A[b]]
+        if cholesky(sub, fac, na) >= 0:
+            return False
+        cho_solve(fac, rhs, r, na)
+        for i in range(k):
+            P[i] = 0.0
+        for a in range(na):
+            P[A[a]] = r[a]
+        wrong = 0
+        for i in range(k):
+            if inA[i]:
+                bad = P[i] < 0.0
+            else:
+                t = w[i]
+                for a in range(na):
+                    t += W[i, A[a]] * P[A[a]]
+                s[i] = t
+                bad = t < -tol
+            if bad:
+                wrong += 1
+        if wrong == 0:
+            return True
+        if wrong >= best:
+            return False
+        best = wrong
+        for i in range(k):
+            if inA[i]:
+                if P[i] < 0.0:
+                    inA[i] = False
+            elif s[i] < -tol:
+                inA[i] = True
+    return False
+
+
 @_jit
 def lcp_dual_active_set(W, w, P, k, tol, s, A, inA, rhs, r, sub, fac):
     """Solve ``0 <= P ⟂ w + W P >= 0`` (W PSD, the leading k x k block) by the
@@ -88,7 +152,12 @@ def lcp_dual_active_set(W, w, P, k, tol, s, A, inA, rhs, r, sub, fac):
     -------
     int
         ``OK`` or ``FAILED`` (infeasible problem, or no convergence in 10 (k + 1) steps).
+
+    Problems of ``BLOCK_MIN`` rows or more try block principal pivoting first
+    (:func:`_block_pivoting`) and start the dual method only when it gives up.
     """
+    if k >= BLOCK_MIN and _block_pivoting(W, w, P, k, tol, s, A, inA, rhs, r, sub, fac):
+        return OK
     for i in range(k):
         P[i] = 0.0
         inA[i] = False  # (also for k = 1: the flags tell the refinement which rows have a factor)

@@ -54,40 +54,45 @@ def solve_one_step(M, L, b, G, c, P, v, k, method, tol, ws, fresh=True, vready=F
     w = ws.w
     scale = 1e-300
     for i in range(k):
-        t = -c[i]
-        for j in range(n):
-            t += G[i, j] * vfree[j]
-        w[i] = t
-        scale = max(scale, abs(t), abs(c[i]))
+        w[i] = -c[i]
+    for j in range(n):  # w = G v_f − c by columns: k independent sums, not one long one at a time
+        x = vfree[j]
+        for i in range(k):
+            w[i] += G[i, j] * x
+    for i in range(k):
+        scale = max(scale, abs(w[i]), abs(c[i]))
     if method == 0:
         status = lcp_dual_active_set(W, w, P, k, tol * scale, ws.s, ws.A, ws.inA, ws.rhs, ws.r, ws.sub, ws.fac)
     else:
         status = lcp_enumerate(W, w, P, k, tol * scale, ws.s, ws.A, ws.rhs, ws.r, ws.sub, ws.fac)
     for i in range(n):
-        t = vfree[i]
-        for j in range(k):
-            t += MinvGt[j, i] * P[j]
-        v[i] = t
+        v[i] = vfree[i]
+    for j in range(k):  # v = v_f + M⁻¹ Gᵀ P by rows of M⁻¹ Gᵀ (contiguous: they vectorize)
+        if P[j] != 0.0:
+            for i in range(n):
+                v[i] += MinvGt[j, i] * P[j]
     if status == OK:
         # iterative refinement; repeated (twice at most) while the residual it corrected was
         # above the round-off of G v − c: nearly dependent active rows (cond(W_AA) ~ 1e12)
         # take two or three steps, a well-conditioned set none more
-        applied, residual, scale = _refine(G, c, P, v, k, W, MinvGt, ws, method == 0)
+        applied, residual, scale = _refine(G, c, P, v, k, W, MinvGt, ws, method == 0, math.inf)
         for _ in range(2):
             if not applied or residual <= 64.0 * 2.220446049250313e-16 * scale:
                 break
-            applied, residual, scale = _refine(G, c, P, v, k, W, MinvGt, ws, False)
+            applied, residual, scale = _refine(G, c, P, v, k, W, MinvGt, ws, True, residual / scale)
     return status
 
 
 @_inline
-def _refine(G, c, P, v, k, W, MinvGt, ws, kept):
+def _refine(G, c, P, v, k, W, MinvGt, ws, kept, last):
     """One step of iterative refinement on the rows with P > 0: v⁺ = v_free + M⁻¹GᵀP
     cancels large free velocities (an impulse that stops a driven joint), leaving G v⁺
     off its bound c by round-off of the large terms; correct P and v by the residual.
     Returns ``(applied, max |G_i v − c_i| before the correction, max (|c_i| + |G_i||v|))``
     over those rows; nothing is applied when the residual is already at the round-off
-    of G v − c (64 ε of that scale). ``kept``: the rows flagged in ``ws.inA`` are listed in
+    of G v − c (64 ε of that scale), nor when the residual relative to its scale has
+    not halved since the ``last`` one (a contact holding a body at rest: v shrinks with
+    each step, G v stays at a few % of ``|G||v|``). ``kept``: the rows flagged in ``ws.inA`` are listed in
     ``ws.A`` with the Cholesky factor of their W_AA in ``ws.fac`` (the dual active-set
     method leaves them so, and so does a refinement); when they are the rows with P > 0,
     that factor is used instead of factoring W_AA again."""
@@ -114,7 +119,7 @@ def _refine(G, c, P, v, k, W, MinvGt, ws, kept):
             same = same and inA[i]
         elif inA[i]:
             same = False
-    if na == 0 or worst <= 64.0 * 2.220446049250313e-16 * scale:  # nothing to refine
+    if na == 0 or worst <= 64.0 * 2.220446049250313e-16 * scale or worst > 0.5 * last * scale:  # nothing to do
         return False, worst, scale
     if same:  # unless W_AA is ill-conditioned (pivots spread by 1e4, cond >= 1e8): factored
         # afresh in the rows' order, as it was before the factor was kept; at cond ~ 1e13 the
