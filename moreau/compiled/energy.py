@@ -7,6 +7,7 @@ from moreau.compiled.layout import (  # the loop's layout
     A_KE0,
     A_KEMAX,
     A_KEMAX_WARN,
+    A_T_EWARN,
     A_WORK_B,
     A_WORK_F,
     C_ELEVEL,
@@ -16,6 +17,8 @@ from moreau.compiled.layout import (  # the loop's layout
     ENERGY_GROWTH,
     F_ESTOP,
     F_EWARN,
+    F_H,
+    F_T0,
     SC_MASS_KIND,
     SC_N,
     USER_FAILED,
@@ -82,6 +85,7 @@ def _energy_check(model, user, iset, fset, k, q, v, cq, sq, M, cnt, acc, q_warn,
         cnt[C_EWARN] = k
         acc[A_DU_WARN] = du
         acc[A_KEMAX_WARN] = acc[A_KEMAX]
+        acc[A_T_EWARN] = fset[F_T0] + k * fset[F_H]
         for i in range(q.shape[0]):  # the state the warning's step advice is for
             q_warn[i] = q[i]
             v_warn[i] = v[i]

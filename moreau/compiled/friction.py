@@ -11,12 +11,15 @@ import numpy as np
 
 from moreau.compiled.bilateral import _eq_reduce
 from moreau.compiled.layout import (
+    A_T_PAINLEVE,
     A_WORK_T,
     A_WORST,
     C_K,
     C_PAINLEVE,
     C_PAINLEVE_ROW,
     C_PAINLEVE_STEP,
+    F_H,
+    F_T0,
     F_TOL,
     FrictionWork,
 )
@@ -107,6 +110,7 @@ def _friction_solve(n, m, M, L, b, G, GA, cA, active, na, v_new, PA, fset, acc, 
         if cnt[C_PAINLEVE_STEP] == 0:
             cnt[C_PAINLEVE_STEP] = cnt[C_K] + 1
             cnt[C_PAINLEVE_ROW] = painleve
+            acc[A_T_PAINLEVE] = fset[F_T0] + cnt[C_K] * fset[F_H]
     return 1
 
 

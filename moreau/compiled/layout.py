@@ -81,7 +81,10 @@ A_WORK_E, A_EQRES, A_WORK_EV = 9, 10, 11
 # (A_KEMAX_WARN: the largest kinetic energy when the energy check first warned, which the
 # warning quotes)
 A_KEMAX_WARN = 12
-N_ACCUMULATORS = 13
+# (the times the energy check first warned and Painlevé's region was first met: t0 + k h on
+# fixed steps, the adaptive step's own time with step-size control)
+A_T_EWARN, A_T_PAINLEVE = 13, 14
+N_ACCUMULATORS = 15
 # step-size control's state (float array): the step to try next, the time reached, the end
 # time, the tolerances (absolute, relative), the largest and smallest step, the start of the
 # step of the last energy check that passed

@@ -22,14 +22,16 @@ def _name(solver) -> str:
     return "" if solver is None else solver if isinstance(solver, str) else str(getattr(solver, "name", solver))
 
 
-def run_warnings(scene, traj: Trajectory, cnt, acc, h, work, t0) -> None:
+def run_warnings(scene, traj: Trajectory, cnt, acc, h, work) -> None:
     """The run's warnings (energy check, Painlevé), once each, also in ``traj.warnings``."""
     if cnt[lay.C_EWARN] > 0:
-        _energy_warning(scene, traj, int(cnt[lay.C_EWARN]), float(acc[lay.A_DU_WARN]), float(acc[lay.A_KEMAX_WARN]),
-                        h, work[2].q_warn, work[2].v_warn)
+        _energy_warning(scene, traj, float(acc[lay.A_T_EWARN]), float(acc[lay.A_DU_WARN]),
+                        float(acc[lay.A_KEMAX_WARN]), h, work[2].q_warn, work[2].v_warn)
     if cnt[lay.C_PAINLEVE_STEP] > 0:  # one warning, kept in traj.warnings
         k0, row = int(cnt[lay.C_PAINLEVE_STEP]) - 1, int(cnt[lay.C_PAINLEVE_ROW])
-        msg = painleve_message(t0 + k0 * h, k0, [scene.row_names[row]], [float(scene.friction[row])])
+        adaptive = cnt[lay.C_ACCEPTED] > 0  # (its loop steps are attempts and halves: no step number)
+        msg = painleve_message(float(acc[lay.A_T_PAINLEVE]), None if adaptive else k0, [scene.row_names[row]],
+                               [float(scene.friction[row])])
         traj.warnings.append(msg)
         warnings.warn(msg, RuntimeWarning, stacklevel=4)
     if cnt[lay.C_FORCED] > 0:
@@ -125,10 +127,10 @@ def _user_error(scene, cs: CompiledScene, status: int, where: str, k: int, t: fl
     return error
 
 
-def _energy_warning(scene, traj: Trajectory, step: int, du: float, ke_max: float, h: float, q: np.ndarray,
+def _energy_warning(scene, traj: Trajectory, t: float, du: float, ke_max: float, h: float, q: np.ndarray,
                     v: np.ndarray) -> None:
     """Warn once (``RuntimeWarning``, and in ``traj.warnings``) that the energy check's first
-    bound was passed at ``step``, where the state was ``q, v`` (the step size advice's)."""
-    msg = energy_growth_message(scene, traj.t[0] + step * h, q, v, du, ke_max, h)
+    bound was passed at time ``t``, where the state was ``q, v`` (the step size advice's)."""
+    msg = energy_growth_message(scene, t, q, v, du, ke_max, h)
     traj.warnings.append(msg)
     warnings.warn(msg, RuntimeWarning, stacklevel=5)

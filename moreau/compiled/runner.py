@@ -170,7 +170,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
             if interrupt is None:
                 interrupt, status = exc, "interrupted"
                 message = "interrupted by the user while the result was assembled"
-    run_warnings(scene, traj, cnt, acc, h, work, t0)
+    run_warnings(scene, traj, cnt, acc, h, work)
     if interrupt is not None:
         log.warning("%s; %d records computed so far are attached to the KeyboardInterrupt", traj.message, len(traj))
         attach_trajectory(interrupt, traj)

@@ -44,9 +44,11 @@ def painleve_rows(L: np.ndarray, GA: np.ndarray, TA: np.ndarray, muA: np.ndarray
     return np.array(out, dtype=np.int64)
 
 
-def painleve_message(t: float, step: int, rows: list[str], mu: list[float]) -> str:
-    """The warning of a run that met Painlevé's region (both paths say the same)."""
-    return (f"Painlevé's paradox: at t = {t:.9g} (step {step}) the sliding contact(s) {rows} (mu = {mu}) have a "
+def painleve_message(t: float, step: int | None, rows: list[str], mu: list[float]) -> str:
+    """The warning of a run that met Painlevé's region (``step`` None: a run with
+    step-size control, whose loop steps are not numbered by time)."""
+    at = f"at t = {t:.9g}" + ("" if step is None else f" (step {step})")
+    return (f"Painlevé's paradox: {at} the sliding contact(s) {rows} (mu = {mu}) have a "
             "non-positive or vanishing (below 1 % of its frictionless value) effective normal inverse mass: the "
             "normal force the slip needs grows without bound, the one-step problem can have several solutions "
             "(lift-off, sliding, a tangential impact) or none, and the motion from here on depends on the step "

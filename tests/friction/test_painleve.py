@@ -117,3 +117,34 @@ def test_a_run_in_painleves_region_says_so(backend):
     assert traj.completed and traj.stats.backend == backend
     said = [str(x.message) for x in caught if "Painlevé" in str(x.message)]
     assert len(said) == 1 and said[0] in traj.warnings and "'end'" in said[0]
+
+
+def test_a_run_with_step_control_says_when_it_met_painleves_region():
+    """The same frozen rod from t = 0.3 with step-size control: the warning quotes the time
+    of the step that met the region, and no step number (the loop's attempts and half
+    steps count no clock). The time comes from the loop, not from t0 + k h: a run's tally
+    that met the region at t = 0.3125 after 40 loop steps of h = 1e-3 says 0.3125."""
+    from types import SimpleNamespace
+
+    from moreau.compiled import layout as lay
+    from moreau.compiled.run_errors import run_warnings
+
+    phi = np.radians(50.0)
+    c, s = np.cos(phi), np.sin(phi)
+    end = mo.LinearBarrier([[0.0, 1.0, -L * c]], [-L * s + L * c * phi], tangent=[[1.0, 0.0, L * s]])
+    scene = mo.Scene(mo.FunctionSystem(np.diag([1.0, 1.0, (2 * L) ** 2 / 12])), [mo.ConstantForce([0.0, GRAV, 0.0])],
+                     [mo.Contact(end, mo.NewtonImpactFriction(0.0, MU), name="end")])
+    q0, v0 = [L * c, L * s, phi], [-10.0, -1e-3, 0.0]
+    with pytest.warns(RuntimeWarning, match="Painlevé's paradox: at t = 0.3 the sliding") as caught:
+        traj = mo.simulate(scene, (0.3, 0.305), q0, v0, 1e-3, solver="exact", step_control=mo.StepControl(1e-6))
+    said = [str(x.message) for x in caught if "Painlevé" in str(x.message)]
+    assert len(said) == 1 and said[0] in traj.warnings
+    cnt, acc = np.zeros(lay.N_COUNTERS, dtype=np.int64), np.zeros(lay.N_ACCUMULATORS)
+    cnt[lay.C_PAINLEVE_STEP], cnt[lay.C_ACCEPTED], acc[lay.A_T_PAINLEVE] = 41, 9, 0.3125
+    fake = SimpleNamespace(row_names=["end"], friction=np.array([MU]))
+    out = SimpleNamespace(warnings=[])
+    with pytest.warns(RuntimeWarning, match=r"Painlevé's paradox: at t = 0.3125 the sliding contact\(s\) \['end'\]"):
+        run_warnings(fake, out, cnt, acc, 1e-3, None)
+    cnt[lay.C_ACCEPTED] = 0  # fixed steps: the step number too
+    with pytest.warns(RuntimeWarning, match=r"at t = 0.3125 \(step 40\)"):
+        run_warnings(fake, out, cnt, acc, 1e-3, None)
