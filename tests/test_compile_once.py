@@ -213,3 +213,22 @@ def test_a_scene_without_friction_or_bilateral_rows_compiles_none_of_their_code(
     assert "loop._run_chunk" in names and "one_step.solve_one_step" in names
     assert not {n for n in names if n.startswith(("friction.", "lemke.", "friction_states.", "equality.",
                                                   "implicit.", "bilateral."))}
+
+
+def test_ensure_compiled_with_step_control_loads_that_variants_driver():
+    """``ensure_compiled(step_control=True)`` also loads step-size control's driver, for the
+    variants asked for only (a new process; the cache holds it from the suite's first worker,
+    or this compiles it once)."""
+    probe = textwrap.dedent("""
+        from numba.core import types
+        import moreau as mo
+        from moreau.compiled import adaptive
+        from moreau.problems.bouncing_ball import bouncing_ball
+        assert len(adaptive._run_adaptive.overloads) == 0
+        mo.ensure_compiled(bouncing_ball(0.8), step_control=True)
+        print(sorted(isinstance(sig[31], types.NoneType) for sig in adaptive._run_adaptive.overloads))
+    """)
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=600,
+                         env=dict(os.environ, PYTHONPATH=os.getcwd()))
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.split("\n")[-2] == "[True]"  # the plain variant's driver (fr is None), loaded

@@ -32,7 +32,7 @@ _ready = {False: threading.Event(), True: threading.Event()}
 _ready_lock = threading.Lock()
 
 
-def ensure_compiled(full: bool | None = None) -> float:
+def ensure_compiled(full: bool | None = None, step_control: bool = False) -> float:
     """Load a variant of the compiled time loop from numba's cache, or compile it (once per
     machine and version, saying so in one logged line) when it is not there; returns the
     seconds it took (0 when this process has it already).
@@ -42,11 +42,18 @@ def ensure_compiled(full: bool | None = None) -> float:
     runs); None: both. Processes started together on an empty cache compile once: the
     first holds a lock in the cache directory (:func:`moreau.core.jitcache.compile_lock`),
     the others wait and then load what it saved. Call it before starting worker
-    processes, or to warm a cache (``moreau compile`` does).
+    processes, or to warm a cache (``moreau compile`` does). ``step_control``: also step-size
+    control's driver for that variant (:mod:`moreau.compiled.adaptive`, compiled on first use
+    otherwise: 17–28 s).
     """
     if full is None:
-        return ensure_compiled(False) + ensure_compiled(True)
+        return ensure_compiled(False, step_control) + ensure_compiled(True, step_control)
     full = bool(full)
+    if step_control:
+        t = time.perf_counter()
+        ensure_compiled(full)
+        _warm_up(full, adaptive=True)  # (the driver takes its own lock, and loads or compiles)
+        return time.perf_counter() - t
     if _ready[full].is_set():
         return 0.0
     with _ready_lock:
@@ -116,9 +123,10 @@ def _signals_deferred() -> Iterator[None]:
                 os.kill(os.getpid(), num)
 
 
-def _warm_up(full: bool) -> None:
+def _warm_up(full: bool, adaptive: bool = False) -> None:
     """Two steps of a one-row scene on the ``full`` variant or the plain one: loads (or
-    compiles) every compiled function a run of that variant calls."""
+    compiles) every compiled function a run of that variant calls; ``adaptive``: with
+    step-size control (its driver)."""
     from moreau.model.barriers import LinearBarrier
     from moreau.model.forces import ConstantForce
     from moreau.model.scene import Contact, Scene
@@ -128,4 +136,5 @@ def _warm_up(full: bool) -> None:
                   [Contact(LinearBarrier([[1.0]], [0.0]), 0.5)])
     run_compiled(scene, None, 0.0, np.array([1e-3]), np.array([-1.0]), 1e-3, 2, step=STEP_MIDPOINT, solver="exact",
                  fallback=None, stride=1, bar=None, energy=True, tol=1e-8, drift_control=None,
-                 flight_gap=np.zeros(1), gmax0=np.full(1, np.inf), full=full)
+                 flight_gap=np.zeros(1), gmax0=np.full(1, np.inf), full=full,
+                 control=(2e-3, 1e-3, 0.0, 1e-12) if adaptive else None)

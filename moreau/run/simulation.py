@@ -197,7 +197,7 @@ def _plan(scene: Scene, t_span: tuple[float, float], h: float, tol: float, recor
     if not isinstance(scene, Scene):
         raise ValueError(f"scene must be a Scene, got {scene!r}")
     h, tol = as_positive(h, "step size h"), as_positive(tol, "tol")
-    t0, n_steps, stride, n_rec = _steps_and_records(scene, t_span, h, record_every)
+    t0, t1, n_steps, stride, n_rec = _steps_and_records(scene, t_span, h, record_every)
     if not (isinstance(integrator, type) and issubclass(integrator, OneStepIntegrator)):
         raise ValueError(f"integrator must be a OneStepIntegrator subclass, got {integrator!r}")
     iteration = _iteration(integrator)  # an iterating step's settings, checked for both paths
@@ -211,13 +211,14 @@ def _plan(scene: Scene, t_span: tuple[float, float], h: float, tol: float, recor
     if step_control is not None:
         if not isinstance(step_control, StepControl):
             raise ValueError(f"step_control must be a StepControl or None, got {step_control!r}")
-        control = (as_time_span(t_span)[1], step_control.tol, step_control.rtol, step_control.smallest(h))
+        control = (t1, step_control.tol, step_control.rtol, step_control.smallest(h))
     cs, solver, fallback = choose_backend(backend, scene, integrator, solver, fallback, drift_control)
     return _Plan(t0, h, tol, n_steps, stride, n_rec, cs, solver, fallback, fg, penetration_limit,
                  initial_penetration, as_energy_growth(energy_growth), iteration, control)
 
 
-def ensure_compiled(*scenes: Scene, integrator: type[OneStepIntegrator] = MoreauJeanMidpoint) -> float:
+def ensure_compiled(*scenes: Scene, integrator: type[OneStepIntegrator] = MoreauJeanMidpoint,
+                    step_control: bool = False) -> float:
     """Load the compiled time loop from numba's cache, or compile it there (once per machine
     and version, said in one logged line); returns the seconds it took.
 
@@ -226,13 +227,15 @@ def ensure_compiled(*scenes: Scene, integrator: type[OneStepIntegrator] = Moreau
     :class:`~moreau.MoreauJeanPredictorCorrector` and :class:`~moreau.MoreauJeanEnergyConsistent`;
     a run compiles only the one its scene and ``integrator`` use. With ``scenes``: the
     variants they run; without: both (to warm a cache: ``moreau compile``). Call it before
-    starting worker processes: they then load it, never two compiling.
+    starting worker processes: they then load it, never two compiling. ``step_control``:
+    also the driver of :class:`~moreau.StepControl` for those variants (else compiled at
+    the first run that asks for it).
     """
     if not scenes:
-        return cache.ensure_compiled(None)
+        return cache.ensure_compiled(None, step_control)
     step, iterations = _compiled_step(integrator), _iteration(integrator)[0]
-    return sum(cache.ensure_compiled(full) for full in sorted({variant(lower(s).ints, step, iterations)
-                                                               for s in scenes}))
+    return sum(cache.ensure_compiled(full, step_control)
+               for full in sorted({variant(lower(s).ints, step, iterations) for s in scenes}))
 
 
 def _compiled_step(integrator: type[OneStepIntegrator]) -> int:
@@ -288,8 +291,8 @@ def _run(scene: Scene, plan: _Plan, q0: ArrayLike, v0: ArrayLike, integrator: ty
 
 
 def _steps_and_records(scene: Scene, t_span: tuple[float, float], h: float,
-                       record_every: int) -> tuple[float, int, int, int]:
-    """``(t0, steps, record stride, records)`` of a run with a checked step ``h``, refusing a
+                       record_every: int) -> tuple[float, float, int, int, int]:
+    """``(t0, t1, steps, record stride, records)`` of a run with a checked step ``h``, refusing a
     step count or a record size beyond the guards."""
     t0, t1 = as_time_span(t_span)
     stride = int(as_record_every(record_every))
@@ -304,4 +307,4 @@ def _steps_and_records(scene: Scene, t_span: tuple[float, float], h: float,
     if record_bytes > _MAX_RECORD_BYTES:
         raise ValueError(f"recording {n_rec} states (h = {h!r}, record_every = {stride}) needs "
                          f"{record_bytes / 2**30:.1f} GiB; raise record_every")
-    return t0, n_steps, stride, n_rec
+    return t0, t1, n_steps, stride, n_rec

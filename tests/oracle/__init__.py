@@ -73,7 +73,7 @@ def simulate(scene: mo.Scene, t_span, q0, v0, h: float, *, backend: str = "pytho
                            drift_control=drift_control, check_jacobian=check_jacobian,
                            penetration_limit=penetration_limit, flight_gap=flight_gap,
                            initial_penetration=initial_penetration, energy_growth=energy_growth)
-    t0, n_steps, stride, n_rec = _steps_and_records(scene, t_span, h, record_every)
+    t0, _, n_steps, stride, n_rec = _steps_and_records(scene, t_span, h, record_every)
     initial_penetration = as_positive(initial_penetration, "initial_penetration", allow_zero=True)
     if isinstance(integrator, type) and issubclass(integrator, mo.OneStepIntegrator):
         _iteration(integrator)  # the product's checks of an iterating step's settings
