@@ -61,6 +61,7 @@ from moreau.compiled.layout import (
     K_TOK,
     R_GAP,
     RECORDS_FULL,
+    S_MASS_READY,
     S_RECORD,
     S_STEP,
     SC_M,
@@ -211,6 +212,7 @@ def _run_adaptive(model, user, iset, fset, Minv, eligible, q, v, k_end, in_conta
                             PTS, fr, eqw, ec)
         if status != DONE:
             return status
+        iset[S_MASS_READY] = 1  # a constant M and its factor are formed: not again per call
         for i in range(n):
             sn.qc[i] = q[i]
             sn.vc[i] = v[i]

@@ -33,7 +33,11 @@ S_EXTERNAL = 12
 # (S_RECORD: with step-size control, record every this many accepted steps; the steps'
 # own S_STRIDE and S_NSTEPS then never record)
 S_RECORD = 14
-N_SETTINGS = 15
+# (S_MASS_READY: 1 once a constant M and its factor are in the run's work arrays: step-size
+# control's driver sets it after its first step, so its many one-step calls of the loop do
+# not form and factor M again; 0 for fixed steps, whose chunks form it once each)
+S_MASS_READY = 15
+N_SETTINGS = 16
 # the LCP methods (S_METHOD, S_FALLBACK): dual active set, enumeration, called back; -1 none
 METHOD_EXACT, METHOD_ENUM, METHOD_EXTERNAL = 0, 1, 2
 # the step (S_STEP): midpoint, predictor-corrector, energy-consistent
