@@ -163,3 +163,21 @@ def test_the_fallback_is_never_the_main_solver_and_every_backends_failure_is_kep
     with pytest.raises(mo.SolverError) as info:
         mo.simulate(bouncing_ball(0.5), (0.0, 1.0), [1.0], [0.0], 1e-3, solver=FailingSolver(), fallback=other)
     assert set(info.value.residuals) == {"failing", "failing too"}
+
+
+def test_auto_solver_is_the_loops_exact_solver_choosing_by_size():
+    """``solver="auto"`` runs the loop's exact solver (which picks its method by the
+    problem's size): a 12-link chain landing on a floor, with up to 12 rows closed (block
+    pivoting from 8), gives the same trajectory bit for bit, and the result names it."""
+    from moreau.model.chain import ChainGravity, Link, PendulumChain, PointLineBarrier, PointLineRow
+
+    N = 12
+    chain = PendulumChain([Link.rod(m=1.0 / N, l=1.0 / N) for _ in range(N)])
+    floor = PointLineBarrier(chain, [PointLineRow(i, (1.0 / N, 0.0), line_point=(0.0, -0.02), normal=(0.0, 1.0))
+                                     for i in range(N)])
+    scene = mo.Scene(chain, [ChainGravity(chain)], [mo.Contact(floor, 0.0, name="floor")])
+    q0 = np.full(N, np.pi / 2)
+    runs = [mo.simulate(scene, (0.0, 0.3), q0, np.zeros(N), 1e-3, solver=s) for s in ("auto", "exact")]
+    assert all(r.completed for r in runs) and runs[0].stats.solver == "exact"
+    assert np.array_equal(runs[0].q, runs[1].q) and np.array_equal(runs[0].impulses, runs[1].impulses)
+    assert runs[0].active.sum(axis=1).max() >= 8  # the many-row path was taken

@@ -58,7 +58,7 @@ def choose_backend(backend: str, scene: Scene, integrator: type[OneStepIntegrato
             make_solver(x)  # an unknown name is refused here, naming the choices
     if drift_control is not None and not isinstance(drift_control, PositionProjection):
         raise ValueError(f"drift_control must be a PositionProjection or a CombinedProjection, got {drift_control!r}")
-    if solver is None:
+    if solver is None or solver == "auto":  # the loop's exact solver picks its method by size
         solver = "exact"
     if fallback == "auto":
         fallback = "exact" if solver == "enum" else "enum"

@@ -87,13 +87,12 @@ def simulate(
         (:mod:`moreau.compiled.loop`); ``"python"`` is deprecated (``DeprecationWarning``)
         and runs there too. ``traj.stats.backend`` is ``"compiled"``.
     solver : str or ContactSolver, optional
-        Contact solver: ``"exact"`` (dual active set, exact, any number of rows; the
-        default), ``"enum"`` (enumeration, ≤ 12 rows), ``"osqp"``, ``"daqp"``,
-        ``"quadprog"`` or a :class:`~moreau.contact.base.ContactSolver` instance. The first
-        two are the loop's own; the others are called from the loop for each contact
-        problem (:class:`~moreau.compiled.callbacks.SolverCallback`). Every answer is KKT-checked. Steps with
-        friction are solved by the loop's friction solver (Lemke's method, projected
-        Gauss–Seidel for many contacts) whatever the solver.
+        ``"exact"`` (default; also ``"auto"``: block pivoting from 8 rows, else or after it
+        the dual active set), ``"enum"`` (≤ 12 rows): the loop's own; ``"osqp"``,
+        ``"daqp"``, ``"quadprog"`` or a :class:`~moreau.contact.base.ContactSolver`: called
+        back (:class:`~moreau.compiled.callbacks.SolverCallback`). Every answer is
+        KKT-checked. Friction: the loop's friction solver whatever the solver (Lemke's
+        method below 32 closed contacts, projected Gauss–Seidel and a polish from 32).
     fallback : str or ContactSolver or None
         Exact solver for steps the main one fails; ``"auto"``: ``"enum"``, or
         ``"exact"`` when the main solver is ``"enum"``. Never the same as ``solver``.
