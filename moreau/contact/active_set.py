@@ -154,7 +154,7 @@ def lcp_dual_active_set(W, w, P, k, tol, s, A, inA, rhs, r, sub, fac):
         ``OK`` or ``FAILED`` (infeasible problem, or no convergence in 10 (k + 1) steps).
 
     Problems of ``BLOCK_MIN`` rows or more try block principal pivoting first
-    (:func:`_block_pivoting`) and start the dual method only when it gives up.
+    (``_block_pivoting``) and start the dual method only when it gives up.
     """
     if k >= BLOCK_MIN and _block_pivoting(W, w, P, k, tol, s, A, inA, rhs, r, sub, fac):
         return OK
