@@ -55,9 +55,10 @@ class _CompiledLCPSolver(ContactSolver):
 
 
 class ExactSolver(_CompiledLCPSolver):
-    """Exact dual active-set solver (Goldfarb–Idnani on the LCP, :mod:`moreau.contact.lcp`):
-    any number of active rows, redundant rows included. The default of the compiled path,
-    and the same code here."""
+    """Exact LCP solver (:mod:`moreau.contact.lcp`): block principal pivoting from 8 rows,
+    and the dual active-set method (Goldfarb–Idnani on the LCP) below that or when the
+    pivoting gives up; any number of active rows, redundant rows included. The default
+    of the compiled loop (also as ``solver="auto"``), and the same code here."""
 
     name = "exact"
     _method = 0
