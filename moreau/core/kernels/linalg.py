@@ -97,13 +97,16 @@ def delassus(L, G, X, MinvGt, W, k, n):
     :func:`sym_product` of G and M⁻¹ Gᵀ, bit for bit (each entry summed in the same
     order), with the k right-hand sides side by side in ``X`` (work, (n, >= k)): the inner
     loops run over them, contiguous and independent, so they vectorize (4x faster than a
-    row at a time at n = k = 40)."""
+    row at a time at n = k = 40). L's zeros are skipped (a pile of bodies has a block
+    diagonal M: its factor has almost none but them)."""
     for i in range(n):
         for j in range(k):
             X[i, j] = G[j, i]
     for i in range(n):  # L Y = Gᵀ
         for l in range(i):
             a = L[i, l]
+            if a == 0.0:
+                continue
             for j in range(k):
                 X[i, j] -= a * X[l, j]
         a = L[i, i]
@@ -112,6 +115,8 @@ def delassus(L, G, X, MinvGt, W, k, n):
     for i in range(n - 1, -1, -1):  # Lᵀ X = Y
         for l in range(i + 1, n):
             a = L[l, i]
+            if a == 0.0:
+                continue
             for j in range(k):
                 X[i, j] -= a * X[l, j]
         a = L[i, i]
