@@ -23,6 +23,8 @@ most contacts closed at once and the worst law residual of its steps' friction s
     python benchmarks/many_contacts.py                 # about 5 minutes
     python benchmarks/many_contacts.py --widths 10 20 --links 8 40
     python benchmarks/many_contacts.py --long-chain 500 --widths --links   # about 2.5 minutes
+    python benchmarks/many_contacts.py --chain-contacts 200 1000 --widths --links
+                                       # the friction solve of chains (N contacts) on a rough floor
 """
 
 from __future__ import annotations
@@ -47,18 +49,27 @@ def _timed(problem: tuple, method: str, repeat: int) -> tuple[float, float, int]
     return best, float(friction_residuals(M, b, GA, cA, TA, muA, v, PN, PT).max()), st
 
 
-def chain_problem(N: int, rng: np.random.Generator) -> tuple:
-    """``(M, b, G, c)`` of one step of an N-link chain lying on a floor, shaken."""
+def _chain(N: int) -> tuple:
+    """An N-link chain of rods (1 m, 1 kg in all) hanging from the origin, a floor row at
+    each link's tip (y = 0: lying on it at q = π/2), and its gravity."""
     from moreau.model.chain import ChainGravity, Link, PendulumChain, PointLineBarrier, PointLineRow
 
     chain = PendulumChain([Link.rod(m=1.0 / N, l=1.0 / N) for _ in range(N)])
     floor = PointLineBarrier(chain, [PointLineRow(i, (1.0 / N, 0.0), line_point=(0.0, 0.0), normal=(0.0, 1.0))
                                      for i in range(N)])
+    return chain, floor, ChainGravity(chain)
+
+
+def chain_problem(N: int, rng: np.random.Generator, mu: float = 0.0) -> tuple:
+    """One step of an N-link chain lying on a floor, shaken: ``(M, b, G, c)``, and with
+    ``mu`` > 0 ``(M, b, G, c, T, mu)`` (its tangent rows) as ``friction_one_step`` takes."""
+    chain, floor, gravity = _chain(N)
     q = np.pi / 2 + 0.05 * rng.normal(size=N)
     v = 0.3 * rng.normal(size=N)
     M = chain.mass_matrix(q)
-    b = M @ v + 1e-3 * (ChainGravity(chain).force(0.0, q, v) + chain.bias_force(q, v))
-    return M, b, floor.jacobian(q), np.zeros(N)
+    b = M @ v + 1e-3 * (gravity.force(0.0, q, v) + chain.bias_force(q, v))
+    G, c = floor.jacobian(q), np.zeros(N)
+    return (M, b, G, c) if mu == 0.0 else (M, b, G, c, floor.tangent_jacobian(q), np.full(N, mu))
 
 
 def _each_solver(problem: tuple, names: list[str], repeat: int) -> list[tuple[float, float, int]]:
@@ -98,14 +109,16 @@ def frictionless_table(links: list[int], repeat: int, rng: np.random.Generator) 
         print(f"{N:5d} {cells[0][2]:6d}" + "".join(f" {t:14.5f} {r:9.1e}" for t, r, _ in cells) + f"  {auto}")
 
 
-def pile_table(widths: list[int], repeat: int, rng: np.random.Generator) -> None:
-    """Lemke against PGS + polish on piles of rods of the given bases."""
+def pile_table(widths: list[int], repeat: int, rng: np.random.Generator, chains: bool = False) -> None:
+    """Lemke against PGS + polish on piles of rods of the given bases (``chains``: on
+    chains of that many links lying on a rough floor, mu = 0.3)."""
     _timed(rod_pile(4, rng), "lemke", 1), _timed(rod_pile(4, rng), "pgs", 1)  # compile
-    print("\nfriction solve of piles of rods, one step (best of", repeat, "runs; residual: the law's, scaled)")
+    what = "chains of N links on a rough floor" if chains else "piles of rods"
+    print(f"\nfriction solve of {what}, one step (best of", repeat, "runs; residual: the law's, scaled)")
     print(f"{'contacts':>8} {'coords':>7} {'Lemke (s)':>10} {'residual':>9} {'PGS+polish (s)':>15} {'residual':>9}"
           f" {'ratio':>6}  auto")
     for width in widths:
-        problem = rod_pile(width, rng)
+        problem = chain_problem(width, rng, mu=0.3) if chains else rod_pile(width, rng)
         k, n = problem[2].shape[0], problem[0].shape[0]
         tl, rl, sl = _timed(problem, "lemke", repeat)
         tp, rp, sp = _timed(problem, "pgs", repeat)
@@ -117,12 +130,9 @@ def pile_table(widths: list[int], repeat: int, rng: np.random.Generator) -> None
 def long_chain(N: int) -> None:
     """One second of an N-link chain lying on a rough floor (mu = 0.3), shaken."""
     import moreau as mo
-    from moreau.model.chain import ChainGravity, Link, PendulumChain, PointLineBarrier, PointLineRow
 
-    chain = PendulumChain([Link.rod(m=1.0 / N, l=1.0 / N) for _ in range(N)])
-    floor = PointLineBarrier(chain, [PointLineRow(i, (1.0 / N, 0.0), line_point=(0.0, 0.0), normal=(0.0, 1.0))
-                                     for i in range(N)])
-    scene = mo.Scene(chain, [ChainGravity(chain)], [mo.Contact(floor, mo.NewtonImpactFriction(0.0, 0.3), name="floor")])
+    chain, floor, gravity = _chain(N)
+    scene = mo.Scene(chain, [gravity], [mo.Contact(floor, mo.NewtonImpactFriction(0.0, 0.3), name="floor")])
     v0 = 0.3 * np.random.default_rng(0).normal(size=N)
     t = time.perf_counter()
     traj = mo.simulate(scene, (0.0, 1.0), np.full(N, np.pi / 2), v0, 1e-3, progress=False)
@@ -139,6 +149,8 @@ def main() -> None:
     ap.add_argument("--links", type=int, nargs="*", default=[8, 20, 40, 80, 160, 320],
                     help="chains lying on a floor: rows of the frictionless problems")
     ap.add_argument("--repeat", type=int, default=2)
+    ap.add_argument("--chain-contacts", type=int, nargs="*", default=[], metavar="N",
+                    help="also the friction solve of N-link chains on a rough floor (N contacts)")
     ap.add_argument("--long-chain", type=int, default=0, metavar="N",
                     help="also run an N-link chain on a rough floor over a second")
     args = ap.parse_args()
@@ -147,6 +159,8 @@ def main() -> None:
         frictionless_table(args.links, args.repeat, rng)
     if args.widths:
         pile_table(args.widths, args.repeat, rng)
+    if args.chain_contacts:
+        pile_table(args.chain_contacts, args.repeat, rng, chains=True)
     if args.long_chain:
         long_chain(args.long_chain)
 
