@@ -181,16 +181,20 @@ def test_many_row_lcps_match_nonnegative_least_squares(k):
 
 
 @pytest.mark.parametrize("N", [8, 20, 40])
-def test_a_chain_on_a_floor_is_solved_by_block_pivoting_alone(N):
+def test_a_chain_on_a_floor_is_solved_by_block_pivoting_alone(N, monkeypatch):
     """The one-step problems of an N-link chain lying on a floor, shaken (random angles
     and velocities: from none to all rows pushed into the floor): block pivoting alone
     solves each (its Python form; no fallback to the dual method), and agrees with
     scipy's NNLS."""
     from scipy.optimize import nnls
 
+    from moreau.contact import active_set
     from moreau.contact.active_set import _block_pivoting
     from moreau.contact.one_step import workspace
     from moreau.model.chain import ChainGravity, Link, PendulumChain, PointLineBarrier, PointLineRow
+
+    # the Python form calls its inlined helper as Python too (it has no Python entry)
+    monkeypatch.setattr(active_set, "_solve_active", active_set._solve_active.py_func)
 
     chain = PendulumChain([Link.rod(m=1.0 / N, l=1.0 / N) for _ in range(N)])
     floor = PointLineBarrier(chain, [PointLineRow(i, (1.0 / N, 0.0), line_point=(0.0, 0.0), normal=(0.0, 1.0))
@@ -210,9 +214,13 @@ def test_a_chain_on_a_floor_is_solved_by_block_pivoting_alone(N):
         assert rel(P, ref) <= 1e-10
 
 
-def test_many_dependent_rows_fall_back_to_the_dual_method():
-    """Sixteen rows on four coordinates (W = G M⁻¹ Gᵀ of rank 4): block pivoting meets a
-    singular W_AA and gives up; the dual method solves, and the engine's check passes."""
+def test_many_dependent_rows_fall_back_to_the_dual_method(monkeypatch):
+    """Sixteen rows on four coordinates (W = G M⁻¹ Gᵀ of rank 4), nine pushed: block
+    pivoting gives up (its Python form says so); the dual method solves, and the engine's
+    check passes."""
+    from moreau.contact import active_set
+    from moreau.contact.one_step import workspace
+
     rng = np.random.default_rng(7)
     n, k = 4, 16
     A = rng.normal(size=(n, n))
@@ -220,6 +228,11 @@ def test_many_dependent_rows_fall_back_to_the_dual_method():
     G = rng.normal(size=(k, n))
     b = M @ rng.normal(size=n)
     c = G @ rng.normal(size=n) - 0.1  # feasible: some velocity clears every row
+    W, w = G @ np.linalg.solve(M, G.T), G @ np.linalg.solve(M, b) - c
+    ws = workspace(n, k)
+    monkeypatch.setattr(active_set, "_solve_active", active_set._solve_active.py_func)
+    assert (w < 0).sum() > n and not active_set._block_pivoting.py_func(
+        W, w, np.empty(k), k, 1e-12 * np.abs(w).max(), ws.s, ws.A, ws.inA, ws.rhs, ws.r, ws.sub, ws.fac)
     v, P = mo.ExactSolver().solve(M, b, G, c, np.arange(k))
     assert kkt_residuals(M, b, G, c, v, P).worst <= 1e-9
     assert (P > 0).sum() >= 2

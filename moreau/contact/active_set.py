@@ -94,12 +94,8 @@ def _block_pivoting(W, w, P, k, tol, s, A, inA, rhs, r, sub, fac):
                 A[na] = i
                 rhs[na] = -w[i]
                 na += 1
-        for a in range(na):
-            for b in range(na):
-                sub[a, b] = W[A[a], A[b]]
-        if cholesky(sub, fac, na) >= 0:
+        if not _solve_active(W, A, na, rhs, r, sub, fac):
             return False
-        cho_solve(fac, rhs, r, na)
         for i in range(k):
             P[i] = 0.0
         for a in range(na):
