@@ -97,6 +97,18 @@ def test_painleve_region_is_flagged():
         assert got.tolist() == expected, (phi_deg, slip)
 
 
+def frozen_rod():
+    """``(scene, q0, v0)``: the rod frozen at 50° (its rows linearized there, so that the
+    scene compiles), its end on the floor sliding left at 10 m/s and approaching at 1 mm/s,
+    under a lift of twice its weight."""
+    phi = np.radians(50.0)
+    c, s = np.cos(phi), np.sin(phi)
+    end = mo.LinearBarrier([[0.0, 1.0, -L * c]], [-L * s + L * c * phi], tangent=[[1.0, 0.0, L * s]])
+    scene = mo.Scene(mo.FunctionSystem(np.diag([1.0, 1.0, (2 * L) ** 2 / 12])), [mo.ConstantForce([0.0, GRAV, 0.0])],
+                     [mo.Contact(end, mo.NewtonImpactFriction(0.0, MU), name="end")])
+    return scene, [L * c, L * s, phi], [-10.0, -1e-3, 0.0]
+
+
 @pytest.mark.parametrize("backend", ["compiled", "python"])
 def test_a_run_in_painleves_region_says_so(backend):
     """The rod frozen at 50° (its rows linearized there, so that the scene compiles: the
@@ -106,12 +118,7 @@ def test_a_run_in_painleves_region_says_so(backend):
     the lift-off solution and a sliding one with a large impulse; whichever Lemke returns
     passes the law check, and the run says where it met Painlevé's region: one
     RuntimeWarning naming the contact, kept in traj.warnings, on both paths."""
-    phi = np.radians(50.0)
-    c, s = np.cos(phi), np.sin(phi)
-    end = mo.LinearBarrier([[0.0, 1.0, -L * c]], [-L * s + L * c * phi], tangent=[[1.0, 0.0, L * s]])
-    scene = mo.Scene(mo.FunctionSystem(np.diag([1.0, 1.0, (2 * L) ** 2 / 12])), [mo.ConstantForce([0.0, GRAV, 0.0])],
-                     [mo.Contact(end, mo.NewtonImpactFriction(0.0, MU), name="end")])
-    q0, v0 = [L * c, L * s, phi], [-10.0, -1e-3, 0.0]
+    scene, q0, v0 = frozen_rod()
     with pytest.warns(RuntimeWarning, match="Painlevé's paradox: at t = 0 ") as caught:
         traj = oracle.simulate(scene, (0.0, 0.005), q0, v0, 1e-3, backend=backend, solver="exact")
     assert traj.completed and traj.stats.backend == backend
@@ -145,12 +152,7 @@ def test_painleves_warning_quotes_the_loops_time_and_a_step_only_on_fixed_steps(
 def test_a_run_with_step_control_says_when_it_met_painleves_region():
     """The frozen rod from t = 0.3 with step-size control: one warning, at t = 0.3, with
     no step number, kept in traj.warnings."""
-    phi = np.radians(50.0)
-    c, s = np.cos(phi), np.sin(phi)
-    end = mo.LinearBarrier([[0.0, 1.0, -L * c]], [-L * s + L * c * phi], tangent=[[1.0, 0.0, L * s]])
-    scene = mo.Scene(mo.FunctionSystem(np.diag([1.0, 1.0, (2 * L) ** 2 / 12])), [mo.ConstantForce([0.0, GRAV, 0.0])],
-                     [mo.Contact(end, mo.NewtonImpactFriction(0.0, MU), name="end")])
-    q0, v0 = [L * c, L * s, phi], [-10.0, -1e-3, 0.0]
+    scene, q0, v0 = frozen_rod()
     with pytest.warns(RuntimeWarning, match="Painlevé's paradox: at t = 0.3 the sliding") as caught:
         traj = mo.simulate(scene, (0.3, 0.305), q0, v0, 1e-3, solver="exact", step_control=mo.StepControl(1e-6))
     said = [str(x.message) for x in caught if "Painlevé" in str(x.message)]
