@@ -30,12 +30,17 @@ most contacts closed at once and the worst law residual of its steps' friction s
 from __future__ import annotations
 
 import argparse
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-from moreau.contact.friction import PGS_MIN_CONTACTS, friction_one_step, friction_residuals
-from moreau.contact.testing import rod_pile
+sys.path.insert(0, str(Path(__file__).parent))
+from step_cost import chain_scene  # noqa: E402  (the chains of the step-cost table)
+
+from moreau.contact.friction import PGS_MIN_CONTACTS, friction_one_step, friction_residuals  # noqa: E402
+from moreau.contact.testing import rod_pile  # noqa: E402
 
 
 def _timed(problem: tuple, method: str, repeat: int) -> tuple[float, float, int]:
@@ -49,25 +54,15 @@ def _timed(problem: tuple, method: str, repeat: int) -> tuple[float, float, int]
     return best, float(friction_residuals(M, b, GA, cA, TA, muA, v, PN, PT).max()), st
 
 
-def _chain(N: int) -> tuple:
-    """An N-link chain of rods (1 m, 1 kg in all) hanging from the origin, a floor row at
-    each link's tip (y = 0: lying on it at q = π/2), and its gravity."""
-    from moreau.model.chain import ChainGravity, Link, PendulumChain, PointLineBarrier, PointLineRow
-
-    chain = PendulumChain([Link.rod(m=1.0 / N, l=1.0 / N) for _ in range(N)])
-    floor = PointLineBarrier(chain, [PointLineRow(i, (1.0 / N, 0.0), line_point=(0.0, 0.0), normal=(0.0, 1.0))
-                                     for i in range(N)])
-    return chain, floor, ChainGravity(chain)
-
-
 def chain_problem(N: int, rng: np.random.Generator, mu: float = 0.0) -> tuple:
     """One step of an N-link chain lying on a floor, shaken: ``(M, b, G, c)``, and with
     ``mu`` > 0 ``(M, b, G, c, T, mu)`` (its tangent rows) as ``friction_one_step`` takes."""
-    chain, floor, gravity = _chain(N)
+    scene = chain_scene(N, True)[0]
+    chain, floor = scene.system, scene.contacts[0].barrier
     q = np.pi / 2 + 0.05 * rng.normal(size=N)
     v = 0.3 * rng.normal(size=N)
     M = chain.mass_matrix(q)
-    b = M @ v + 1e-3 * (gravity.force(0.0, q, v) + chain.bias_force(q, v))
+    b = M @ v + 1e-3 * scene.force(0.0, q, v)  # (gravity and the bias terms)
     G, c = floor.jacobian(q), np.zeros(N)
     return (M, b, G, c) if mu == 0.0 else (M, b, G, c, floor.tangent_jacobian(q), np.full(N, mu))
 
@@ -131,11 +126,10 @@ def long_chain(N: int) -> None:
     """One second of an N-link chain lying on a rough floor (mu = 0.3), shaken."""
     import moreau as mo
 
-    chain, floor, gravity = _chain(N)
-    scene = mo.Scene(chain, [gravity], [mo.Contact(floor, mo.NewtonImpactFriction(0.0, 0.3), name="floor")])
+    scene, q0, _ = chain_scene(N, True, mu=0.3)
     v0 = 0.3 * np.random.default_rng(0).normal(size=N)
     t = time.perf_counter()
-    traj = mo.simulate(scene, (0.0, 1.0), np.full(N, np.pi / 2), v0, 1e-3, progress=False)
+    traj = mo.simulate(scene, (0.0, 1.0), q0, v0, 1e-3, progress=False)
     secs = time.perf_counter() - t
     print(f"\n{N}-link chain on a rough floor (mu = 0.3), 1 s at h = 1e-3: {traj.status} in {secs:.0f} s, "
           f"{traj.stats.steps} steps, up to {int(traj.active.sum(axis=1).max())} contacts closed at once, "
