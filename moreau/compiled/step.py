@@ -21,6 +21,7 @@ from moreau.compiled.layout import (  # the loop's layout
     DRIFT_COMBINED,
     F_H,
     F_TOL,
+    METHOD_EXACT,
     METHOD_EXTERNAL,
     R_BOUNCED,
     R_DELAY,
@@ -46,6 +47,7 @@ from moreau.compiled.layout import (  # the loop's layout
 )
 from moreau.compiled.layout import part as _part
 from moreau.compiled.usercalls import call_solver
+from moreau.compiled.warm_start import keep_rows, same_rows, warm_solve
 from moreau.contact.lcp import kkt_residuals_kernel, solve_one_step
 from moreau.core import kernels as _k
 
@@ -72,7 +74,7 @@ def _count(flags, m):
 
 @_part
 def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail, ws, fresh=True, check=True,
-                   prepared=False):
+                   prepared=False, warm=False, cd=None):
     """Main LCP method, KKT check, fallback; False when both fail (residuals in ``fail``).
     ``check=False``: an answer the method reports solved is taken unchecked (the
     energy-consistent step's passes; the loop checks the one it keeps,
@@ -82,7 +84,11 @@ def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail
     :func:`~moreau.contact.one_step.solve_one_step`) and the KKT check's √(M⁻¹)_jj of
     this M; the fallback reuses the main's. A
     step's later passes pass it, except with bilateral rows or friction (which solve other
-    problems) and with ``S_LOCATE`` (whose closed rows depend on f)."""
+    problems) and with ``S_LOCATE`` (whose closed rows depend on f). ``warm`` (a chain's
+    fresh pass, ``cd`` = its mass ``(pool, offset, cm, sm, gen)``, W not yet formed): first the
+    kept factor's answer (:func:`moreau.compiled.warm_start.warm_solve`), checked; W is
+    formed only when it fails. ``ws.ids[0]`` is left −2 when the dual active-set method
+    solved, −1 after any other solve (:mod:`~moreau.compiled.warm_start`)."""
     res = ws.res
     tol = fset[F_TOL]
     # np.int64: numba would type the count as the literal 0 at one of the inlined call
@@ -90,19 +96,32 @@ def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail
     k = np.int64(na)
     # a called-back main solver forms no Delassus matrix: the fallback forms its own
     external = iset[S_METHOD] == METHOD_EXTERNAL
-    for attempt in range(2):
-        method = iset[S_METHOD] if attempt == 0 else iset[S_FALLBACK]
-        if method < 0:
-            break
-        if attempt == 1:
-            cnt[C_FALLBACKS] += 1
-        if method == METHOD_EXTERNAL:
-            st = call_solver(iset[S_EXTERNAL + attempt], M, b, GA, cA, v_out, P_out, M.shape[0], k)
-            if st == 2:  # interrupted (Ctrl-C): no fallback, the runner raises it
-                return False
+    first = 0
+    if cd is not None and warm:
+        first = -1
+    for attempt in range(first, 2):
+        if cd is not None and attempt < 0:
+            st = 0 if warm_solve(cd[0], cd[1], cd[2], cd[3], cd[4], GA, cA, k, ws, v_out, P_out) else 1
+            if st != 0:  # the kept factor no longer serves: the main method on a fresh W
+                continue
         else:
-            st = solve_one_step(M, L, b, GA, cA, P_out, v_out, k, method, 1e-12, ws,
-                                (external or fresh and attempt == 0) and not prepared, prepared)
+            method = iset[S_METHOD] if attempt == 0 else iset[S_FALLBACK]
+            if method < 0:
+                break
+            if cd is not None and prepared and fresh and attempt == 0:  # a chain's W, formed here once
+                _chain_delassus(cd[0], cd[1], cd[2], cd[3], cd[4], GA, k, ws)
+            if attempt == 1:
+                cnt[C_FALLBACKS] += 1
+            ws.ids[0] = -1
+            if method == METHOD_EXTERNAL:
+                st = call_solver(iset[S_EXTERNAL + attempt], M, b, GA, cA, v_out, P_out, M.shape[0], k)
+                if st == 2:  # interrupted (Ctrl-C): no fallback, the runner raises it
+                    return False
+            else:
+                st = solve_one_step(M, L, b, GA, cA, P_out, v_out, k, method, 1e-12, ws,
+                                    (external or fresh and attempt == 0) and not prepared, prepared)
+                if st == 0 and method == METHOD_EXACT:
+                    ws.ids[0] = -2
         if st == 0 and not check:
             return True
         if st == 0:
@@ -110,12 +129,14 @@ def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail
             # √(M⁻¹)_jj (O(n³)); not the fallback of a fresh pass (the main may have failed
             # before any check of this M), unless _chain_prepare formed them
             kkt_residuals_kernel(M, L, b, GA, cA, v_out, P_out, k, res, ws.Gv, ws.GtP, ws.rv, ws.d, ws.x,
-                                 ws.X, ws.rd, not fresh or prepared)
+                                 ws.X, ws.rd, not fresh or prepared, cd, prepared)
             worst = max(res[0], res[1], res[2], res[3])
             if worst <= tol:
                 if worst > acc[A_WORST]:
                     acc[A_WORST] = worst
                 return True
+            if attempt < 0:
+                continue
             for i in range(4):
                 fail[attempt, i] = res[i]
         else:
@@ -125,17 +146,17 @@ def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail
 
 
 @_part
-def _chain_prepare(ints, pool, cm, sm, gen, GA, k, b, ws, fresh):
+def _chain_prepare(ints, pool, cm, sm, gen, b, ws, fresh):
     """A chain's contact problem (without friction or bilateral rows; True when prepared)
     with its O(n) solve (:func:`moreau.core.kernels.chain_solve`, from the generators
     ``gen`` of M's factor at q_m, cos/sin ``cm, sm``) instead of the dense factor's: M⁻¹ b
-    into ``ws.vfree`` and, when ``fresh``, M⁻¹ G_jᵀ (rows of ``ws.MinvGt``), W = G M⁻¹ Gᵀ
-    (``ws.W``, k x k, exactly symmetric) for the first k rows of ``GA``, and the KKT
-    check's √(M⁻¹)_jj (``ws.rd``, flagged kept; O(n) against O(n³)). Other scenes: a
+    into ``ws.vfree`` and, when ``fresh``, the KKT check's √(M⁻¹)_jj (``ws.rd``, flagged
+    kept; O(n) against O(n³)). Other scenes: a
     fresh pass flags the check's kept √(M⁻¹)_jj stale (``implicit.checked`` keeps them), and
     so do chains under ``CHAIN_STRUCTURED_MIN`` (8) links: the dense solves cost as little there, and the dense floor,
     formed only when a check needs it, less (the 3-link chain's step on a floor was 5-7 %
-    slower with these)."""
+    slower with these). W itself is formed by :func:`_contact_solve` (:func:`_chain_delassus`),
+    unless the kept factor serves."""
     n = ints[SC_N]
     if ints[SC_MASS_KIND] != _k.MASS_CHAIN or ints[SC_MF] > 0 or ints[SC_ME] > 0 or n < _k.CHAIN_STRUCTURED_MIN:
         if fresh:
@@ -146,16 +167,23 @@ def _chain_prepare(ints, pool, cm, sm, gen, GA, k, b, ws, fresh):
         return True
     _k.chain_inverse_diagonal_sqrt(pool, ints[SC_MASS_OFF], cm, sm, gen, ws.rd)
     ws.rd[n] = 1.0
+    return True
+
+
+@_part
+def _chain_delassus(pool, off, cm, sm, gen, GA, k, ws):
+    """A chain's M⁻¹ G_jᵀ (rows of ``ws.MinvGt``) and W = G M⁻¹ Gᵀ (``ws.W``) for the first
+    k rows of ``GA``, by its O(n) solve from its mass at ``pool[off:]`` (:func:`_chain_prepare`)."""
+    n = cm.shape[0]
     MinvGt, W, X = ws.MinvGt, ws.W, ws.Xt
     for i in range(n):  # the k right-hand sides side by side (their solves vectorize)
         for j in range(k):
             X[i, j] = GA[j, i]
-    _k.chain_solve_columns(pool, ints[SC_MASS_OFF], cm, sm, gen, X, k, ws.s, ws.r)
+    _k.chain_solve_columns(pool, off, cm, sm, gen, X, k, ws.s, ws.r)
     for j in range(k):
         for i in range(n):
             MinvGt[j, i] = X[i, j]
     _k.delassus_product(GA, X, W, k, n)
-    return True
 
 
 @_part
@@ -260,8 +288,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     if combined:
         if not locate:
             _free_acceleration(ints, pool, Minv, L, lw.gen, cm, sm, f, rhs)
-        k_now = cnt[C_K]
-        memory = iset[S_MEMORY]
+        k_now, memory = cnt[C_K], iset[S_MEMORY]
     if na > 0:
         cnt[C_SOLVES] += 1
     if not _closed_model(model, user, qm, cm, sm, M, L, lw.gen, GA_all, cnt, locate, again):
@@ -271,8 +298,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     if eqw is not None and me > 0 and na == 0:  # no contact row: the bilateral rows alone
         return _eq_alone(n, m, m + mf, me, M, L, b, v, GA_all, P, v_new, eqw.Q, eqw.R, eqw.piv, eqw.x, eqw.y,
                          eqw.by, eqw.PE, eqw.F, eqw.yv, eqw.cE, eqw.rank, cnt)
-    GA = lw.GA
-    cA = lw.cA
+    GA, cA = lw.GA, lw.cA
     j = 0
     for r in range(m):
         if active[r]:
@@ -296,8 +322,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
                         c = cr
             cA[j] = c
             j += 1
-    PA = lw.PA
-    solved = 0
+    PA, solved = lw.PA, 0
     Ms, Ls, bs = M, L, b
     rank = -1
     if eqw is not None and me > 0:  # bilateral rows: the contact rows solved in their null space (M = I there)
@@ -311,11 +336,14 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
         solved = _friction_solve(n, m, Ms, Ls, bs, GA_all, GA, cA, active, na, v_new, PA, fset, acc, fail, fr, cnt,
                                  L, eqw, rank)
     fresh = not again or locate or me > 0 or mf > 0  # else the last Delassus matrix stands
-    chain = _chain_prepare(ints, pool, cm, sm, lw.gen, GA, na, b, ws, fresh)
+    warm = check and not again and iset[S_METHOD] == METHOD_EXACT and same_rows(ws.ids, active, m, na)
+    chain = _chain_prepare(ints, pool, cm, sm, lw.gen, b, ws, fresh)
     if solved < 0 or (solved == 0 and not _contact_solve(Ms, Ls, bs, GA, cA, na, v_new, PA, iset, fset, cnt, acc,
-                                                          fail, ws, fresh, check, chain)):
+                                                          fail, ws, fresh, check, chain, warm and chain,
+                                                          (pool, ints[SC_MASS_OFF], cm, sm, lw.gen))):
         cnt[C_FAILKIND] = SOLVER_FAILED
         return -1
+    keep_rows(ws.ids, active, m, na, chain)  # the rows of the factor the dual method left
     j = 0
     for r in range(m):
         if active[r]:

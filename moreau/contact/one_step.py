@@ -20,8 +20,9 @@ __all__ = ["OneStepWork", "solve_one_step", "workspace"]
 #: Delassus matrix W and w = G M⁻¹ b − c; the LCP methods' (s, A, inA, rhs, r, sub, fac:
 #: the active set, its flags and the factor of its W_AA among them); the KKT check's (Gv,
 #: GtP, rv, d, x, its residuals res (4,), X (n, n), and rd (n + 1,): √(M⁻¹)_jj and whether
-#: they are kept); Xt (n, m): M⁻¹ Gᵀ by columns
-OneStepWork = namedtuple("OneStepWork", "MinvGt vfree W w s A inA rhs r sub fac Gv GtP rv d x res Xt X rd")
+#: they are kept); Xt (n, m): M⁻¹ Gᵀ by columns; ids (m + 1,): the rows whose W_AA factor
+#: is kept for the next step (:mod:`moreau.compiled.warm_start`)
+OneStepWork = namedtuple("OneStepWork", "MinvGt vfree W w s A inA rhs r sub fac Gv GtP rv d x res Xt X rd ids")
 
 
 def workspace(n: int, m: int) -> OneStepWork:
@@ -32,7 +33,8 @@ def workspace(n: int, m: int) -> OneStepWork:
     return OneStepWork(np.empty((mm, n)), np.empty(n), np.empty((mm, mm)), np.empty(mm), np.empty(mm),
             np.empty(mm, dtype=np.int64), np.zeros(mm, dtype=np.bool_), np.empty(mm), np.empty(mm),
             np.empty((mm, mm)), np.empty((mm, mm)), np.empty(mm), np.empty(n), np.empty(n),
-            np.empty(n), np.empty(n), np.empty(4), np.empty((n, mm)), np.empty((n, n)), np.zeros(n + 1))
+            np.empty(n), np.empty(n), np.empty(4), np.empty((n, mm)), np.empty((n, n)), np.zeros(n + 1),
+            np.full(mm + 1, -1, dtype=np.int64))
 
 
 @_jit
