@@ -273,13 +273,14 @@ def test_the_checks_round_off_floor_is_kept_through_a_steps_passes():
     P = np.zeros(k)
     work = [np.empty(max(n, k)) for _ in range(5)]
     X, rd = np.empty((n, n)), np.zeros(n + 1)
+    no_chain = (np.empty(0), 0, np.empty(0), np.empty(0), np.empty((4, 0)), False)  # the dense M's check
     first, again = np.empty(4), np.empty(4)
-    kkt_residuals_kernel(M, L, b, G, c, v, P, k, first, *work, X, rd, False)
+    kkt_residuals_kernel(M, L, b, G, c, v, P, k, first, *work, X, rd, False, *no_chain)
     assert rd[n] == 1.0  # formed
     np.testing.assert_allclose(rd[:n], np.sqrt(np.diag(np.linalg.inv(M))), rtol=1e-12)
-    kkt_residuals_kernel(M, L, b, G, c, v, P, k, again, *work, X, rd, True)
+    kkt_residuals_kernel(M, L, b, G, c, v, P, k, again, *work, X, rd, True, *no_chain)
     assert np.array_equal(first, again) and first[3] > 0.0
     M2 = 4.0 * M  # another M: without keep its floor is formed again (√ of a quarter)
     L2 = 2.0 * L
-    kkt_residuals_kernel(M2, L2, b, G, c, v, P, k, again, *work, X, rd, False)
+    kkt_residuals_kernel(M2, L2, b, G, c, v, P, k, again, *work, X, rd, False, *no_chain)
     np.testing.assert_allclose(rd[:n], 0.5 * np.sqrt(np.diag(np.linalg.inv(M))), rtol=1e-12)

@@ -18,6 +18,7 @@ from moreau.compiled.layout import (  # the loop's layout
     S_DRIFT,
     S_DRIFT_ITER,
     SC_M,
+    SC_MASS_OFF,
     SC_ME,
     SC_MF,
     SC_N,
@@ -103,7 +104,8 @@ def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc
             _eq_contact_rows(L, G, m + ints[SC_MF], ints[SC_ME], eqw.Q, eqw.R, eqw.piv, eqw.x, eqw.y, eqw.rank, GA,
                              na, cA)
             Ms, Ls = eqw.eye, eqw.eye
-        if not _contact_solve(Ms, Ls, zero, GA, cA, na, dq, PA, iset, fset, cnt, acc, fail, ws):
+        if not _contact_solve(Ms, Ls, zero, GA, cA, na, dq, PA, iset, fset, cnt, acc, fail, ws,
+                              (pool, ints[SC_MASS_OFF], cq, sq, lw.gen)):
             cnt[C_FAILKIND] = PROJECTION_FAILED  # its rows: ``sel`` (lw.sel)
             return False
         if eqw is not None and ints[SC_ME] > 0:

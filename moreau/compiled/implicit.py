@@ -8,6 +8,8 @@ of the loop's own optimization (see :mod:`moreau.compiled.layout`); the iterates
 bookkeeping is inlined.
 """
 
+import numpy as np
+
 from moreau.compiled import evaluate as ev
 from moreau.compiled.layout import (
     A_WORST,
@@ -206,7 +208,7 @@ def checked(M, L, active, m, lw, ws, v_new, fset, acc):
     # a second time
     keep = k >= 0
     kkt_residuals_kernel(M, L, lw.b, lw.GA, lw.cA, v_new, lw.PA, k, res, ws.Gv, ws.GtP, ws.rv, ws.d, ws.x,
-                         ws.X, ws.rd, keep)
+                         ws.X, ws.rd, keep, ws.d, np.int64(0), ws.d, ws.d, lw.gen, k < 0)  # dense M, no chain
     worst = max(res[0], res[1], res[2], res[3])
     if worst <= fset[F_TOL]:
         if worst > acc[A_WORST]:

@@ -45,6 +45,7 @@ from moreau.compiled.layout import (  # the loop's layout
     STEP_ENERGY,
     USER_FAILED,
 )
+from moreau.compiled.layout import call as _call
 from moreau.compiled.layout import part as _part
 from moreau.compiled.usercalls import call_solver
 from moreau.compiled.warm_start import keep_rows, same_rows, warm_solve
@@ -73,7 +74,7 @@ def _count(flags, m):
 
 
 @_part
-def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail, ws, fresh=True, check=True,
+def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail, ws, mass, fresh=True, check=True,
                    prepared=False, warm=False, cd=None):
     """Main LCP method, KKT check, fallback; False when both fail (residuals in ``fail``).
     ``check=False``: an answer the method reports solved is taken unchecked (the
@@ -84,11 +85,13 @@ def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail
     :func:`~moreau.contact.one_step.solve_one_step`) and the KKT check's √(M⁻¹)_jj of
     this M; the fallback reuses the main's. A
     step's later passes pass it, except with bilateral rows or friction (which solve other
-    problems) and with ``S_LOCATE`` (whose closed rows depend on f). ``warm`` (a chain's
-    fresh pass, ``cd`` = its mass ``(pool, offset, cm, sm, gen)``, W not yet formed): first the
-    kept factor's answer (:func:`moreau.compiled.warm_start.warm_solve`), checked; W is
-    formed only when it fails. ``ws.ids[0]`` is left −2 when the dual active-set method
-    solved, −1 after any other solve (:mod:`~moreau.compiled.warm_start`)."""
+    problems) and with ``S_LOCATE`` (whose closed rows depend on f). ``mass``: the chain's
+    ``(pool, offset, cm, sm, gen)`` (read when ``prepared``; every scene passes arrays of
+    these types). ``warm`` (a chain's fresh pass, W not yet formed; ``cd`` = ``mass``, None
+    compiles none of it): first the kept factor's answer
+    (:func:`moreau.compiled.warm_start.warm_solve`), checked; W is formed only when it fails.
+    ``ws.ids[0]`` is left −2 when the dual active-set method solved, −1 after any other
+    solve (:mod:`~moreau.compiled.warm_start`)."""
     res = ws.res
     tol = fset[F_TOL]
     # np.int64: numba would type the count as the literal 0 at one of the inlined call
@@ -96,32 +99,30 @@ def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail
     k = np.int64(na)
     # a called-back main solver forms no Delassus matrix: the fallback forms its own
     external = iset[S_METHOD] == METHOD_EXTERNAL
-    first = 0
-    if cd is not None and warm:
-        first = -1
-    for attempt in range(first, 2):
-        if cd is not None and attempt < 0:
-            st = 0 if warm_solve(cd[0], cd[1], cd[2], cd[3], cd[4], GA, cA, k, ws, v_out, P_out) else 1
-            if st != 0:  # the kept factor no longer serves: the main method on a fresh W
-                continue
+    # a bool variable: drift's literal False would type (and compile) the check a second time
+    by_chain = prepared or k < 0
+    if cd is not None and warm:  # the kept factor's answer, checked; else the main method on a fresh W
+        if warm_solve(cd[0], cd[1], cd[2], cd[3], cd[4], GA, cA, k, ws, v_out, P_out) and _checked(
+                M, L, b, GA, cA, k, v_out, P_out, ws, cd, tol, acc):
+            return True
+    for attempt in range(2):
+        method = iset[S_METHOD] if attempt == 0 else iset[S_FALLBACK]
+        if method < 0:
+            break
+        if cd is not None and prepared and fresh and attempt == 0:  # a chain's W, formed here once
+            _chain_delassus(cd[0], cd[1], cd[2], cd[3], cd[4], GA, k, ws)
+        if attempt == 1:
+            cnt[C_FALLBACKS] += 1
+        ws.ids[0] = -1
+        if method == METHOD_EXTERNAL:
+            st = call_solver(iset[S_EXTERNAL + attempt], M, b, GA, cA, v_out, P_out, M.shape[0], k)
+            if st == 2:  # interrupted (Ctrl-C): no fallback, the runner raises it
+                return False
         else:
-            method = iset[S_METHOD] if attempt == 0 else iset[S_FALLBACK]
-            if method < 0:
-                break
-            if cd is not None and prepared and fresh and attempt == 0:  # a chain's W, formed here once
-                _chain_delassus(cd[0], cd[1], cd[2], cd[3], cd[4], GA, k, ws)
-            if attempt == 1:
-                cnt[C_FALLBACKS] += 1
-            ws.ids[0] = -1
-            if method == METHOD_EXTERNAL:
-                st = call_solver(iset[S_EXTERNAL + attempt], M, b, GA, cA, v_out, P_out, M.shape[0], k)
-                if st == 2:  # interrupted (Ctrl-C): no fallback, the runner raises it
-                    return False
-            else:
-                st = solve_one_step(M, L, b, GA, cA, P_out, v_out, k, method, 1e-12, ws,
-                                    (external or fresh and attempt == 0) and not prepared, prepared)
-                if st == 0 and method == METHOD_EXACT:
-                    ws.ids[0] = -2
+            st = solve_one_step(M, L, b, GA, cA, P_out, v_out, k, method, 1e-12, ws,
+                                (external or fresh and attempt == 0) and not prepared, prepared)
+            if st == 0 and method == METHOD_EXACT:
+                ws.ids[0] = -2
         if st == 0 and not check:
             return True
         if st == 0:
@@ -129,20 +130,33 @@ def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail
             # √(M⁻¹)_jj (O(n³)); not the fallback of a fresh pass (the main may have failed
             # before any check of this M), unless _chain_prepare formed them
             kkt_residuals_kernel(M, L, b, GA, cA, v_out, P_out, k, res, ws.Gv, ws.GtP, ws.rv, ws.d, ws.x,
-                                 ws.X, ws.rd, not fresh or prepared, cd, prepared)
+                                 ws.X, ws.rd, not fresh or prepared, mass[0], mass[1], mass[2], mass[3], mass[4],
+                                 by_chain)
             worst = max(res[0], res[1], res[2], res[3])
             if worst <= tol:
                 if worst > acc[A_WORST]:
                     acc[A_WORST] = worst
                 return True
-            if attempt < 0:
-                continue
             for i in range(4):
                 fail[attempt, i] = res[i]
         else:
             for i in range(4):
                 fail[attempt, i] = math.inf
     return False
+
+
+@_call  # once a step at most, and only a chain's persistent contact: its copy of the check is a call
+def _checked(M, L, b, GA, cA, k, v, P, ws, mass, tol, acc):
+    """The KKT check of the kept factor's answer (:func:`_contact_solve`): True when it
+    passes, the worst residual kept in ``acc``."""
+    res = ws.res
+    kkt_residuals_kernel(M, L, b, GA, cA, v, P, k, res, ws.Gv, ws.GtP, ws.rv, ws.d, ws.x, ws.X, ws.rd, k >= 0,
+                         mass[0], mass[1], mass[2], mass[3], mass[4], k >= 0)
+    worst = max(res[0], res[1], res[2], res[3])
+    if worst > tol:
+        return False
+    acc[A_WORST] = max(acc[A_WORST], worst)
+    return True
 
 
 @_part
@@ -170,7 +184,7 @@ def _chain_prepare(ints, pool, cm, sm, gen, b, ws, fresh):
     return True
 
 
-@_part
+@_call  # once a step at most, and only a chain's: a call, its body not in the loop's compile
 def _chain_delassus(pool, off, cm, sm, gen, GA, k, ws):
     """A chain's M⁻¹ G_jᵀ (rows of ``ws.MinvGt``) and W = G M⁻¹ Gᵀ (``ws.W``) for the first
     k rows of ``GA``, by its O(n) solve from its mass at ``pool[off:]`` (:func:`_chain_prepare`)."""
@@ -338,9 +352,9 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     fresh = not again or locate or me > 0 or mf > 0  # else the last Delassus matrix stands
     warm = check and not again and iset[S_METHOD] == METHOD_EXACT and same_rows(ws.ids, active, m, na)
     chain = _chain_prepare(ints, pool, cm, sm, lw.gen, b, ws, fresh)
+    mass = (pool, ints[SC_MASS_OFF], cm, sm, lw.gen)
     if solved < 0 or (solved == 0 and not _contact_solve(Ms, Ls, bs, GA, cA, na, v_new, PA, iset, fset, cnt, acc,
-                                                          fail, ws, fresh, check, chain, warm and chain,
-                                                          (pool, ints[SC_MASS_OFF], cm, sm, lw.gen))):
+                                                          fail, ws, mass, fresh, check, chain, warm and chain, mass)):
         cnt[C_FAILKIND] = SOLVER_FAILED
         return -1
     keep_rows(ws.ids, active, m, na, chain)  # the rows of the factor the dual method left

@@ -23,12 +23,15 @@ __all__ = ["WARM_ITER", "keep_rows", "same_rows", "warm_solve"]
 #: W_AA needs one, and one more to confirm; a factor that has aged needs a few)
 WARM_ITER = 4
 
-# its sums may be reassociated (vectorized): its answer is accepted by its residual, and it
-# owes no other computation equal bits (at 40 rows: 16 µs in the order written, latency-bound)
-_jit = njit(cache=True, nogil=True, forceinline=True, _nrt=False, fastmath={"reassoc"})  # type: ignore[call-overload]
+_jit = njit(cache=True, nogil=True, forceinline=True, _nrt=False)  # type: ignore[call-overload]
+# a call, not inlined: only a chain's persistent contacts run it, other scenes' loops carry
+# no copy of its body (the loop's compile); its sums may be reassociated (vectorized): its
+# answer is accepted by its residual and owes no other computation equal bits (at 40 rows:
+# 16 µs in the order written, latency-bound)
+_call = njit(cache=True, nogil=True, _nrt=False, fastmath={"reassoc"})  # type: ignore[call-overload]
 
 
-@_jit
+@_call
 def warm_solve(p, o, c, s, gen, G, cA, k, ws, v, P):
     """v, P of the one-step LCP ``0 <= P ⟂ G v − cA >= 0``, ``v = M⁻¹ (b + Gᵀ P)``, on
     the first k rows of G (n coordinates of a chain: :func:`~moreau.core.kernels.chain_solve`

@@ -275,7 +275,7 @@ def friction_residuals_kernel(M, L, b, G, c, mu, fidx, v, P, k, kf, out, ws):
     R = k + kf
     Gv = ws.Gv
     vel = kkt_residuals_rows(M, L, b, G, c, v, P, R, k, out, Gv, ws.GtP, ws.rv, ws.d, ws.x, ws.X, ws.rd,
-                             False)
+                             False, ws.d, np.int64(0), ws.d, ws.d, ws.X, k < 0)  # no chain: its arrays unread
     cone = 0.0
     slip = 0.0
     for f in range(kf):

@@ -17,14 +17,14 @@ _jit = njit(cache=True, nogil=True, forceinline=True, _nrt=False, fastmath={"rea
 
 
 @_jit
-def kkt_residuals_kernel(M, L, b, G, c, v, P, k, out, Gv, GtP, r, d, x, X, rd, keep, cd=None, chain=False):
+def kkt_residuals_kernel(M, L, b, G, c, v, P, k, out, Gv, GtP, r, d, x, X, rd, keep, p, o, cq, sq, gen, chain):
     """Scaled KKT residuals of ``(v, P)`` for the one-step QP on the first k rows of G
     (all unilateral): :func:`~moreau.contact.kkt.kkt_residuals_rows` with ``kn = k``."""
-    kkt_residuals_rows(M, L, b, G, c, v, P, k, k, out, Gv, GtP, r, d, x, X, rd, keep, cd, chain)
+    kkt_residuals_rows(M, L, b, G, c, v, P, k, k, out, Gv, GtP, r, d, x, X, rd, keep, p, o, cq, sq, gen, chain)
 
 
 @_jit
-def kkt_residuals_rows(M, L, b, G, c, v, P, k, kn, out, Gv, GtP, r, d, x, X, rd, keep, cd=None, chain=False):
+def kkt_residuals_rows(M, L, b, G, c, v, P, k, kn, out, Gv, GtP, r, d, x, X, rd, keep, p, o, cq, sq, gen, chain):
     """Scaled KKT residuals of ``(v, P)`` for the one-step QP on the first k rows of G,
     written to ``out`` (4,): primal, dual, complementarity, stationarity (dimensionless).
 
@@ -45,7 +45,8 @@ def kkt_residuals_rows(M, L, b, G, c, v, P, k, kn, out, Gv, GtP, r, d, x, X, rd,
     ``keep`` says M and L are those of the last call with this ``rd`` (a step's later
     passes), so they are reused, not formed again (O(n³)).
 
-    ``chain``: M v and M⁻¹ in O(n) by the chain's kernels, ``cd`` = ``(p, o, c, s, gen)``.
+    ``chain``: M v and M⁻¹ in O(n) by the chain's kernels from ``p, o, cq, sq, gen``
+    (unread otherwise; every caller passes arrays of these types: one compiled version).
 
     Only the first ``kn`` rows are unilateral (primal, dual and complementarity); rows
     kn..k−1 (tangential rows of friction, with their own law check in
@@ -88,12 +89,12 @@ def kkt_residuals_rows(M, L, b, G, c, v, P, k, kn, out, Gv, GtP, r, d, x, X, rd,
             primal = max(primal, -slack)
             dual = max(dual, -pw)
             comp = max(comp, abs(pw * slack))
-    if cd is not None and chain:
-        chain_product(cd[0], cd[1], cd[2], cd[3], v, x)  # (x: M v, for now)
+    if chain:
+        chain_product(p, o, cq, sq, v, x)  # (x: M v, for now)
         for i in range(n):
             r[i] = x[i] - b[i] - GtP[i]
-        chain_solve(cd[0], cd[1], cd[2], cd[3], cd[4], r, d)
-        chain_solve(cd[0], cd[1], cd[2], cd[3], cd[4], b, x)
+        chain_solve(p, o, cq, sq, gen, r, d)
+        chain_solve(p, o, cq, sq, gen, b, x)
     else:
         for i in range(n):
             r[i] = -b[i] - GtP[i]

@@ -123,5 +123,5 @@ def kkt_residuals(M: np.ndarray, b: np.ndarray, G: np.ndarray, c: np.ndarray, v:
                          np.ascontiguousarray(c, dtype=float), np.ascontiguousarray(v, dtype=float),
                          np.ascontiguousarray(P, dtype=float), np.shape(G)[0], out,
                          *(np.empty(max(n, np.shape(G)[0])) for _ in range(5)), np.empty((n, n)), np.zeros(n + 1),
-                         False)
+                         False, np.empty(0), 0, np.empty(0), np.empty(0), np.empty((4, 0)), False)
     return Residuals(*(float(x) for x in out))
