@@ -25,10 +25,22 @@ WARM_ITER = 4
 
 _jit = njit(cache=True, nogil=True, forceinline=True, _nrt=False)  # type: ignore[call-overload]
 # a call, not inlined: only a chain's persistent contacts run it, other scenes' loops carry
-# no copy of its body (the loop's compile); its sums may be reassociated (vectorized): its
-# answer is accepted by its residual and owes no other computation equal bits (at 40 rows:
-# 16 µs in the order written, latency-bound)
+# no copy of its body (the loop's compile); its sums may be reassociated (vectorized, not
+# latency-bound): its answer is accepted by its residual and owes no other computation equal bits
 _call = njit(cache=True, nogil=True, _nrt=False, fastmath={"reassoc"})  # type: ignore[call-overload]
+_sum = njit(cache=True, nogil=True, forceinline=True, _nrt=False, fastmath={"reassoc"})  # type: ignore[call-overload]
+
+
+@_sum
+def _slack(G, cA, v, i, n):
+    """Row i's slack G_i v − cA_i, and the sum of its terms' magnitudes (its round-off scale)."""
+    t = -cA[i]
+    u = abs(cA[i])
+    for j in range(n):
+        g = G[i, j] * v[j]
+        t += g
+        u += abs(g)
+    return t, u
 
 
 @_call
@@ -52,12 +64,7 @@ def warm_solve(p, o, c, s, gen, G, cA, k, ws, v, P):
         P[i] = 0.0
         if inA[i]:
             na += 1
-        t = -cA[i]
-        u = abs(cA[i])
-        for j in range(n):
-            g = G[i, j] * v[j]
-            t += g
-            u += abs(g)
+        t, u = _slack(G, cA, v, i, n)
         w[i] = t
         wu[i] = u
         wscale = max(wscale, abs(t), abs(cA[i]))
@@ -69,16 +76,7 @@ def warm_solve(p, o, c, s, gen, G, cA, k, ws, v, P):
         scale = 0.0
         for a in range(na):  # the active rows' slacks at the current v (the free ones first)
             i = A[a]
-            if it == 0:
-                t = w[i]
-                u = wu[i]
-            else:
-                t = -cA[i]
-                u = abs(cA[i])
-                for j in range(n):
-                    g = G[i, j] * v[j]
-                    t += g
-                    u += abs(g)
+            t, u = (w[i], wu[i]) if it == 0 else _slack(G, cA, v, i, n)
             rhs[a] = -t
             worst = max(worst, abs(t))
             scale = max(scale, u)
@@ -114,10 +112,7 @@ def warm_solve(p, o, c, s, gen, G, cA, k, ws, v, P):
             if P[i] < 0.0:
                 return False
             continue
-        t = -cA[i]
-        for j in range(n):
-            t += G[i, j] * v[j]
-        if t < -tol:
+        if _slack(G, cA, v, i, n)[0] < -tol:
             return False
     return True
 

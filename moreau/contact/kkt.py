@@ -12,7 +12,7 @@ from moreau.core.kernels import chain_product, chain_solve, cho_solve_pair
 __all__ = ["kkt_residuals_kernel", "kkt_residuals_rows"]
 
 # the check's sums may be reassociated (vectorized): they measure, nothing downstream owes
-# them equal bits (a 40-row check: 7.6 -> 5.2 µs); the solves it calls keep their order
+# them equal bits (docs/performance.md, "Many rows in contact"); the solves it calls keep their order
 _jit = njit(cache=True, nogil=True, forceinline=True, _nrt=False, fastmath={"reassoc"})  # type: ignore[call-overload]
 
 
