@@ -237,6 +237,8 @@ def register_sweep(subparsers: Any) -> None:
     sw.add_argument("--out", default="sweep-out/piston_sweep.parquet", help="table, .parquet or .csv "
                     "(default sweep-out/piston_sweep.parquet)")
     sw.add_argument("--dask", metavar="ADDRESS", default=None, help="run on this Dask scheduler (tcp://host:8786)")
+    sw.add_argument("--dask-timeout", type=float_in(0.0, None, lo_open=True), default=10.0, metavar="SECONDS",
+                    help="how long to wait for the Dask scheduler to answer (default 10 s)")
     sw.add_argument("--workers", type=positive_int, default=None, help="local processes (default: the cores)")
     sw.add_argument("--no-progress", action="store_true", help="no progress bar")
     sw.set_defaults(func=run_sweep)

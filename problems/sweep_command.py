@@ -102,7 +102,8 @@ def run_sweep(args: argparse.Namespace) -> int:
     mo.ensure_compiled(piston_model().scene)  # here, once, the variant the points run: the workers load it
     try:
         df = sweep(piston_point, grid, executor=args.dask or "processes", workers=args.workers,
-                   out=args.out, progress=not args.no_progress, cache_key=piston_cache_key())
+                   out=args.out, progress=not args.no_progress, cache_key=piston_cache_key(),
+                   dask_timeout=args.dask_timeout)
     except ImportError as exc:
         raise CLIError(str(exc), EXIT_USAGE) from None
     except ConnectionError as exc:  # an unreachable Dask scheduler

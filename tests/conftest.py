@@ -45,3 +45,18 @@ def loop_variants_side_by_side(request):
 
         # gw0 also step-size control's driver of the plain variant, while gw1 still compiles
         ensure_compiled(worker == "gw1", step_control=worker == "gw0")
+
+
+# modules with tests that run the loop's full variant (friction, bilateral rows, the later
+# passes), in their own process or in a command's: on an empty cache they wait for its compile
+_FULL_VARIANT = ("constraints/", "friction/", "hard_cases/test_fault_injection.py",
+                 "hard_cases/test_long_chain_stable.py", "test_compiled.py", "test_docs.py", "test_drift_theta.py",
+                 "test_event_driven.py", "test_load.py", "test_notebooks.py", "test_prebuilt.py", "test_user_scenes.py",
+                 "test_work_precision.py")
+
+
+def pytest_collection_modifyitems(config, items):
+    """The modules that need the full variant last (a stable sort: each module's order
+    kept): on an empty cache the worker that compiled the plain variant runs the others
+    while the full one still compiles (loop_variants_side_by_side), instead of waiting."""
+    items.sort(key=lambda item: item.nodeid.split("::")[0].removeprefix("tests/").startswith(_FULL_VARIANT))
