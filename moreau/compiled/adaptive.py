@@ -76,6 +76,7 @@ from moreau.compiled.layout import (
 )
 from moreau.compiled.layout import part as _part
 from moreau.compiled.loop import _record, _run_chunk
+from moreau.compiled.native import address, call_native
 from moreau.core import kernels as _k
 from moreau.core.jitcache import call_recovering, compile_lock
 
@@ -178,10 +179,12 @@ def _crossing(m, sn, gq):
 @njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]  # numba's internal flag
 def _run_adaptive(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
                   T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work, PTS,
-                  fr, eqw, ec, ctl, sn):
+                  fr, eqw, ec, ctl, sn, loop):
     """Accepted steps until ``cnt[C_ACCEPTED] == k_end`` or the end time ``ctl[K_END]``; the
-    arguments of ``moreau.compiled.loop._run_chunk`` and the controller's state ``ctl``
-    (``layout.K_*``) and snapshot ``sn``. Returns a status (``RECORDS_FULL``,
+    arguments of ``moreau.compiled.loop._run_chunk``, the controller's state ``ctl``
+    (``layout.K_*``) and snapshot ``sn``, and the address of ``_run_chunk``'s machine code
+    for these arguments, ``loop`` (:mod:`moreau.compiled.native`: its steps are called
+    there, not compiled into this function again). Returns a status (``RECORDS_FULL``,
     ``IMPACTS_FULL``: grow the buffers and call again, nothing lost)."""
     ints = model.ints
     n, m = ints[SC_N], ints[SC_M]
@@ -207,9 +210,9 @@ def _run_adaptive(model, user, iset, fset, Minv, eligible, q, v, k_end, in_conta
         # one step of H, then back to the start
         fset[F_H] = H
         fset[F_T0] = t - k0 * H
-        status = _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k0 + 1, in_contact, P_acc, act_acc,
-                            T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work,
-                            PTS, fr, eqw, ec)
+        status = call_native(loop, (model, user, iset, fset, Minv, eligible, q, v, k0 + 1, in_contact, P_acc,
+                                    act_acc, T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax,
+                                    fgap, rs, work, PTS, fr, eqw, ec))
         if status != DONE:
             return status
         iset[S_MASS_READY] = 1  # a constant M and its factor are formed: not again per call
@@ -225,9 +228,9 @@ def _run_adaptive(model, user, iset, fset, Minv, eligible, q, v, k_end, in_conta
         fset[F_H] = 0.5 * H
         fset[F_T0] = t - k0 * 0.5 * H
         for j in range(2):
-            status = _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k0 + 1 + j, in_contact, P_acc,
-                                act_acc, T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax,
-                                fgap, rs, work, PTS, fr, eqw, ec)
+            status = call_native(loop, (model, user, iset, fset, Minv, eligible, q, v, k0 + 1 + j, in_contact,
+                                        P_acc, act_acc, T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail,
+                                        last_imp, gmax, fgap, rs, work, PTS, fr, eqw, ec))
             if status != DONE:
                 return status
             if j == 0:
@@ -289,10 +292,11 @@ def run_adaptive(model: tuple, user: np.ndarray, settings, state, records, tally
     (:func:`snapshot`). Returns a status."""
     st, rec = state, records
     own, ws, lw, fr, eqw, ec = work
-    args = (model, user, settings.iset, settings.fset, settings.Minv, settings.eligible, st.q, st.v, k_end,
-            st.in_contact, st.P_acc, st.act_acc, rec.T, rec.Q, rec.V, rec.PS, rec.ACT, rec.GP, rec.KE, rec.PE,
-            rec.IMP, st.pen, tally.cnt, tally.acc, tally.fail, st.last_imp, st.gmax, settings.fgap, st.rs,
-            (own, ws, lw), rec.PTS, fr, eqw, ec, control, snap)
+    steps = (model, user, settings.iset, settings.fset, settings.Minv, settings.eligible, st.q, st.v, k_end,
+             st.in_contact, st.P_acc, st.act_acc, rec.T, rec.Q, rec.V, rec.PS, rec.ACT, rec.GP, rec.KE, rec.PE,
+             rec.IMP, st.pen, tally.cnt, tally.acc, tally.fail, st.last_imp, st.gmax, settings.fgap, st.rs,
+             (own, ws, lw), rec.PTS, fr, eqw, ec)  # _run_chunk's arguments
+    args = (*steps, control, snap, address(_run_chunk, steps))
     known = len(_run_adaptive.overloads)
     if known >= 2:
         return _run_adaptive(*args)

@@ -1,0 +1,72 @@
+"""A compiled function called through its address, in numba's own calling convention.
+
+A direct call of one ``@njit`` function from another links the callee's code into the
+caller's, and LLVM optimizes and generates it again there. Step-size control's driver
+(:mod:`moreau.compiled.adaptive`) steps with the loop's ``_run_chunk``: called directly,
+the whole loop would be compiled a second time into the driver (17–28 s here). It calls
+the address of the loop's machine code instead (:func:`address`, passed in as an int64):
+the driver's module holds only the call, and compiles in 6–9 s.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from llvmlite import ir  # type: ignore[import-untyped]
+from numba._dispatcher import compute_fingerprint
+from numba.core import cgutils, types
+from numba.core.callconv import excinfo_t
+from numba.extending import intrinsic
+
+__all__ = ["address", "call_native"]
+
+
+#: (id of the dispatcher, numba's fingerprint of the arguments' types) -> address: typing
+#: some thirty arrays in Python takes about a millisecond, their fingerprint a microsecond
+_addresses: dict[tuple[int, bytes], int] = {}
+
+
+def address(dispatcher: Any, args: tuple) -> int:
+    """The address of ``dispatcher``'s machine code for the numba types of ``args`` (the
+    Python values it will be called with, typed as numba types them; it must return an
+    int64), loaded from numba's cache or compiled when the process has not got it."""
+    key = (id(dispatcher), compute_fingerprint(args))
+    found = _addresses.get(key)
+    if found is not None:
+        return found
+    sig = tuple(dispatcher.typeof_pyval(a) for a in args)
+    cres = dispatcher.overloads.get(sig)
+    if cres is None:
+        dispatcher.compile(sig)
+        cres = dispatcher.overloads[sig]
+    if cres.signature.return_type != types.int64:
+        raise TypeError(f"{dispatcher.py_func.__name__} returns {cres.signature.return_type}, not int64")
+    _addresses[key] = found = cres.library.get_pointer_to_function(cres.fndesc.llvm_func_name)
+    return found
+
+
+def _call_native(typingctx, addr, args):
+    """``call_native(addr, args)``: the int64 function at ``addr`` (from :func:`address`
+    for arguments of exactly these types) called on the tuple ``args``; an exception it
+    raised is raised on in the caller."""
+    argtys = tuple(args.types)
+    sig = types.int64(types.int64, args)
+
+    def codegen(context, builder, signature, llargs):
+        conv = context.call_conv
+        vals = cgutils.unpack_tuple(builder, llargs[1], len(argtys))
+        fn = builder.inttoptr(llargs[0], conv.get_function_type(types.int64, argtys).as_pointer())
+        ret = cgutils.alloca_once(builder, conv.get_return_type(types.int64).pointee)
+        builder.store(cgutils.get_null_value(ret.type.pointee), ret)
+        excinfo = cgutils.alloca_once(builder, ir.PointerType(excinfo_t), name="excinfo")
+        packed = list(conv._get_arg_packer(argtys).as_arguments(builder, vals))
+        status = conv._get_return_status(builder, builder.call(fn, [ret, excinfo] + packed), builder.load(excinfo))
+        with cgutils.if_unlikely(builder, status.is_error):
+            conv.return_status_propagate(builder, status)
+        return context.get_returned_value(builder, types.int64, builder.load(ret))
+
+    return sig, codegen
+
+
+#: ``call_native(addr, args) -> int64`` in compiled code
+call_native: Any = intrinsic(_call_native)
