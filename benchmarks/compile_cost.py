@@ -9,7 +9,9 @@ the script alone):
 2. **full, after plain**: the same cache; the variant with them (a scene with friction,
    joints, or the predictor–corrector / energy-consistent step) is compiled beside it;
 3. **full alone**: a new empty cache, the full variant only;
-4. **warm**: the first cache again, both variants loaded.
+4. **warm**: the first cache again, both variants loaded;
+5. **drivers**: the first cache again, step-size control's driver of each variant compiled
+   beside its loaded loop (:mod:`moreau.compiled.native`).
 
 Each row: the seconds of ``moreau.ensure_compiled`` for that variant, the process's wall
 and CPU time and peak resident memory; then the compile time per kernel family of rows 1
@@ -87,18 +89,25 @@ _PROBE = textwrap.dedent('''
         traj = mo.simulate(scene, (0.0, 0.1), [0.0, 1.0], [1.0, 0.0], 1e-3)
         assert traj.completed
         users.append(time.perf_counter() - t)
+    drivers = []
+    for full in (json.loads(sys.argv[1]) if sys.argv[2:] == ["drivers"] else ()):
+        t = time.perf_counter()
+        ensure_compiled(full, step_control=True)
+        drivers.append(time.perf_counter() - t)
     cpu = resource.getrusage(resource.RUSAGE_SELF)
-    print(json.dumps({"import": t_import, "loop": t_loop, "user": users, "wall": time.perf_counter() - t0,
+    print(json.dumps({"import": t_import, "loop": t_loop, "user": users, "drivers": drivers,
+                      "wall": time.perf_counter() - t0,
                       "cpu": cpu.ru_utime + cpu.ru_stime, "rss_mb": cpu.ru_maxrss / 1024, "own": own}))
 ''')
 
 
-def probe(cache: str, variants: list[bool]) -> dict:
+def probe(cache: str, variants: list[bool], drivers: bool = False) -> dict:
     """Run the probe in a new process with ``NUMBA_CACHE_DIR=cache``, loading (or compiling)
-    the loop's ``variants`` (``full`` flags)."""
+    the loop's ``variants`` (``full`` flags); ``drivers``: then step-size control's driver
+    of each."""
     env = dict(os.environ, NUMBA_CACHE_DIR=cache)
-    out = subprocess.run([sys.executable, "-c", _PROBE, json.dumps(variants)], capture_output=True, text=True,
-                         env=env)
+    out = subprocess.run([sys.executable, "-c", _PROBE, json.dumps(variants)] + (["drivers"] if drivers else []),
+                         capture_output=True, text=True, env=env)
     if out.returncode != 0:
         raise RuntimeError(out.stderr[-3000:])
     return json.loads(out.stdout.strip().splitlines()[-1])
@@ -111,11 +120,13 @@ def main() -> None:
                 ("full (friction, joints, passes), beside it", probe(cache, [True])),
                 ("full, empty cache", probe(alone, [True])),
                 ("both, warm cache", probe(cache, [False, True]))]
+        drivers = probe(cache, [False, True], drivers=True)["drivers"]
     print("\nthe compiled loop before its first step, per variant (new processes; NUMBA_CACHE_DIR as said)")
     print(f"{'':44s} {'loop (s)':>9s} {'wall (s)':>9s} {'CPU (s)':>9s} {'peak MB':>9s}")
     for label, r in runs:
         print(f"{label:44s} {r['loop']:9.2f} {r['wall']:9.2f} {r['cpu']:9.2f} {r['rss_mb']:9.0f}")
     print(f"{'import moreau (s)':44s} {runs[0][1]['import']:9.2f}")
+    print(f"{'step-size control drivers, loops cached (s)':44s} plain {drivers[0]:5.2f}   full {drivers[1]:5.2f}")
     for i in range(2):
         label = f"user scene {i + 1}: simulate() to its end (s)"
         print(f"{label:44s} cold {runs[0][1]['user'][i]:6.2f}   warm {runs[3][1]['user'][i]:6.2f}")

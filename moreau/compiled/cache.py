@@ -45,7 +45,7 @@ def ensure_compiled(full: bool | None = None, step_control: bool = False) -> flo
     the others wait and then load what it saved. Call it before starting worker
     processes, or to warm a cache (``moreau compile`` does). ``step_control``: also step-size
     control's driver for that variant (:mod:`moreau.compiled.adaptive`, compiled on first use
-    otherwise: 6–9 s).
+    otherwise: 7–10 s).
     """
     if full is None:
         return ensure_compiled(False, step_control) + ensure_compiled(True, step_control)

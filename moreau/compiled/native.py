@@ -5,7 +5,7 @@ caller's, and LLVM optimizes and generates it again there. Step-size control's d
 (:mod:`moreau.compiled.adaptive`) steps with the loop's ``_run_chunk``: called directly,
 the whole loop would be compiled a second time into the driver (17–28 s here). It calls
 the address of the loop's machine code instead (:func:`address`, passed in as an int64):
-the driver's module holds only the call, and compiles in 6–9 s.
+the driver's module holds only the call, and compiles in 7–10 s.
 """
 
 from __future__ import annotations
