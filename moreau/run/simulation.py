@@ -270,7 +270,7 @@ def _run(scene: Scene, plan: _Plan, q0: ArrayLike, v0: ArrayLike, integrator: ty
     bar = None
     try:
         step = _compiled_step(integrator)  # the loop's variant, before the progress bar moves: a compile says so
-        cache.ensure_compiled(variant(plan.cs.ints, step, plan.iteration[0]))
+        cache.ensure_compiled(variant(plan.cs.ints, step, plan.iteration[0]), step_control=plan.control is not None)
         bar = progress_bar(progress, plan.n_steps, scene.name)
         return run_compiled(scene, plan.cs, t0, q, v, plan.h, plan.n_steps,
                             step=step, iteration=plan.iteration,

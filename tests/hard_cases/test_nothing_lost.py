@@ -66,12 +66,13 @@ FOREGROUND = ("import runpy, signal, sys; signal.signal(signal.SIGINT, signal.de
               "sys.argv = ['moreau', *sys.argv[1:]]; runpy.run_module('moreau', run_name='__main__', alter_sys=True)")
 
 
-def interrupt_command(args, cwd, after_progress=1.0, timeout=180, exit_within=30):
+def interrupt_command(args, cwd, after_progress=1.0, timeout=180, exit_within=30, when=STEPPING, env=None):
     """Run ``python -m moreau *args`` and send SIGINT to its process group ``after_progress``
-    seconds after its progress bar first shows steps; return (returncode, stderr, seconds
-    from the interrupt to the exit). A command still running ``exit_within`` seconds after
-    the interrupt is killed (returncode -9)."""
-    env = dict(os.environ, MPLBACKEND="Agg")
+    seconds after its stderr first matches ``when`` (by default: its progress bar shows
+    steps); return (returncode, stderr, seconds from the interrupt to the exit). A command
+    still running ``exit_within`` seconds after the interrupt is killed (returncode -9).
+    ``env``: variables added to this process's environment."""
+    env = dict(os.environ, MPLBACKEND="Agg", **(env or {}))
     proc = subprocess.Popen([sys.executable, "-c", FOREGROUND, *args], cwd=cwd, env=env,
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)
     err = []
@@ -79,7 +80,7 @@ def interrupt_command(args, cwd, after_progress=1.0, timeout=180, exit_within=30
     reader.start()
     t0 = time.monotonic()
     try:
-        while not STEPPING.search(b"".join(err)):  # tqdm prints a rate once steps were made
+        while not when.search(b"".join(err)):  # (tqdm prints a rate once steps were made)
             if proc.poll() is not None or time.monotonic() - t0 > timeout:
                 raise AssertionError(f"no progress seen: {b''.join(err).decode(errors='replace')[-500:]}")
             time.sleep(0.05)
@@ -97,6 +98,17 @@ def interrupt_command(args, cwd, after_progress=1.0, timeout=180, exit_within=30
             os.killpg(proc.pid, signal.SIGKILL)
     reader.join(5)
     return proc.returncode, b"".join(err).decode(errors="replace"), t_exit
+
+
+def test_ctrl_c_during_the_first_compile_ends_the_command_at_once(tmp_path):
+    # an empty cache of its own: the command compiles the loop (about a minute), on a thread of
+    # its own (moreau.core.fresh_stack); a Ctrl-C ends the wait for it, not the compile's end
+    rc, err, waited = interrupt_command(["ball", "--out", "out"], tmp_path, after_progress=0.5,
+                                        when=re.compile(rb"compiling the time loop"),
+                                        env={"NUMBA_CACHE_DIR": str(tmp_path / "cache")})
+    assert rc == 130 and waited < 20, (rc, waited, err[-800:])
+    assert "interrupted by the user at step 0" in last_line(err)
+    assert mo.load(tmp_path / "out" / "ball.partial.npz").status == "interrupted"
 
 
 def last_line(stderr):
