@@ -17,7 +17,7 @@ import numpy as np
 
 from moreau.compiled.layout import STEP_MIDPOINT
 from moreau.compiled.runner import run_compiled
-from moreau.core.fresh_stack import on_fresh_stack
+from moreau.core.compiling import compile_call
 from moreau.core.jitcache import cache_dir, call_recovering, clear, compile_lock
 
 __all__ = ["COMPILE_SECONDS", "ensure_compiled"]
@@ -57,7 +57,7 @@ def ensure_compiled(full: bool | None = None, step_control: bool = False) -> flo
             if full in _drivers:
                 return spent
             t = time.perf_counter()
-            on_fresh_stack(_warm_up, full, True)  # (the driver takes its own lock, and loads or compiles)
+            compile_call(_warm_up, full, True)  # (the driver takes its own lock, and loads or compiles)
             _drivers.add(full)
             return spent + time.perf_counter() - t
     if _ready[full].is_set():
@@ -78,15 +78,15 @@ def ensure_compiled(full: bool | None = None, step_control: bool = False) -> flo
                 # raised inside one aborted the process (seen: exit -6), so during a load
                 # (0.3 s) they wait and are acted on right after it
                 with (contextlib.nullcontext() if cold else _signals_deferred()):
-                    # on a fresh frame stack (moreau.core.fresh_stack); a damaged file: that function compiled again
-                    call_recovering(lambda: on_fresh_stack(_warm_up, full))
+                    # (moreau.core.compiling: a fresh stack, fewer collections); a damaged file: compiled again
+                    call_recovering(lambda: compile_call(_warm_up, full))
             except (pickle.UnpicklingError, EOFError, ValueError, TypeError, AttributeError,
                     ImportError, OSError) as exc:  # an unreadable cache file not found in the traceback
                 removed = clear()
                 log.warning("moreau: numba's cache in %s could not be read (%s: %s); removed %d files of it "
                             "and compiling the time loop again (about %d s)", d, type(exc).__name__, exc,
                             removed, COMPILE_SECONDS[full])
-                on_fresh_stack(_warm_up, full)
+                compile_call(_warm_up, full)
             _ready[full].set()
         return time.perf_counter() - t
 

@@ -102,7 +102,7 @@ def interrupt_command(args, cwd, after_progress=1.0, timeout=180, exit_within=30
 
 def test_ctrl_c_during_the_first_compile_ends_the_command_at_once(tmp_path):
     # an empty cache of its own: the command compiles the loop (about a minute), on a thread of
-    # its own (moreau.core.fresh_stack); a Ctrl-C ends the wait for it, not the compile's end
+    # its own (moreau.core.compiling); a Ctrl-C ends the wait for it, not the compile's end
     rc, err, waited = interrupt_command(["ball", "--out", "out"], tmp_path, after_progress=0.5,
                                         when=re.compile(rb"compiling the time loop"),
                                         env={"NUMBA_CACHE_DIR": str(tmp_path / "cache")})

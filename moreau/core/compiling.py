@@ -1,0 +1,82 @@
+"""How a long compile runs: on a thread of its own, with fewer garbage collections.
+
+- **A fresh frame stack.** CPython 3.11 keeps a thread's Python frames in 16 KiB chunks,
+  mapped when a call runs past the last one and unmapped when it returns. A compile started
+  from a deep stack (a test runner's fixture, a notebook cell) whose recursion keeps
+  crossing a chunk's end maps and unmaps one on nearly every call there: the test suite's
+  first two workers, compiling the loop's two variants, spent 71 s of system time and
+  130 s of wall time where the same compiles on a fresh stack take 5 s and 94 s
+  (``python -m pytest tests/test_api.py`` from an empty cache, 2026-11-28; ``strace -c``
+  showed only ``mmap``/``munmap`` of 16 KiB).
+- **Fewer collections.** numba's compile makes millions of short-lived objects; at the
+  default threshold (700) the collector ran 33 full collections during the first
+  ``moreau piston --e 0 --cycles 1 --transient 0 --h 1e-3`` into an empty cache, each over
+  every object of the process (it has imported matplotlib and scipy): 6.9–7.4 s in the
+  collector, the run 66–70 s. At 5 000: 10 full collections, 4.1–4.3 s, the run 64–70 s,
+  the same peak memory (742–748 MB). Three runs each, interleaved, 2026-11-28.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import gc
+import threading
+from collections.abc import Callable, Iterator
+from typing import TypeVar
+
+__all__ = ["compile_call", "fewer_collections", "on_fresh_stack"]
+
+T = TypeVar("T")
+
+#: the collector's first threshold during a compile (CPython's default: 700)
+COMPILE_GC_THRESHOLD = 5_000
+
+_threshold_lock = threading.Lock()
+_raised: list = []  # [thresholds before the first open block, blocks open]
+
+
+def on_fresh_stack(fn: Callable[..., T], *args: object) -> T:
+    """``fn(*args)`` run on a new thread and waited for; its result returned, its exception
+    raised here. A signal (Ctrl-C, SIGTERM turned into an exception) interrupts the wait at
+    once: the call goes on in the background (a daemon thread, ended with the process)."""
+    outcome: list[tuple[bool, object]] = []
+
+    def run() -> None:
+        try:
+            outcome.append((True, fn(*args)))
+        except BaseException as exc:  # noqa: BLE001 - handed to the caller below
+            outcome.append((False, exc))
+
+    worker = threading.Thread(target=run, name=f"moreau-{getattr(fn, '__name__', 'call')}", daemon=True)
+    worker.start()
+    worker.join()
+    ok, value = outcome[0]
+    if not ok:
+        raise value  # type: ignore[misc]
+    return value  # type: ignore[return-value]
+
+
+@contextlib.contextmanager
+def fewer_collections(threshold: int = COMPILE_GC_THRESHOLD) -> Iterator[None]:
+    """Within the block, the collector's first threshold is at least ``threshold``; the
+    process's thresholds are restored when the last such block (of any thread) ends."""
+    with _threshold_lock:
+        if not _raised:
+            _raised[:] = [gc.get_threshold(), 0]
+        old = _raised[0]
+        _raised[1] += 1
+        gc.set_threshold(max(old[0], threshold), *old[1:])
+    try:
+        yield
+    finally:
+        with _threshold_lock:
+            _raised[1] -= 1
+            if not _raised[1]:
+                gc.set_threshold(*old)
+                _raised.clear()
+
+
+def compile_call(fn: Callable[..., T], *args: object) -> T:
+    """``fn(*args)``, a call that compiles: on a fresh stack, with fewer collections."""
+    with fewer_collections():
+        return on_fresh_stack(fn, *args)
