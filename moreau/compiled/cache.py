@@ -45,8 +45,8 @@ def ensure_compiled(full: bool | None = None, step_control: bool = False) -> flo
     first holds a lock in the cache directory (:func:`moreau.core.jitcache.compile_lock`),
     the others wait and then load what it saved. Call it before starting worker
     processes, or to warm a cache (``moreau compile`` does). ``step_control``: also step-size
-    control's driver for that variant (:mod:`moreau.compiled.adaptive`, compiled on first use
-    otherwise: 7–10 s).
+    control's driver for that variant (:mod:`moreau.compiled.adaptive`; otherwise compiled or loaded
+    on first use).
     """
     if full is None:
         return ensure_compiled(False, step_control) + ensure_compiled(True, step_control)

@@ -3,9 +3,9 @@
 A direct call of one ``@njit`` function from another links the callee's code into the
 caller's, and LLVM optimizes and generates it again there. Step-size control's driver
 (:mod:`moreau.compiled.adaptive`) steps with the loop's ``_run_chunk``: called directly,
-the whole loop would be compiled a second time into the driver (17–28 s here). It calls
-the address of the loop's machine code instead (:func:`address`, passed in as an int64):
-the driver's module holds only the call, and compiles in 7–10 s.
+the whole loop would be compiled a second time into the driver. It calls the address of
+the loop's machine code instead (:func:`address`, passed in as an int64): the driver's
+module holds only the call (its compile time: ``benchmarks/compile_cost.py``).
 """
 
 from __future__ import annotations

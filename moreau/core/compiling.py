@@ -3,17 +3,13 @@
 - **A fresh frame stack.** CPython 3.11 keeps a thread's Python frames in 16 KiB chunks,
   mapped when a call runs past the last one and unmapped when it returns. A compile started
   from a deep stack (a test runner's fixture, a notebook cell) whose recursion keeps
-  crossing a chunk's end maps and unmaps one on nearly every call there: the test suite's
-  first two workers, compiling the loop's two variants, spent 71 s of system time and
-  130 s of wall time where the same compiles on a fresh stack take 5 s and 94 s
-  (``python -m pytest tests/test_api.py`` from an empty cache, 2026-11-28; ``strace -c``
-  showed only ``mmap``/``munmap`` of 16 KiB).
+  crossing a chunk's end maps and unmaps one on nearly every call there; a new thread
+  starts with an empty stack, as a script does.
 - **Fewer collections.** numba's compile makes millions of short-lived objects; at the
-  default threshold (700) the collector ran 33 full collections during the first
-  ``moreau piston --e 0 --cycles 1 --transient 0 --h 1e-3`` into an empty cache, each over
-  every object of the process (it has imported matplotlib and scipy): 6.9–7.4 s in the
-  collector, the run 66–70 s. At 5 000: 10 full collections, 4.1–4.3 s, the run 64–70 s,
-  the same peak memory (742–748 MB). Three runs each, interleaved, 2026-11-28.
+  default threshold each of the collector's frequent full collections runs over every
+  object of the process (a process that has imported matplotlib and scipy holds many).
+
+What each costs and saves is measured in ``docs/performance.md`` ("What the compile costs").
 """
 
 from __future__ import annotations
