@@ -114,15 +114,16 @@ def _eq_finish(n, m, me, rank, M, L, b, G, P, v_new, Q, R, piv, x, PE, F, yv, fr
 
 
 @_part
-def _eq_alone(n, m, m0, me, M, L, b, v, G, P, v_new, Q, R, piv, x, y, by, PE, F, yv, cE, keep, cnt):
+def _eq_alone(n, m, m0, me, M, L, b, v, G, P, v_new, Q, R, piv, x, y, by, PE, F, yv, cE, keep, cnt, fr):
     """A step with bilateral rows and no contact row: v⁺ = L⁻ᵀ Q b_y; returns 0, or −1
-    when the rows are inconsistent."""
+    when the rows are inconsistent. ``fr``: the step's (unread here; passed so that
+    :func:`_eq_finish` compiles once)."""
     rank = _eq_prepare(n, m0, me, L, G, v, b, Q, R, piv, x, y, by, cE, keep, cnt)
     if rank < 0:
         return -1
     for i in range(n):
         v_new[i] = by[i]
-    _eq_finish(n, m, me, rank, M, L, b, G, P, v_new, Q, R, piv, x, PE, F, yv, False, None)
+    _eq_finish(n, m, me, rank, M, L, b, G, P, v_new, Q, R, piv, x, PE, F, yv, rank < 0, fr)  # no friction
     return 0
 
 
@@ -249,7 +250,7 @@ def _eq_contact_rows(L, G, m0, me, Q, R, piv, x, y, keep, GA, na, cA):
     keep[0] = rank
     for i in range(L.shape[0]):
         y[i] = 0.0
-    _eq_reduce(L, Q, y, x, rank, GA, 0, na, cA)
+    _eq_reduce(L, Q, y, x, rank, GA, np.int64(0), na, cA)  # not the literal 0 (compiled apart)
 
 
 @_part

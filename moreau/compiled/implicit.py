@@ -198,7 +198,7 @@ def checked(M, L, active, m, lw, ws, v_new, fset, acc):
     the one kept, the converged one (as ``OneStepIntegrator._check_deferred``). True when
     it passes (the worst residual kept in ``acc``); False: the loop solves that pass again,
     with the check and the fallback. A call: it runs once a contact step."""
-    k = 0
+    k = np.int64(0)  # not the literal 0: numba would compile the check twice
     for r in range(m):
         if active[r]:
             k += 1

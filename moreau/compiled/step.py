@@ -66,7 +66,7 @@ def _user_failed(status, cnt):
 @_part
 def _count(flags, m):
     """The number of True entries among the first m of ``flags``."""
-    k = 0
+    k = np.int64(0)  # not the literal 0: numba would compile the callees given the count twice
     for r in range(m):
         if flags[r]:
             k += 1
@@ -99,7 +99,8 @@ def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail
     k = np.int64(na)
     # a called-back main solver forms no Delassus matrix: the fallback forms its own
     external = iset[S_METHOD] == METHOD_EXTERNAL
-    # a bool variable: drift's literal False would type (and compile) the check a second time
+    # ``prepared`` as a bool variable (k >= 0): drift's literal False would type (and
+    # compile) the check and the solver a second time
     by_chain = prepared or k < 0
     if cd is not None and warm:  # the kept factor's answer, checked; else the main method on a fresh W
         if warm_solve(cd[0], cd[1], cd[2], cd[3], cd[4], GA, cA, k, ws, v_out, P_out) and _checked(
@@ -120,7 +121,7 @@ def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail
                 return False
         else:
             st = solve_one_step(M, L, b, GA, cA, P_out, v_out, k, method, 1e-12, ws,
-                                (external or fresh and attempt == 0) and not prepared, prepared)
+                                (external or fresh and attempt == 0) and not prepared, by_chain)
             if st == 0 and method == METHOD_EXACT:
                 ws.ids[0] = -2
         if st == 0 and not check:
@@ -311,7 +312,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
     _momentum(ints, pool, h, M, cm, sm, v, f, b)
     if eqw is not None and me > 0 and na == 0:  # no contact row: the bilateral rows alone
         return _eq_alone(n, m, m + mf, me, M, L, b, v, GA_all, P, v_new, eqw.Q, eqw.R, eqw.piv, eqw.x, eqw.y,
-                         eqw.by, eqw.PE, eqw.F, eqw.yv, eqw.cE, eqw.rank, cnt)
+                         eqw.by, eqw.PE, eqw.F, eqw.yv, eqw.cE, eqw.rank, cnt, fr)
     GA, cA = lw.GA, lw.cA
     j = 0
     for r in range(m):
@@ -344,7 +345,7 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
                            eqw.rank, cnt)
         if rank < 0:
             return -1
-        _eq_reduce(L, eqw.Q, eqw.y, eqw.x, rank, GA, 0, na, cA)
+        _eq_reduce(L, eqw.Q, eqw.y, eqw.x, rank, GA, np.int64(0), na, cA)  # not the literal 0 (compiled apart)
         Ms, Ls, bs = eqw.eye, eqw.eye, eqw.by
     if fr is not None and mf > 0:  # friction: the tangent rows join (Lemke's method)
         solved = _friction_solve(n, m, Ms, Ls, bs, GA_all, GA, cA, active, na, v_new, PA, fset, acc, fail, fr, cnt,

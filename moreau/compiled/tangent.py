@@ -127,7 +127,7 @@ def smooth_steps(ints, ekind, eoff, pool, user, t0, h, X, first, last, eps, Q, l
         for j in range(k):
             dj = R[j, j]
             if dj == 0.0 or not math.isfinite(dj):
-                return _failure(st, -2)
+                return _failure(st, np.int64(-2))  # not the literal (compiled apart)
             sg = 1.0 if dj > 0.0 else -1.0
             for i in range(dim):
                 Q[i, j] = Qr[i, j] * sg

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 from moreau.core.kernels import cho_solve, cholesky, lt_solve
@@ -88,7 +89,7 @@ def _block_pivoting(W, w, P, k, tol, s, A, inA, rhs, r, sub, fac):
         inA[i] = w[i] < -tol
     best = k + 1
     for _ in range(BLOCK_ITER):
-        na = 0
+        na = np.int64(0)  # here and below not the literal 0 (or -1), which numba would compile apart
         for i in range(k):
             if inA[i]:
                 A[na] = i
@@ -164,10 +165,10 @@ def lcp_dual_active_set(W, w, P, k, tol, s, A, inA, rhs, r, sub, fac):
             return FAILED
         P[0] = -w[0] / W[0, 0]
         return OK
-    na = 0  # fac holds the Cholesky factor of W[A, A] (na x na), rows in the order of A
+    na = np.int64(0)  # fac holds the Cholesky factor of W[A, A] (na x na), rows in the order of A
     converged = False
     for _ in range(10 * (k + 1)):
-        p = -1
+        p = np.int64(-1)
         worst = 0.0
         for i in range(k):
             if inA[i]:
@@ -262,7 +263,7 @@ def lcp_enumerate(W, w, P, k, tol, s, A, rhs, x, sub, fac):
         return OK
     for size in range(1, k + 1):
         for mask in range(1, 1 << k):
-            na = 0
+            na = np.int64(0)
             for i in range(k):
                 if mask >> i & 1:
                     A[na] = i

@@ -31,6 +31,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from moreau.core.kernels import lt_solve
 from moreau.core.kernels.jit import jit as _jit
 
@@ -229,9 +231,10 @@ def eq_project(L, S, k, me, c, Q, R, piv, x, y, yv, dv):
     ``R`` (n, k), ``piv`` (k,), ``c`` (k,) with ``c[me:k] = 0``; ``Q``, ``x``, ``y``,
     ``yv`` work; returns the rank."""
     n = L.shape[0]
-    rank = eq_basis(L, S, 0, k, Q, R, piv, x)
+    first = np.int64(0)  # not the literal 0: numba would compile eq_basis twice
+    rank = eq_basis(L, S, first, k, Q, R, piv, x)
     if eq_particular(R, piv, rank, k, c, y) >= 0 and k > me:
-        rank = eq_basis(L, S, 0, me, Q, R, piv, x)
+        rank = eq_basis(L, S, first, me, Q, R, piv, x)
         eq_particular(R, piv, rank, me, c, y)
     for i in range(n):
         yv[i] = y[i] if i < rank else 0.0

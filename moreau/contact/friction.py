@@ -274,8 +274,9 @@ def friction_residuals_kernel(M, L, b, G, c, mu, fidx, v, P, k, kf, out, ws):
     check). All dimensionless; ``ws`` from :func:`friction_workspace`."""
     R = k + kf
     Gv = ws.Gv
+    no = k < 0  # False, as a variable: the literal would compile the residuals a second time
     vel = kkt_residuals_rows(M, L, b, G, c, v, P, R, k, out, Gv, ws.GtP, ws.rv, ws.d, ws.x, ws.X, ws.rd,
-                             False, ws.d, np.int64(0), ws.d, ws.d, ws.X, k < 0)  # no chain: its arrays unread
+                             no, ws.d, np.int64(0), ws.d, ws.d, ws.X, no)  # no chain: its arrays unread
     cone = 0.0
     slip = 0.0
     for f in range(kf):

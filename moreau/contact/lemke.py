@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 from moreau.contact.active_set import _inline
@@ -105,7 +106,7 @@ def lcp_lemke(A, q, z, k, T, basis, xb, piv=1e-9):
         (pivot limit, 50 (k + 1) pivots, reached: cycling by round-off).
     """
     qmin = 0.0
-    r = -1
+    r = np.int64(-1)  # not the literal -1, here and below: numba would compile the pivot twice
     for i in range(k):
         z[i] = 0.0
         if q[i] < qmin or (q[i] == qmin and r >= 0):  # ties: the last index (lexicographic)
@@ -139,7 +140,7 @@ def lcp_lemke(A, q, z, k, T, basis, xb, piv=1e-9):
         for i in range(k):
             cmax = max(cmax, abs(T[i, entering]))
             rscale = max(rscale, abs(T[i, rhs]))
-        r = -1
+        r = np.int64(-1)
         best = 0.0
         tie = 1e-12 * rscale / cmax if cmax > 0.0 else 0.0  # ratios closer than their round-off tie
         for i in range(k):

@@ -81,7 +81,8 @@ def solve_one_step(M, L, b, G, c, P, v, k, method, tol, ws, fresh=True, vready=F
         for _ in range(2):
             if not applied or residual <= 64.0 * 2.220446049250313e-16 * scale:
                 break
-            applied, residual, scale = _refine(G, c, P, v, k, W, MinvGt, ws, True, residual / scale)
+            # ``applied`` (True here) and not the literal True, which numba would compile apart
+            applied, residual, scale = _refine(G, c, P, v, k, W, MinvGt, ws, applied, residual / scale)
     return status
 
 
@@ -103,7 +104,7 @@ def _refine(G, c, P, v, k, W, MinvGt, ws, kept, last):
     res = ws.s
     rhs = ws.rhs
     dP = ws.r
-    na = 0
+    na = np.int64(0)  # not the literal 0: numba would compile the solve it is given twice
     worst = 0.0
     scale = 0.0
     same = kept
@@ -137,7 +138,7 @@ def _refine(G, c, P, v, k, W, MinvGt, ws, kept, last):
             rhs[a] = -res[A[a]]
         cho_solve(ws.fac, rhs, dP, na)
     else:
-        na = 0
+        na = np.int64(0)
         for i in range(k):
             inA[i] = P[i] > 0.0
             if inA[i]:
