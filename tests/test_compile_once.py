@@ -232,3 +232,32 @@ def test_ensure_compiled_with_step_control_loads_that_variants_driver():
                          env=dict(os.environ, PYTHONPATH=os.getcwd()))
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.split("\n")[-2] == "[True]"  # the plain variant's driver (fr is None), loaded
+
+
+def test_no_cached_function_is_compiled_again_for_a_literal_argument():
+    """A constant argument (``0``, ``True``) at one call site types as a literal, and numba
+    compiles the callee (and all it calls) once more for it: in the loop's variants that
+    was 5 s of each cold compile. Every cached signature of moreau's functions is distinct
+    once its literals are replaced by their types."""
+    import pickle
+
+    from numba.core import types
+
+    from moreau.core import jitcache
+
+    mo.ensure_compiled()  # both variants: loaded (the suite's first workers compiled them) or compiled
+    twice = []
+    index = [p for p in jitcache._cached_files() if p.endswith(".nbi")]
+    assert any(os.path.basename(p).startswith("one_step.solve_one_step") for p in index)
+    for path in index:
+        with open(path, "rb") as f:
+            pickle.load(f)  # numba's version
+            _, overloads = pickle.loads(f.read())
+        seen = {}
+        for key in overloads:
+            sig = key[0]
+            plain = tuple(types.unliteral(t) for t in sig)
+            if plain in seen and seen[plain] != sig:
+                twice.append(f"{os.path.basename(path)}: {[str(t) for t in sig if isinstance(t, types.Literal)]}")
+            seen.setdefault(plain, sig)
+    assert not twice
