@@ -82,12 +82,12 @@ def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc
             for r in range(m):
                 sel[r] = eligible[r] and (gq[r] < 0.0 or active[r])
         na = _count(sel, m)
-        if _user_failed(ev.mass(ints, pool, user, q, cq, sq, M), cnt):
+        if _user_failed(ev.mass_apart(ints, pool, user, q, cq, sq, M), cnt):
             return False
         if ev.factor(ints, pool, M, cq, sq, L, lw.gen) >= 0:
             cnt[C_FAILKIND] = NOT_SPD
             return False
-        if _user_failed(ev.jacobian(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, G), cnt):
+        if _user_failed(ev.jacobian_apart(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, G), cnt):
             return False
         GA = lw.GA
         cA = lw.cA
@@ -114,7 +114,7 @@ def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc
             q[i] += dq[i]
         if ints[SC_TRIG]:
             _k.trig(q, cq, sq)
-        if _user_failed(ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, gq), cnt):
+        if _user_failed(ev.gaps_apart(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, gq), cnt):
             return False
         if combined:
             j = 0

@@ -35,7 +35,7 @@ def _kinetic_energy(model, user, q, v, cq, sq, M, cnt):
     USER_FAILED when a user mass matrix failed."""
     ints = model.ints
     n = ints[SC_N]
-    if _user_failed(ev.mass(ints, model.pool, user, q, cq, sq, M), cnt):
+    if _user_failed(ev.mass_apart(ints, model.pool, user, q, cq, sq, M), cnt):
         return USER_FAILED, 0.0
     ke = 0.0
     for i in range(n):

@@ -217,6 +217,26 @@ def jacobian(ints, bkind, boff, brow, bnrows, pool, user, q, c, s, G):
     return 0
 
 
+# the sites that run in few steps (the drift projection, the energy check, a chunk's first
+# step) call one compiled copy of the evaluations instead of each inlining its own
+@_apart
+def mass_apart(ints, pool, user, q, c, s, M):
+    """:func:`mass`, as a call."""
+    return mass(ints, pool, user, q, c, s, M)
+
+
+@_apart
+def gaps_apart(ints, bkind, boff, brow, bnrows, pool, user, q, c, s, g):
+    """:func:`gaps`, as a call."""
+    return gaps(ints, bkind, boff, brow, bnrows, pool, user, q, c, s, g)
+
+
+@_apart
+def jacobian_apart(ints, bkind, boff, brow, bnrows, pool, user, q, c, s, G):
+    """:func:`jacobian`, as a call."""
+    return jacobian(ints, bkind, boff, brow, bnrows, pool, user, q, c, s, G)
+
+
 @_jit
 def potential(ints, ekind, eoff, pool, q, c, s):
     """Potential energy of the built-in conservative effects, up to a constant (J)."""

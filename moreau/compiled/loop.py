@@ -308,7 +308,7 @@ def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact,
     M, L, cm, sm, cq, sq, qm, f, v_new, vbar, q_new, gm, gq, P, active, G, vfree, fb = own
     bias_work = iset[S_ECHECK] > 0 and ints[SC_HAS_BIAS] != 0
     if const_mass and iset[S_MASS_READY] == 0:
-        if _user_failed(ev.mass(ints, pool, user, q, cq, sq, M), cnt):
+        if _user_failed(ev.mass_apart(ints, pool, user, q, cq, sq, M), cnt):
             return USER_FAILED
         if _k.cholesky(M, L, n) >= 0:
             return NOT_SPD
