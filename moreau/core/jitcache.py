@@ -321,7 +321,7 @@ def _process_cache_dir() -> str:
             _PROCESS_DIR.append(path)
             warnings.warn(f"moreau: no writable numba cache directory (NUMBA_CACHE_DIR, the package's __pycache__ "
                           f"and the user's cache directory were tried); compiled code is kept in {path} for this "
-                          "process only, and every new process compiles again (about 100 s for the time loop). "
+                          "process only, and every new process compiles again (50-85 s for the time loop). "
                           "Set NUMBA_CACHE_DIR to a writable directory to keep it", RuntimeWarning, stacklevel=2)
         return _PROCESS_DIR[0]
 
