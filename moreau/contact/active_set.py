@@ -168,7 +168,7 @@ def lcp_dual_active_set(W, w, P, k, tol, s, A, inA, rhs, r, sub, fac):
     na = np.int64(0)  # fac holds the Cholesky factor of W[A, A] (na x na), rows in the order of A
     converged = False
     for _ in range(10 * (k + 1)):
-        p = np.int64(-1)
+        p: int | np.int64 = np.int64(-1)
         worst = 0.0
         for i in range(k):
             if inA[i]:

@@ -106,7 +106,7 @@ def lcp_lemke(A, q, z, k, T, basis, xb, piv=1e-9):
         (pivot limit, 50 (k + 1) pivots, reached: cycling by round-off).
     """
     qmin = 0.0
-    r = np.int64(-1)  # not the literal -1, here and below: numba would compile the pivot twice
+    r: int | np.int64 = np.int64(-1)  # not the literal -1, here and below: numba would compile the pivot twice
     for i in range(k):
         z[i] = 0.0
         if q[i] < qmin or (q[i] == qmin and r >= 0):  # ties: the last index (lexicographic)
