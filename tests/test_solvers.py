@@ -1,5 +1,7 @@
 """Contact solvers agree, are checked, and fall back (issue 2 acceptance)."""
 
+import warnings
+
 import numpy as np
 import oracle
 import pytest
@@ -54,6 +56,41 @@ def test_osqp_and_exact_backends_agree_on_random_problems(rng):
             np.testing.assert_allclose(G[rows].T @ P_o, G[rows].T @ P_e, atol=1e-7, rtol=0)
         checked += 1
     assert checked == 250
+
+
+def test_a_sparse_qpsolvers_backend_gets_csc_matrices_and_warns_nothing(rng):
+    """qpsolvers' OSQP takes sparse matrices; given dense ones it converts them and warns
+    (``SparseConversionWarning``) in every run of a user's scene. Ours are converted before,
+    with the same answers as the dense ones converted by qpsolvers."""
+    from qpsolvers.warnings import SparseConversionWarning
+
+    problems = [random_problem(rng) for _ in range(30)]
+    T = np.array([[1.0, 0.0]])  # friction: box QPs (its Tresca problems)
+    landing = (np.eye(2), np.array([1.0, -1.0]), np.array([[0.0, 1.0]]), np.zeros(1), T, np.array([0.5]),
+               np.array([0]))
+
+    def answers(solver):
+        out = []
+        for M, b, G, c, rows in problems:
+            solver.setup(G.shape[1], G.shape[0], None)
+            out.append(solver.solve(M, b, G, c, rows)[0])
+        solver.setup(2, 1, None)
+        return out, solver.solve_friction(*landing)[0]
+
+    dense = mo.make_solver("qpsolvers:osqp")
+    dense._matrix = np.asarray  # as before: qpsolvers converts (and warns)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SparseConversionWarning)
+        v_dense, slide_dense = answers(dense)
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        v_sparse, slide = answers(mo.make_solver("qpsolvers:osqp"))
+    assert not [w for w in seen if issubclass(w.category, SparseConversionWarning)]
+    for a, b in zip(v_sparse, v_dense):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(slide, slide_dense)
+    # lands (P_N = 1) and slides: |P_T| = mu P_N takes 0.5 of the tangential 1 (OSQP's tolerance)
+    np.testing.assert_allclose(slide, [0.5, 0.0], atol=1e-3)
 
 
 def test_osqp_is_set_up_once_and_updated(monkeypatch):

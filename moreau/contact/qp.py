@@ -31,6 +31,14 @@ def _unconstrained_if_feasible(M, b, G, c, rows):
         return None
     return v
 
+
+def _csc(a):
+    """``a`` as a SciPy CSC matrix."""
+    from scipy import sparse
+
+    return sparse.csc_matrix(a)
+
+
 class QpsolversSolver(ContactSolver):
     """An exact QP backend through qpsolvers (``"daqp"``, ``"quadprog"``, ...).
 
@@ -59,6 +67,9 @@ class QpsolversSolver(ContactSolver):
         self.exact = backend != "osqp"
         self.options = options
         self._qpsolvers = qpsolvers
+        # a sparse backend (OSQP, ...) gets its matrices as CSC: qpsolvers would convert
+        # dense ones itself and warn (SparseConversionWarning) at every run
+        self._matrix = _csc if backend in qpsolvers.sparse_solvers else np.asarray
 
     def solve(self, M, b, G, c, rows):
         qp = self._qpsolvers
@@ -71,7 +82,7 @@ class QpsolversSolver(ContactSolver):
         scale = max(float(np.abs(b).max(initial=0.0)), float(np.abs(c[rows]).max(initial=0.0)))
         if scale == 0.0:  # b = 0, c = 0: v = 0 is the solution
             return np.zeros(M.shape[0]), np.zeros(rows.shape[0])
-        problem = qp.Problem(P=M, q=-b / scale, G=-G[rows], h=-c[rows] / scale)
+        problem = qp.Problem(P=self._matrix(M), q=-b / scale, G=self._matrix(-G[rows]), h=-c[rows] / scale)
         sol = qp.solve_problem(problem, solver=self.backend, **self.options)
         if not sol.found or sol.x is None:
             raise SolveFailed(f"{self.backend} found no solution")
@@ -85,7 +96,8 @@ class QpsolversSolver(ContactSolver):
         qp = self._qpsolvers
 
         def box_qp(W, w, lower, upper):
-            sol = qp.solve_problem(qp.Problem(P=W, q=w, lb=lower, ub=upper), solver=self.backend, **self.options)
+            sol = qp.solve_problem(qp.Problem(P=self._matrix(W), q=w, lb=lower, ub=upper), solver=self.backend,
+                                   **self.options)
             if not sol.found or sol.x is None:
                 raise SolveFailed(f"{self.backend} found no solution of a Tresca problem")
             return np.clip(np.asarray(sol.x, dtype=float), lower, upper)
