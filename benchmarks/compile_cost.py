@@ -15,7 +15,8 @@ the script alone):
 
 Each row: the seconds of ``moreau.ensure_compiled`` for that variant, the process's wall
 and CPU time and peak resident memory; then the compile time per kernel family of rows 1
-and 2 (the module of the compiled function: its own share, callees excluded), and the
+and 2 (the module of the compiled function: its own share, callees excluded; and the
+functions compiled a second time because a call passed a literal constant), and the
 seconds from ``simulate()`` to its end (0.1 s of stepping) of two scenes of user
 ``@numba.njit`` callables (their own compile) in rows 1 and 4.
 
@@ -42,6 +43,8 @@ _PROBE = textwrap.dedent('''
 
     own = defaultdict(float)
     stack = []
+    signatures = set()  # (function, argument types without literals) compiled so far
+    again = [0, 0.0]  # compiles of a function again for a literal argument: count, own seconds
 
     class Exclusive(event.Listener):
         def on_start(self, ev):
@@ -54,6 +57,13 @@ _PROBE = textwrap.dedent('''
             mod = getattr(f, "__module__", "") or ""
             fam = mod.rsplit(".", 1)[-1] if mod.startswith("moreau") else "numba / user"
             own[fam] += d - children
+            args = ev.data.get("args")
+            if f is not None and args is not None:
+                key = (f, tuple(numba.types.unliteral(a) for a in args))
+                if key in signatures:
+                    again[0] += 1
+                    again[1] += d - children
+                signatures.add(key)
             if stack:
                 stack[-1][1] += d
 
@@ -97,7 +107,8 @@ _PROBE = textwrap.dedent('''
     cpu = resource.getrusage(resource.RUSAGE_SELF)
     print(json.dumps({"import": t_import, "loop": t_loop, "user": users, "drivers": drivers,
                       "wall": time.perf_counter() - t0,
-                      "cpu": cpu.ru_utime + cpu.ru_stime, "rss_mb": cpu.ru_maxrss / 1024, "own": own}))
+                      "cpu": cpu.ru_utime + cpu.ru_stime, "rss_mb": cpu.ru_maxrss / 1024, "own": own,
+                      "again": again}))
 ''')
 
 
@@ -135,6 +146,7 @@ def main() -> None:
         for fam, sec in sorted(r["own"].items(), key=lambda x: -x[1]):
             if sec >= 0.05:
                 print(f"  {fam:32s} {sec:9.2f}")
+        print(f"  {'compiled again for a literal argument':38s} {r['again'][0]:3d} functions, {r['again'][1]:.2f} s")
     print(f"\n(benchmark wall time {time.perf_counter() - t_start:.0f} s)")
 
 
