@@ -106,9 +106,11 @@ N_CONTROL = 8
 part = njit(cache=True, nogil=True, _nrt=False, inline="always",  # type: ignore[call-overload]
             no_cpython_wrapper=True, no_cfunc_wrapper=True)
 # What runs in few steps (the drift projection when a row penetrates, the energy check) is
-# a call instead: compiled once, apart from the loop, it keeps its body out of the loop's
-# own optimization (benchmarks/compile_cost.py: the loop function itself 73.5 -> 55.1 s cold,
-# the drift projection 7.7 s apart; the piston step unchanged within noise). Tried: the
+# a call instead: typed and lowered once, apart from the loop, it keeps its body out of the
+# loop function (benchmarks/compile_cost.py: the loop function itself 73.5 -> 55.1 s cold,
+# the drift projection 7.7 s apart; the piston step unchanged within noise). Its optimized
+# code is still linked into the loop's module, whose second LLVM pass over it is cheap
+# (docs/performance.md: called through an address instead, no faster). Tried: the
 # model evaluations (moreau.compiled.evaluate) as calls: the loop 47.8 s, but the piston
 # step 10-12 % slower (their call sites run every step).
 call = njit(cache=True, nogil=True, _nrt=False,  # type: ignore[call-overload]
