@@ -1,12 +1,15 @@
-"""Drift control: the projection of the end position onto g >= 0
-(:mod:`moreau.step.drift`: PositionProjection, CombinedProjection)."""
+"""Drift control: the projection of the end position onto g >= 0, and of the velocity of
+the rows it held onto G(q⁺) v >= 0 (:mod:`moreau.step.drift`: PositionProjection,
+CombinedProjection)."""
 
 from __future__ import annotations
 
 from moreau.compiled import evaluate as ev
 from moreau.compiled.bilateral import _eq_back, _eq_contact_rows
 from moreau.compiled.layout import (  # the loop's layout
+    A_WORK_C,
     C_FAILKIND,
+    C_K,
     C_PROJ,
     DRIFT_COMBINED,
     F_DRIFT_TOL,
@@ -17,6 +20,7 @@ from moreau.compiled.layout import (  # the loop's layout
     R_PINNED,
     S_DRIFT,
     S_DRIFT_ITER,
+    S_DRIFT_VELOCITY,
     SC_M,
     SC_MASS_OFF,
     SC_ME,
@@ -32,7 +36,7 @@ from moreau.core import kernels as _k
 
 @_part
 def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw, rs,
-             in_contact, eqw):
+             in_contact, eqw, v, P_acc, act_acc, last_imp):
     """Drift control: move q onto g >= 0 (see PositionProjection and CombinedProjection).
 
     The rows of the projection QP: with PositionProjection the eligible rows that
@@ -62,21 +66,23 @@ def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fai
     if not need:
         return True
     return _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw,
-                         in_contact, eqw, rs, combined, dtol)
+                         in_contact, eqw, rs, combined, dtol, v, P_acc, act_acc, last_imp)
 
 
 @_call
 def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw, in_contact,
-                  eqw, rs, combined, dtol):
+                  eqw, rs, combined, dtol, v, P_acc, act_acc, last_imp):
     """The projection itself, when a selected row penetrates beyond the tolerance: a call
     from the loop, not inlined into it (it runs in few steps; compiled once, apart, it
     keeps its contact solve and model evaluations out of the loop's own compile)."""
     ints, bkind, boff, brow, bnrows, pool = model.ints, model.bkind, model.boff, model.brow, model.bnrows, model.pool
     n, m = ints[SC_N], ints[SC_M]
-    sel = lw.sel
+    sel, held = lw.sel, lw.held
     G = lw.G
     dq = lw.dq
     zero = lw.zero
+    for r in range(m):
+        held[r] = False
     for _ in range(iset[S_DRIFT_ITER]):
         if not combined:
             for r in range(m):
@@ -116,14 +122,15 @@ def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc
             _k.trig(q, cq, sq)
         if _user_failed(ev.gaps_apart(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, gq), cnt):
             return False
-        if combined:
-            j = 0
-            for r in range(m):
-                if sel[r]:
-                    if PA[j] > 0.0:
+        j = 0
+        for r in range(m):  # the rows it held (pushed out: a positive multiplier)
+            if sel[r]:
+                if PA[j] > 0.0:
+                    held[r] = True
+                    if combined:
                         rs[r, R_PINNED] = 1.0
                         rs[r, R_PINGAP] = max(gq[r], 0.0)
-                    j += 1
+                j += 1
         done = True
         for r in range(m):
             if not combined:
@@ -133,4 +140,64 @@ def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc
         if done:
             break
     cnt[C_PROJ] += 1
+    if iset[S_DRIFT_VELOCITY] == 1:
+        return _held_velocity(model, user, iset, fset, q, cq, sq, gq, M, L, cnt, acc, fail, ws, lw, v, P_acc, act_acc,
+                              in_contact, last_imp)
+    return True
+
+
+@_part
+def _held_velocity(model, user, iset, fset, q, cq, sq, gq, M, L, cnt, acc, fail, ws, lw, v, P_acc, act_acc,
+                   in_contact, last_imp):
+    """The velocity of the rows the projection held (``lw.held``) made admissible at q⁺:
+    v⁺ ← argmin ‖v' − v⁺‖_M subject to G_A(q⁺) v' >= 0, an e = 0 impulse counted with the
+    step's contact impulses. Frictionless scenes without bilateral rows (the drift
+    control's ``eligible_rows`` checks)."""
+    ints, pool = model.ints, model.pool
+    n, m = ints[SC_N], ints[SC_M]
+    held, G, GA, cA, PA = lw.held, lw.G, lw.GA, lw.cA, lw.PA
+    if _user_failed(ev.jacobian_apart(ints, model.bkind, model.boff, model.brow, model.bnrows, pool, user, q, cq, sq,
+                                      G), cnt):
+        return False
+    j, approach = 0, False
+    for r in range(m):
+        if held[r]:
+            u = 0.0
+            for i in range(n):
+                GA[j, i] = G[r, i]
+                u += G[r, i] * v[i]
+            cA[j] = 0.0
+            approach = approach or u < 0.0
+            j += 1
+    if not approach:
+        return True
+    if _user_failed(ev.mass_apart(ints, pool, user, q, cq, sq, M), cnt):
+        return False
+    if ev.factor(ints, pool, M, cq, sq, L, lw.gen) >= 0:
+        cnt[C_FAILKIND] = NOT_SPD
+        return False
+    b, vp = lw.b, lw.dq
+    for i in range(n):  # the momentum M v⁺
+        b[i] = 0.0
+        for k in range(n):
+            b[i] += M[i, k] * v[k]
+    if not _contact_solve(M, L, b, GA, cA, j, vp, PA, iset, fset, cnt, acc, fail, ws,
+                          (pool, ints[SC_MASS_OFF], cq, sq, lw.gen)):
+        cnt[C_FAILKIND] = PROJECTION_FAILED
+        return False
+    j = 0
+    for r in range(m):
+        if held[r]:
+            if PA[j] > 0.0:
+                u = 0.0
+                for i in range(n):
+                    u += GA[j, i] * v[i]
+                acc[A_WORK_C] += 0.5 * PA[j] * u  # its work: G_r v' = 0 where it pushes
+                P_acc[r] += PA[j]
+                act_acc[r] = True
+                in_contact[r] = True
+                last_imp[r] = cnt[C_K]
+            j += 1
+    for i in range(n):
+        v[i] = vp[i]
     return True

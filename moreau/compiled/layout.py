@@ -37,7 +37,10 @@ S_RECORD = 14
 # control's driver sets it after its first step, so its many one-step calls of the loop do
 # not form and factor M again; 0 for fixed steps, whose chunks form it once each)
 S_MASS_READY = 15
-N_SETTINGS = 16
+# (S_DRIFT_VELOCITY: 1 when drift control also makes the velocity of the rows it held
+# admissible at q⁺, G(q⁺) v⁺ >= 0: PositionProjection(velocity=True))
+S_DRIFT_VELOCITY = 16
+N_SETTINGS = 17
 # the LCP methods (S_METHOD, S_FALLBACK): dual active set, enumeration, called back; -1 none
 METHOD_EXACT, METHOD_ENUM, METHOD_EXTERNAL = 0, 1, 2
 # the step (S_STEP): midpoint, predictor-corrector, energy-consistent
@@ -146,7 +149,7 @@ StepWork = namedtuple("StepWork", "M L cm sm cq sq qm f v_new vbar q_new gm gq P
 #: acceleration, M v + h f, the closed rows' impulses, the drift projection's Jacobian, step
 #: and zero vector, its rows, a chain's factor generators (4, n), and q, v where the energy
 #: check first warned
-LoopWork = namedtuple("LoopWork", "GA cA rhs b PA G dq zero sel gen q_warn v_warn")
+LoopWork = namedtuple("LoopWork", "GA cA rhs b PA G dq zero sel gen q_warn v_warn held")
 #: the later passes' work arrays (compiled.implicit): M(q_k), cos/sin of q_k, q at the pass,
 #: Δq, the iterate x, the last answer and residual (Anderson mixing), a chain's M_m v_k, and
 #: the forces that do not depend on v

@@ -101,7 +101,7 @@ def loop_workspace(n: int, m: int, mf: int, mu: np.ndarray, tangent_row: np.ndar
            np.zeros(m), np.zeros(m, dtype=np.bool_), np.empty((mt, n)), np.empty(n), np.empty(n))
     lw = LoopWork(np.empty((ma, n)), np.empty(ma), np.empty(n), np.empty(n), np.empty(ma),
                   np.empty((ma, n)), np.empty(n), np.zeros(n), np.zeros(mm, dtype=np.bool_), np.empty((4, n)),
-                  np.zeros(n), np.zeros(n))
+                  np.zeros(n), np.zeros(n), np.zeros(mm, dtype=np.bool_))
     ec = PassWork(np.empty((n, n)), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.zeros(n),
                   np.zeros(n), np.empty(n), np.zeros(n))
     if not full:
@@ -193,9 +193,9 @@ def _end_position(n, m, h, contact, iset, qm, v_new, L, P, G, rs, vbar, vfree, q
 
 @_part
 def _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw, rs,
-              in_contact, pen, gmax, eqw):
-    """The gaps at q⁺, drift control, the deepest penetration and each row's largest gap
-    since its last contact; returns DONE or why not."""
+              in_contact, pen, gmax, eqw, v_new, P_acc, act_acc, last_imp):
+    """The gaps at q⁺, drift control (and the velocity of the rows it held, v⁺), the deepest
+    penetration and each row's largest gap since its last contact; returns DONE or why not."""
     ints, bkind, boff, brow, bnrows, pool = model.ints, model.bkind, model.boff, model.brow, model.bnrows, model.pool
     m = ints[SC_M]
     if _user_failed(ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, q_new, cq, sq, gq), cnt):
@@ -203,7 +203,7 @@ def _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc
     if iset[S_DRIFT] != DRIFT_NONE:
         nproj = cnt[C_PROJ]
         if not _project(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc,
-                        fail, eligible, ws, lw, rs, in_contact, eqw):
+                        fail, eligible, ws, lw, rs, in_contact, eqw, v_new, P_acc, act_acc, last_imp):
             return cnt[C_FAILKIND]
         if eqw is not None and ints[SC_ME] > 0 and cnt[C_PROJ] > nproj:  # moved along the bilateral rows: restore
             status = _eq_hold(ints, bkind, boff, brow, bnrows, pool, model.atol, user, q_new, cq, sq, gq, lw.G, L,
@@ -374,7 +374,7 @@ def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact,
                 return status
         if m > 0:
             status = _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc, fail, eligible,
-                               ws, lw, rs, in_contact, pen, gmax, eqw)
+                               ws, lw, rs, in_contact, pen, gmax, eqw, v_new, P_acc, act_acc, last_imp)
             if status != DONE:
                 return status
         if eqw is not None and me > 0:  # v onto the bilateral rows at q⁺ (work['constraint_projection'])

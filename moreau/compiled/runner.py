@@ -70,11 +70,12 @@ def _settings(scene, t0: float, h: float, n_steps: int, step: int, solver, fallb
         drift_mode = lay.DRIFT_COMBINED if getattr(drift_control, "impacts_only", False) else lay.DRIFT_POSITION
     memory = int(getattr(drift_control, "memory", 0))
     locate = int(bool(getattr(drift_control, "locate_impacts", False)))
+    velocity = int(bool(getattr(drift_control, "velocity", False)))
     echeck = ENERGY_CHECK_EVERY if energy_growth is not None else 0
     steps = (1 << 62, -1) if adaptive else (stride, n_steps)
     iset = np.array([step, drift_mode, drift_iter, *steps, method, fb, int(energy), memory, locate,
                      echeck, iteration[0], main.address if main else 0, back.address if back else 0, stride,
-                     0], dtype=np.int64)  # (S_MASS_READY: not yet)
+                     0, velocity], dtype=np.int64)  # (S_MASS_READY: not yet)
     assert iset.shape[0] == lay.N_SETTINGS
     warn, stop = energy_growth if energy_growth is not None else (math.inf, math.inf)
     return iset, np.array([h, t0, tol, drift_tol, 0.0, warn, stop, iteration[1]]), eligible, (main, back)

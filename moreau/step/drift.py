@@ -43,6 +43,14 @@ class PositionProjection:
         Accept a remaining penetration up to ``tol`` (gap units; default 0).
     max_restitution : float
         Project only rows with e <= this (default 0.0); 1.0 projects every row.
+    velocity : bool
+        Also make the velocity of the rows the projection held admissible at the projected
+        q⁺: ``v⁺ ← argmin ‖v' − v⁺‖_M`` subject to ``G_A(q⁺) v' >= 0`` (an e = 0 impulse,
+        counted with the step's contact impulses). Default False. Without it a contact
+        sliding along a curved barrier keeps the O(h) normal velocity into the barrier
+        that the midpoint Jacobian leaves, the projection holds it there, and it leaves
+        the barrier late or hops off and on (docs/guide/accuracy.md, "Leaving a curved
+        barrier"). Frictionless scenes without bilateral rows only (``ValueError``).
     """
 
     #: restitution acts at impacts only (see :class:`CombinedProjection`); False here
@@ -52,22 +60,27 @@ class PositionProjection:
     #: Newton's law at the impact instant located in the step (CombinedProjection)
     locate_impacts = False
 
-    def __init__(self, max_iter: int = 2, tol: float = 0.0, max_restitution: float = 0.0) -> None:
+    def __init__(self, max_iter: int = 2, tol: float = 0.0, max_restitution: float = 0.0,
+                 velocity: bool = False) -> None:
         if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
             raise ValueError(f"{type(self).__name__}.max_iter must be a positive integer, got {max_iter!r}")
         if not (np.isfinite(tol) and tol >= 0):
             raise ValueError(f"{type(self).__name__}.tol must be finite and >= 0, got {tol!r}")
         if not (0.0 <= max_restitution <= 1.0):
             raise ValueError(f"PositionProjection.max_restitution must be in [0, 1], got {max_restitution!r}")
+        if not isinstance(velocity, (bool, np.bool_)):
+            raise ValueError(f"{type(self).__name__}.velocity must be True or False, got {velocity!r}")
         self.max_iter = int(max_iter)
         self.tol = float(tol)
         self.max_restitution = float(max_restitution)
+        self.velocity = bool(velocity)
 
     def eligible_rows(self, scene) -> np.ndarray:
         """Rows this projection may move, shape (m,) of bool. Warns (``RuntimeWarning``)
         when a scene has contact rows but none is eligible: the projection then does
         nothing (use :class:`CombinedProjection` for rows with e > 0)."""
         eligible = scene.restitution <= self.max_restitution
+        self._check_velocity(scene)
         if scene.nrows and not eligible.any():
             warnings.warn(
                 f"{type(self).__name__}(max_restitution={self.max_restitution:g}) projects no row of scene "
@@ -75,9 +88,16 @@ class PositionProjection:
                 "drift control of bouncing rows", RuntimeWarning, stacklevel=4)
         return eligible
 
+    def _check_velocity(self, scene) -> None:
+        """``ValueError`` when ``velocity=True`` meets friction or bilateral rows."""
+        if self.velocity and (scene.has_friction or scene.nconstraints):
+            what = "friction" if scene.has_friction else "bilateral rows"
+            raise ValueError(f"{type(self).__name__}(velocity=True) needs a frictionless scene without bilateral "
+                             f"rows; scene {scene.name!r} has {what}")
+
     def describe(self) -> dict:
         return {"type": "PositionProjection", "max_iter": self.max_iter, "tol": self.tol,
-                "max_restitution": self.max_restitution}
+                "max_restitution": self.max_restitution, "velocity": self.velocity}
 
 
 class CombinedProjection(PositionProjection):

@@ -70,6 +70,8 @@ def reference_projection(dc):
     """The reference twin of the drift control ``dc`` given to :func:`moreau.simulate`."""
     if dc is None or isinstance(dc, PositionProjection):
         return dc
+    if getattr(dc, "velocity", False):  # not mirrored here: tests/test_drift_velocity.py checks it analytically
+        raise NotImplementedError("the numpy reference has no PositionProjection(velocity=True)")
     if isinstance(dc, mo.CombinedProjection):
         return CombinedProjection(dc.max_iter, dc.tol, dc.memory, dc.locate_impacts)
     return PositionProjection(dc.max_iter, dc.tol, dc.max_restitution)
