@@ -30,7 +30,7 @@ from moreau.compiled.layout import (  # the loop's layout
 )
 from moreau.compiled.layout import call as _call
 from moreau.compiled.layout import part as _part
-from moreau.compiled.step import _contact_solve, _count, _user_failed
+from moreau.compiled.step import _contact_solve, _user_failed
 from moreau.core import kernels as _k
 
 
@@ -74,46 +74,65 @@ def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc
                   eqw, rs, combined, dtol, v, P_acc, act_acc, last_imp):
     """The projection itself, when a selected row penetrates beyond the tolerance: a call
     from the loop, not inlined into it (it runs in few steps; compiled once, apart, it
-    keeps its contact solve and model evaluations out of the loop's own compile)."""
+    keeps its contact solve and model evaluations out of the loop's own compile).
+
+    With ``S_DRIFT_VELOCITY`` a last pass makes the velocity ``v`` of the rows the
+    projection held (``lw.held``: a positive multiplier) admissible at the projected q:
+    v ← argmin ‖v' − v‖_M subject to G_A(q) v' >= 0, an e = 0 impulse counted with the
+    step's contact impulses and work (frictionless scenes without bilateral rows: the drift
+    control's ``eligible_rows`` checks). One call site of the contact solve serves both
+    passes: each inlined copy costs the compile seconds."""
     ints, bkind, boff, brow, bnrows, pool = model.ints, model.bkind, model.boff, model.brow, model.bnrows, model.pool
     n, m = ints[SC_N], ints[SC_M]
-    sel, held = lw.sel, lw.held
-    G = lw.G
+    sel, held, G, GA, cA, PA = lw.sel, lw.held, lw.G, lw.GA, lw.cA, lw.PA
     dq = lw.dq
-    zero = lw.zero
+    npass = iset[S_DRIFT_ITER]
     for r in range(m):
         held[r] = False
-    for _ in range(iset[S_DRIFT_ITER]):
-        if not combined:
+    it = 0
+    while True:
+        last = it == npass  # the velocity pass
+        if not (combined or last):
             for r in range(m):
                 sel[r] = eligible[r] and (gq[r] < 0.0 or active[r])
-        na = _count(sel, m)
+        if _user_failed(ev.jacobian_apart(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, G), cnt):
+            return False
+        j, approach = 0, False
+        for r in range(m):
+            if held[r] if last else sel[r]:
+                u = 0.0
+                for i in range(n):
+                    GA[j, i] = G[r, i]
+                    u += G[r, i] * v[i]
+                cA[j] = 0.0 if last else -gq[r]
+                approach = approach or u < 0.0
+                j += 1
+        if last and not approach:
+            return True
         if _user_failed(ev.mass_apart(ints, pool, user, q, cq, sq, M), cnt):
             return False
         if ev.factor(ints, pool, M, cq, sq, L, lw.gen) >= 0:
             cnt[C_FAILKIND] = NOT_SPD
             return False
-        if _user_failed(ev.jacobian_apart(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, G), cnt):
-            return False
-        GA = lw.GA
-        cA = lw.cA
-        j = 0
-        for r in range(m):
-            if sel[r]:
-                for i in range(n):
-                    GA[j, i] = G[r, i]
-                cA[j] = -gq[r]
-                j += 1
-        PA = lw.PA
+        rhs = lw.zero
+        if last:  # the momentum M v
+            rhs = lw.b
+            for i in range(n):
+                rhs[i] = 0.0
+                for k in range(n):
+                    rhs[i] += M[i, k] * v[k]
         Ms, Ls = M, L
         if eqw is not None and ints[SC_ME] > 0:  # the QP in the bilateral rows' null space (M = I there)
             _eq_contact_rows(L, G, m + ints[SC_MF], ints[SC_ME], eqw.Q, eqw.R, eqw.piv, eqw.x, eqw.y, eqw.rank, GA,
-                             na, cA)
+                             j, cA)
             Ms, Ls = eqw.eye, eqw.eye
-        if not _contact_solve(Ms, Ls, zero, GA, cA, na, dq, PA, iset, fset, cnt, acc, fail, ws,
+        if not _contact_solve(Ms, Ls, rhs, GA, cA, j, dq, PA, iset, fset, cnt, acc, fail, ws,
                               (pool, ints[SC_MASS_OFF], cq, sq, lw.gen)):
             cnt[C_FAILKIND] = PROJECTION_FAILED  # its rows: ``sel`` (lw.sel)
             return False
+        if last:
+            _held_impulses(n, m, cnt[C_K], held, GA, PA, v, dq, P_acc, act_acc, in_contact, last_imp, acc)
+            return True
         if eqw is not None and ints[SC_ME] > 0:
             _eq_back(L, eqw.Q, eqw.yv, dq)
         for i in range(n):
@@ -137,54 +156,18 @@ def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc
                 sel[r] = eligible[r] and (gq[r] < 0.0 or active[r])
             if sel[r] and gq[r] < -dtol:
                 done = False
-        if done:
-            break
-    cnt[C_PROJ] += 1
-    if iset[S_DRIFT_VELOCITY] == 1:
-        return _held_velocity(model, user, iset, fset, q, cq, sq, gq, M, L, cnt, acc, fail, ws, lw, v, P_acc, act_acc,
-                              in_contact, last_imp)
-    return True
+        it += 1
+        if done or it == npass:
+            cnt[C_PROJ] += 1
+            if iset[S_DRIFT_VELOCITY] != 1:
+                return True
+            it = npass
 
 
 @_part
-def _held_velocity(model, user, iset, fset, q, cq, sq, gq, M, L, cnt, acc, fail, ws, lw, v, P_acc, act_acc,
-                   in_contact, last_imp):
-    """The velocity of the rows the projection held (``lw.held``) made admissible at q⁺:
-    v⁺ ← argmin ‖v' − v⁺‖_M subject to G_A(q⁺) v' >= 0, an e = 0 impulse counted with the
-    step's contact impulses. Frictionless scenes without bilateral rows (the drift
-    control's ``eligible_rows`` checks)."""
-    ints, pool = model.ints, model.pool
-    n, m = ints[SC_N], ints[SC_M]
-    held, G, GA, cA, PA = lw.held, lw.G, lw.GA, lw.cA, lw.PA
-    if _user_failed(ev.jacobian_apart(ints, model.bkind, model.boff, model.brow, model.bnrows, pool, user, q, cq, sq,
-                                      G), cnt):
-        return False
-    j, approach = 0, False
-    for r in range(m):
-        if held[r]:
-            u = 0.0
-            for i in range(n):
-                GA[j, i] = G[r, i]
-                u += G[r, i] * v[i]
-            cA[j] = 0.0
-            approach = approach or u < 0.0
-            j += 1
-    if not approach:
-        return True
-    if _user_failed(ev.mass_apart(ints, pool, user, q, cq, sq, M), cnt):
-        return False
-    if ev.factor(ints, pool, M, cq, sq, L, lw.gen) >= 0:
-        cnt[C_FAILKIND] = NOT_SPD
-        return False
-    b, vp = lw.b, lw.dq
-    for i in range(n):  # the momentum M v⁺
-        b[i] = 0.0
-        for k in range(n):
-            b[i] += M[i, k] * v[k]
-    if not _contact_solve(M, L, b, GA, cA, j, vp, PA, iset, fset, cnt, acc, fail, ws,
-                          (pool, ints[SC_MASS_OFF], cq, sq, lw.gen)):
-        cnt[C_FAILKIND] = PROJECTION_FAILED
-        return False
+def _held_impulses(n, m, k, held, GA, PA, v, v_new, P_acc, act_acc, in_contact, last_imp, acc):
+    """The velocity pass's impulses, counted with the step's (records, contact, work), and
+    its velocity ``v_new`` into ``v``."""
     j = 0
     for r in range(m):
         if held[r]:
@@ -196,8 +179,7 @@ def _held_velocity(model, user, iset, fset, q, cq, sq, gq, M, L, cnt, acc, fail,
                 P_acc[r] += PA[j]
                 act_acc[r] = True
                 in_contact[r] = True
-                last_imp[r] = cnt[C_K]
+                last_imp[r] = k
             j += 1
     for i in range(n):
-        v[i] = vp[i]
-    return True
+        v[i] = v_new[i]
