@@ -4,6 +4,8 @@ CombinedProjection)."""
 
 from __future__ import annotations
 
+import numpy as np
+
 from moreau.compiled import evaluate as ev
 from moreau.compiled.bilateral import _eq_back, _eq_contact_rows
 from moreau.compiled.layout import (  # the loop's layout
@@ -97,7 +99,7 @@ def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc
                 sel[r] = eligible[r] and (gq[r] < 0.0 or active[r])
         if _user_failed(ev.jacobian_apart(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, G), cnt):
             return False
-        j, approach = 0, False
+        j, approach = np.int64(0), False  # np.int64: a literal 0 would compile its callees again
         for r in range(m):
             if held[r] if last else sel[r]:
                 u = 0.0
