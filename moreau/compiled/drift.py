@@ -143,7 +143,7 @@ def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc
             _k.trig(q, cq, sq)
         if _user_failed(ev.gaps_apart(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, gq), cnt):
             return False
-        j = 0
+        j = np.int64(0)
         for r in range(m):  # the rows it held (pushed out: a positive multiplier)
             if sel[r]:
                 if PA[j] > 0.0:
