@@ -130,7 +130,10 @@ def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc
             Ms, Ls = eqw.eye, eqw.eye
         if not _contact_solve(Ms, Ls, rhs, GA, cA, j, dq, PA, iset, fset, cnt, acc, fail, ws,
                               (pool, ints[SC_MASS_OFF], cq, sq, lw.gen)):
-            cnt[C_FAILKIND] = PROJECTION_FAILED  # its rows: ``sel`` (lw.sel)
+            cnt[C_FAILKIND] = PROJECTION_FAILED  # its rows: ``sel`` (lw.sel), the error message's
+            if last:
+                for r in range(m):
+                    sel[r] = held[r]
             return False
         if last:
             _held_impulses(n, m, cnt[C_K], held, GA, PA, v, dq, P_acc, act_acc, in_contact, last_imp, acc)
