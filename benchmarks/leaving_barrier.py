@@ -11,7 +11,7 @@ Prints, in one run, for ``mo.PositionProjection()`` and ``mo.PositionProjection(
    (``problems.piston.analysis.cycle_figures``) against a run with ``velocity=True`` at
    h = 1e-5, and the wall time (best of up to three runs below 0.5 s).
 
-    python benchmarks/leaving_barrier.py      # about a minute on 2 cores
+    python benchmarks/leaving_barrier.py      # about 15 s on 2 cores
 """
 
 from __future__ import annotations

@@ -60,6 +60,7 @@ def test_the_held_velocity_dissipates_and_leaves_the_particle_on_the_circle():
 
 
 def test_with_step_size_control():
+    # measured: -0.11 deg in 1 098 accepted steps; without velocity=True +2.5 deg in 3.4 million
     traj = mo.simulate(_circle(), (0.0, 1.2), [0.0, R], [V0, 0.0], 1e-2, energy=False,
                        drift_control=mo.PositionProjection(velocity=True), step_control=mo.StepControl(1e-6))
     theta = np.degrees(np.arctan2(traj.q[:, 0], traj.q[:, 1]))

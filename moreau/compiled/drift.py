@@ -99,17 +99,14 @@ def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc
                 sel[r] = eligible[r] and (gq[r] < 0.0 or active[r])
         if _user_failed(ev.jacobian_apart(ints, bkind, boff, brow, bnrows, pool, user, q, cq, sq, G), cnt):
             return False
-        j, approach = np.int64(0), False  # np.int64: a literal 0 would compile its callees again
+        j = np.int64(0)  # np.int64: a literal 0 would compile its callees again
         for r in range(m):
             if held[r] if last else sel[r]:
-                u = 0.0
                 for i in range(n):
                     GA[j, i] = G[r, i]
-                    u += G[r, i] * v[i]
                 cA[j] = 0.0 if last else -gq[r]
-                approach = approach or u < 0.0
                 j += 1
-        if last and not approach:
+        if last and not _approaching(GA, v, j, n):
             return True
         if _user_failed(ev.mass_apart(ints, pool, user, q, cq, sq, M), cnt):
             return False
@@ -167,6 +164,18 @@ def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc
             if iset[S_DRIFT_VELOCITY] != 1:
                 return True
             it = npass
+
+
+@_part
+def _approaching(GA, v, k, n):
+    """True when one of the k rows of ``GA`` has a normal velocity G_j v < 0."""
+    for j in range(k):
+        u = 0.0
+        for i in range(n):
+            u += GA[j, i] * v[i]
+        if u < 0.0:
+            return True
+    return False
 
 
 @_part

@@ -78,7 +78,8 @@ class PositionProjection:
     def eligible_rows(self, scene) -> np.ndarray:
         """Rows this projection may move, shape (m,) of bool. Warns (``RuntimeWarning``)
         when a scene has contact rows but none is eligible: the projection then does
-        nothing (use :class:`CombinedProjection` for rows with e > 0)."""
+        nothing (use :class:`CombinedProjection` for rows with e > 0). ``ValueError`` when
+        ``velocity=True`` meets a scene with friction or bilateral rows."""
         eligible = scene.restitution <= self.max_restitution
         self._check_velocity(scene)
         if scene.nrows and not eligible.any():
