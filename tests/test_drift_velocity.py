@@ -67,6 +67,23 @@ def test_with_step_size_control():
     assert abs(theta[np.flatnonzero(traj.gaps[:, 0] <= 1e-12)[-1]] - LIFTOFF) < 0.2
 
 
+@pytest.mark.parametrize("height", [0.05, 0.0503, 0.0507, 0.101, 0.2, 0.3])
+def test_a_landing_the_projection_catches_is_logged_as_an_impact(height):
+    # the step that crosses the floor with its midpoint above it ends below: the projection
+    # holds the ball there and its velocity pass stops it, an e = 0 impact at the landing
+    h = 1e-3
+    floor = mo.Contact(mo.LinearBarrier([[0.0, 1.0]], [0.0]), 0.0, name="floor")
+    scene = mo.Scene(mo.FunctionSystem(M * np.eye(2)), [mo.ConstantForce([0.0, -G0 * M])], [floor])
+    traj = mo.simulate(scene, (0.0, 0.5), [0.0, height], [0.3, 0.0], h, energy=False,
+                       drift_control=mo.PositionProjection(velocity=True))
+    imp, t_land = traj.impacts, np.sqrt(2.0 * height / G0)
+    assert len(imp) == 1 and len(traj.onsets) == 1
+    assert t_land - 2.0 * h <= imp.t[0] <= t_land
+    assert imp.impulse[0] == pytest.approx(M * G0 * t_land, abs=M * G0 * h)  # m |v| at the landing
+    assert imp.energy_lost[0] == pytest.approx(0.5 * M * (G0 * t_land) ** 2, rel=2.0 * h / t_land)
+    assert np.all(traj.gaps[traj.t > imp.t[0] + h, 0] == pytest.approx(0.0, abs=1e-12))  # at rest on it
+
+
 @pytest.mark.parametrize("bad", [1, "yes", None])
 def test_velocity_must_be_a_bool(bad):
     with pytest.raises(ValueError, match="velocity must be True or False"):

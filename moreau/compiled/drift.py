@@ -32,13 +32,14 @@ from moreau.compiled.layout import (  # the loop's layout
 )
 from moreau.compiled.layout import call as _call
 from moreau.compiled.layout import part as _part
+from moreau.compiled.records import _log_onset
 from moreau.compiled.step import _contact_solve, _user_failed
 from moreau.core import kernels as _k
 
 
 @_part
 def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw, rs,
-             in_contact, eqw, v, P_acc, act_acc, last_imp):
+             in_contact, eqw, v, P_acc, act_acc, last_imp, gmax, onset):
     """Drift control: move q onto g >= 0 (see PositionProjection and CombinedProjection).
 
     The rows of the projection QP: with PositionProjection the eligible rows that
@@ -68,12 +69,12 @@ def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fai
     if not need:
         return True
     return _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw,
-                         in_contact, eqw, rs, combined, dtol, v, P_acc, act_acc, last_imp)
+                         in_contact, eqw, rs, combined, dtol, v, P_acc, act_acc, last_imp, gmax, onset)
 
 
 @_call
 def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw, in_contact,
-                  eqw, rs, combined, dtol, v, P_acc, act_acc, last_imp):
+                  eqw, rs, combined, dtol, v, P_acc, act_acc, last_imp, gmax, onset):
     """The projection itself, when a selected row penetrates beyond the tolerance: a call
     from the loop, not inlined into it (it runs in few steps; compiled once, apart, it
     keeps its contact solve and model evaluations out of the loop's own compile).
@@ -81,9 +82,10 @@ def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc
     With ``S_DRIFT_VELOCITY`` a last pass makes the velocity ``v`` of the rows the
     projection held (``lw.held``: a positive multiplier) admissible at the projected q:
     v ← argmin ‖v' − v‖_M subject to G_A(q) v' >= 0, an e = 0 impulse counted with the
-    step's contact impulses and work (frictionless scenes without bilateral rows: the drift
-    control's ``eligible_rows`` checks). One call site of the contact solve serves both
-    passes: each inlined copy costs the compile seconds."""
+    step's contact impulses and work, and in the impact log where it catches a landing
+    (``gmax``, ``onset`` = (t, h, f, fgap, IMP): what the log's tests read). Frictionless
+    scenes without bilateral rows (the drift control's ``eligible_rows`` checks). One call
+    site of the contact solve serves both passes: each inlined copy costs the compile seconds."""
     ints, bkind, boff, brow, bnrows, pool = model.ints, model.bkind, model.boff, model.brow, model.bnrows, model.pool
     n, m = ints[SC_N], ints[SC_M]
     sel, held, G, GA, cA, PA = lw.sel, lw.held, lw.G, lw.GA, lw.cA, lw.PA
@@ -133,7 +135,8 @@ def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc
                     sel[r] = held[r]
             return False
         if last:
-            _held_impulses(n, m, cnt[C_K], held, GA, PA, v, dq, P_acc, act_acc, in_contact, last_imp, acc)
+            _held_impulses(n, m, cnt, held, GA, PA, v, dq, P_acc, act_acc, in_contact, last_imp, acc, L, lw.b, gmax,
+                           onset)
             return True
         if eqw is not None and ints[SC_ME] > 0:
             _eq_back(L, eqw.Q, eqw.yv, dq)
@@ -179,17 +182,35 @@ def _approaching(GA, v, k, n):
 
 
 @_part
-def _held_impulses(n, m, k, held, GA, PA, v, v_new, P_acc, act_acc, in_contact, last_imp, acc):
-    """The velocity pass's impulses, counted with the step's (records, contact, work), and
-    its velocity ``v_new`` into ``v``."""
+def _held_impulses(n, m, cnt, held, GA, PA, v, v_new, P_acc, act_acc, in_contact, last_imp, acc, L, tmp, gmax, onset):
+    """The velocity pass's impulses, counted with the step's (records, contact work, and an
+    onset in the impact log for a row not in contact before: a landing the projection
+    caught, tested as records._log_onsets tests the step's, with ``L`` the factor of M(q⁺)
+    and ``tmp`` (n,) for M⁻¹ f), and its velocity ``v_new`` into ``v``."""
+    t, h, f, fgap, IMP = onset
+    k = cnt[C_K]
+    solved = False
     j = 0
     for r in range(m):
         if held[r]:
             if PA[j] > 0.0:
-                u = 0.0
+                ub = 0.0
+                ua = 0.0
                 for i in range(n):
-                    u += GA[j, i] * v[i]
-                acc[A_WORK_C] += 0.5 * PA[j] * u  # its work: G_r v' = 0 where it pushes
+                    ub += GA[j, i] * v[i]
+                    ua += GA[j, i] * v_new[i]
+                acc[A_WORK_C] += 0.5 * PA[j] * (ub + ua)
+                if not in_contact[r]:
+                    if not solved:
+                        _k.cho_solve(L, f, tmp, n)
+                        solved = True
+                    us = 0.0
+                    for i in range(n):
+                        us += GA[j, i] * tmp[i]
+                    fast = -ub > abs(h * us)  # faster than the smooth forces alone
+                    flight = gmax[r] > fgap[r]
+                    if fast or flight:
+                        _log_onset(IMP, cnt, t, k, r, ub, ua, PA[j], -0.5 * PA[j] * (ua + ub), flight, fast)
                 P_acc[r] += PA[j]
                 act_acc[r] = True
                 in_contact[r] = True

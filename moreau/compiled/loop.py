@@ -193,9 +193,9 @@ def _end_position(n, m, h, contact, iset, qm, v_new, L, P, G, rs, vbar, vfree, q
 
 @_part
 def _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw, rs,
-              in_contact, pen, gmax, eqw, v_new, P_acc, act_acc, last_imp):
-    """The gaps at q⁺, drift control (and the velocity of the rows it held, v⁺), the deepest
-    penetration and each row's largest gap since its last contact; returns DONE or why not."""
+              in_contact, pen, gmax, eqw, v_new, P_acc, act_acc, last_imp, onset):
+    """The gaps at q⁺, drift control (v⁺ of the rows it held; a landing it catches logged with ``onset`` = (t, h,
+    f, fgap, IMP)), the deepest penetration, each row's largest gap since its last contact; DONE or why not."""
     ints, bkind, boff, brow, bnrows, pool = model.ints, model.bkind, model.boff, model.brow, model.bnrows, model.pool
     m = ints[SC_M]
     if _user_failed(ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, q_new, cq, sq, gq), cnt):
@@ -203,7 +203,7 @@ def _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc
     if iset[S_DRIFT] != DRIFT_NONE:
         nproj = cnt[C_PROJ]
         if not _project(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc,
-                        fail, eligible, ws, lw, rs, in_contact, eqw, v_new, P_acc, act_acc, last_imp):
+                        fail, eligible, ws, lw, rs, in_contact, eqw, v_new, P_acc, act_acc, last_imp, gmax, onset):
             return cnt[C_FAILKIND]
         if eqw is not None and ints[SC_ME] > 0 and cnt[C_PROJ] > nproj:  # moved along the bilateral rows: restore
             status = _eq_hold(ints, bkind, boff, brow, bnrows, pool, model.atol, user, q_new, cq, sq, gq, lw.G, L,
@@ -284,10 +284,9 @@ def run_chunk(model: tuple, user: np.ndarray, settings: Settings, state: RunStat
                       st.rs, (own, ws, lw), rec.PTS, fr, eqw, ec)
 
 
-# Compiled without reference counting (numba's internal ``_nrt`` flag): every array it
-# touches is owned by the caller and nothing is allocated, so the counts (an atomic
-# increment and decrement per array per use, measured at two thirds of a contact step's
-# time) would be pure overhead. User callables run in their own wrappers (usercalls).
+# Compiled without reference counting (numba's internal ``_nrt`` flag): every array it touches is owned by the
+# caller and nothing is allocated, so the counts (an atomic increment and decrement per array per use, measured
+# at two thirds of a contact step's time) would be pure overhead. User callables run in their own wrappers.
 @njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]  # numba's internal flag
 def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
                T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work, PTS,
@@ -374,7 +373,8 @@ def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact,
                 return status
         if m > 0:
             status = _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc, fail, eligible,
-                               ws, lw, rs, in_contact, pen, gmax, eqw, v_new, P_acc, act_acc, last_imp)
+                               ws, lw, rs, in_contact, pen, gmax, eqw, v_new, P_acc, act_acc, last_imp,
+                               (t, h, f, fgap, IMP))
             if status != DONE:
                 return status
         if eqw is not None and me > 0:  # v onto the bilateral rows at q⁺ (work['constraint_projection'])

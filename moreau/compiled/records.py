@@ -46,18 +46,24 @@ def _log_onsets(n, m, t, k, h, v, v_new, f, L, P, G, vfree, in_contact, gmax, fg
                 uf += G[r, i] * vfree[i]
             fast = -ub > abs(uf - ub)  # faster than the smooth forces alone
             flight = gmax[r] > fgap[r]  # after the gap opened by more than fgap
-            if fast or flight:
-                j = cnt[C_NIMP]
-                IMP[j, I_T] = t
-                IMP[j, I_STEP] = k
-                IMP[j, I_ROW] = r
-                IMP[j, I_UB] = ub
-                IMP[j, I_UA] = ua
-                IMP[j, I_P] = P[r]
-                IMP[j, I_LOST] = -0.5 * P[r] * (ua + ub + rs[r, R_SHIFT])  # (see impact_law)
-                IMP[j, I_FLIGHT] = 1.0 if flight else 0.0
-                IMP[j, I_FAST] = 1.0 if fast else 0.0
-                cnt[C_NIMP] = j + 1
+            if fast or flight:  # (the energy lost: see impact_law)
+                _log_onset(IMP, cnt, t, k, r, ub, ua, P[r], -0.5 * P[r] * (ua + ub + rs[r, R_SHIFT]), flight, fast)
+
+
+@_part
+def _log_onset(IMP, cnt, t, k, r, ub, ua, P, lost, flight, fast):
+    """One row of the impact log: row ``r``'s onset in step ``k`` (starting at ``t``)."""
+    j = cnt[C_NIMP]
+    IMP[j, I_T] = t
+    IMP[j, I_STEP] = k
+    IMP[j, I_ROW] = r
+    IMP[j, I_UB] = ub
+    IMP[j, I_UA] = ua
+    IMP[j, I_P] = P
+    IMP[j, I_LOST] = lost
+    IMP[j, I_FLIGHT] = 1.0 if flight else 0.0
+    IMP[j, I_FAST] = 1.0 if fast else 0.0
+    cnt[C_NIMP] = j + 1
 
 
 @_part
