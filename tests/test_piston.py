@@ -89,3 +89,18 @@ def test_short_run_is_stable_and_records_contacts():
     assert traj.impulses.sum() > 0 and traj.stats.fallbacks == 0
     # the crank turns at about the reference speed
     assert traj.v[:, 0].min() > 0.95 and traj.v[:, 0].max() < 1.05
+
+
+@pytest.mark.parametrize("e", [0.0, 0.9])
+def test_side_change_angles_do_not_depend_on_the_record_spacing(e):
+    # a change is placed at its landing step from the onset log, not at the record after it
+    import moreau as mo
+    from moreau.problems.piston import cycle_figures
+
+    model = piston_model(PistonParameters(e=e))
+    dc = mo.PositionProjection(velocity=True) if e == 0.0 else None
+    every, sparse = (cycle_figures(model.simulate(2, 1e-4, record_every=k, drift_control=dc), model.params)[-1]
+                     for k in (1, 50))
+    assert every.side_changes == sparse.side_changes >= 6
+    # 50 steps of 1e-4 are 0.29° of crank: the records alone would place a change up to that late
+    np.testing.assert_allclose(sparse.change_angles_deg, every.change_angles_deg, rtol=0, atol=1e-4)

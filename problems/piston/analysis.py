@@ -12,7 +12,8 @@ record, on the *left* when only left-wall rows did, *both* for a diagonal contac
 in flight. A **side change** is a record on one side after the last one-sided record was
 on the other: the transits through flight or a diagonal contact in between do not count
 on their own. Repeated impacts on the same wall (e = 0.9) are not side changes; a quick
-transit to the other wall and back counts twice, as the paper describes it.
+transit to the other wall and back counts twice, as the paper describes it. Its time is
+that of the landing on the new side, to the step (:func:`change_times`).
 """
 
 from __future__ import annotations
@@ -28,8 +29,8 @@ from .model import PistonModel, piston_model
 from .params import PistonParameters, groups
 
 __all__ = [
-    "RIGHT_ROWS", "LEFT_ROWS", "crank_angle", "pin_position", "lateral_position", "tilt",
-    "contact_side", "side_changes", "cycle_index", "CycleFigures", "cycle_figures", "friction_loss_per_record",
+    "RIGHT_ROWS", "LEFT_ROWS", "crank_angle", "pin_position", "lateral_position", "tilt", "contact_side",
+    "side_changes", "change_times", "cycle_index", "CycleFigures", "cycle_figures", "friction_loss_per_record",
     "mean_speed_rpm", "settled_speed_rpm", "steady_speed_rpm", "max_penetration_ratio", "SlidingPhase",
     "sliding_phases",
 ]
@@ -86,6 +87,29 @@ def side_changes(traj: mo.Trajectory) -> tuple[np.ndarray, np.ndarray]:
     return onesided[change], s[change]
 
 
+def change_times(traj: mo.Trajectory, idx: np.ndarray, new_side: np.ndarray) -> np.ndarray:
+    """The time of each side change (τ): the start of the step in which the piston lands
+    on the new side, when a contact onset on that side is logged between the change's
+    record and the one before it (``traj.onsets``: after a flight, or fast); otherwise (the
+    old side released after a diagonal contact) the change's record time. ``idx``,
+    ``new_side``: from :func:`side_changes`.
+
+    A record holds the impulses summed since the one before, so a side change read from the
+    records alone is known to the record spacing (``record_every`` steps); the onset log
+    places the landing to the step."""
+    times = traj.t[idx].astype(float)
+    imp = traj.onsets
+    if not len(imp) or not idx.size:
+        return times
+    right = np.isin(imp.row, RIGHT_ROWS)
+    for j, (i, s) in enumerate(zip(idx, new_side)):
+        lo = traj.t[i - 1] if i > 0 else -np.inf
+        on_side = (right if s == 1 else ~right) & (imp.t >= lo) & (imp.t <= traj.t[i])
+        if on_side.any():
+            times[j] = imp.t[on_side].min()
+    return times
+
+
 def cycle_index(traj: mo.Trajectory) -> np.ndarray:
     """Engine cycle (720° of crank angle, from firing TDC) of each record."""
     return np.floor(crank_angle(traj) / FOUR_PI).astype(int)
@@ -102,7 +126,8 @@ class CycleFigures:
     side_changes : int
         Number of side changes in the cycle.
     change_angles_deg : list of float
-        Crank angles of the side changes, 0–720° from firing TDC.
+        Crank angles of the side changes, 0–720° from firing TDC, at the landing step
+        when the onset log has it (:func:`change_times`).
     impacts : int
         Impacts (logged) in the cycle, all four corners.
     energy_lost : float
@@ -134,7 +159,8 @@ def cycle_figures(traj: mo.Trajectory, params: PistonParameters) -> list[CycleFi
     """Figures of every complete 720° cycle in the trajectory."""
     phi1 = crank_angle(traj)
     cyc = cycle_index(traj)
-    idx_change, _ = side_changes(traj)
+    idx_change, new_side = side_changes(traj)
+    phi_change = np.interp(change_times(traj, idx_change, new_side), traj.t, phi1)
     omega, M11, l1 = params.omega, params.M11, params.l1
     energy_unit = M11 * omega**2  # mass unit M̄_11/l1², length l1, time 1/ω → J
     impulse_unit = M11 * omega / l1  # → N s
@@ -147,15 +173,15 @@ def cycle_figures(traj: mo.Trajectory, params: PistonParameters) -> list[CycleFi
         if phi1[0] > FOUR_PI * k or phi1[-1] < FOUR_PI * (k + 1):
             continue
         sel = cyc == k
-        ch = idx_change[cyc[idx_change] == k]
+        ch = cyc[idx_change] == k
         in_cycle = (imp_phi >= FOUR_PI * k) & (imp_phi < FOUR_PI * (k + 1))
         t_sel = traj.t[sel]
         mean_speed = (phi1[sel][-1] - phi1[sel][0]) / (t_sel[-1] - t_sel[0])
         g = traj.gaps[sel]
         out.append(CycleFigures(
             cycle=k,
-            side_changes=int(ch.size),
-            change_angles_deg=[float(np.degrees(a - FOUR_PI * k)) for a in phi1[ch]],
+            side_changes=int(ch.sum()),
+            change_angles_deg=[float(np.degrees(a - FOUR_PI * k)) for a in phi_change[ch]],
             impacts=int(in_cycle.sum()),
             energy_lost=float(imp.energy_lost[in_cycle].sum() * energy_unit),
             max_impulse=float(imp.impulse[in_cycle].max() * impulse_unit) if in_cycle.any() else 0.0,
