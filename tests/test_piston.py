@@ -104,3 +104,21 @@ def test_side_change_angles_do_not_depend_on_the_record_spacing(e):
     assert every.side_changes == sparse.side_changes >= 6
     # 50 steps of 1e-4 are 0.29° of crank: the records alone would place a change up to that late
     np.testing.assert_allclose(sparse.change_angles_deg, every.change_angles_deg, rtol=0, atol=1e-4)
+
+
+def test_step_control_sizes_the_steps_so_h_is_not_checked_against_the_clearance():
+    # h = 1e-2 is ten times the clearance's limit for fixed steps; with step control it is only
+    # the largest step, and the tolerance resolves the contacts (no warning, no deep corner)
+    import warnings
+
+    import moreau as mo
+
+    model = piston_model(PistonParameters(e=0.0))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        traj = model.simulate(0.25, 1e-2, drift_control=mo.PositionProjection(velocity=True),
+                              step_control=mo.StepControl(1e-9))
+    assert traj.completed and traj.stats.rejected > 0
+    assert traj.max_penetration.max() < 0.01 * model.params.clearance / model.params.l1
+    with pytest.warns(RuntimeWarning, match="too coarse for the clearance"):
+        model.simulate(0.01, 1e-2)
