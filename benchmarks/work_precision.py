@@ -36,10 +36,11 @@ Problems and their references (the *primary* error, plotted against wall time, f
     returns through φ_S = −0.2788.
 ``piston-e0``, ``piston-e0.9``
     The engine of :mod:`moreau.problems.piston` over 2 cycles from its standard start, against a
-    run at a much smaller step (h = 3e-5; midpoint, exact solver; drift control for
-    e = 0 only, see :class:`PistonProblem`): structural figures of the last cycle, not
-    pointwise states — the crank angles of the side changes (largest distance between
-    the two sets of angles, degrees), the mean speed (rpm), impacts per cycle, the
+    run at h = 1e-6 (midpoint, exact solver; for e = 0 with ``PositionProjection(velocity=True)``,
+    whose corners leave the wall on time, for e = 0.9 without drift control, see
+    :class:`PistonProblem`): structural figures of the last cycle, not pointwise states —
+    the crank angles of the side changes (largest distance between the two sets of angles,
+    degrees; each change timed at its landing step from the onset log), the mean speed (rpm), impacts per cycle, the
     largest penetration (fraction of the clearance). For e = 0.9 the impact count is
     not a convergent figure: it grows like log(1/h) (each burst of bounces is resolved
     down to normal speeds ~ h a), so its "error" only measures the distance in h.

@@ -46,15 +46,17 @@ SOLVERS: dict[str, SolverSpec] = {
 
 _INTEGRATORS = {"mid": mo.MoreauJeanMidpoint, "theta": mo.MoreauJeanPredictorCorrector,
                 "ec": mo.MoreauJeanEnergyConsistent}
-#: drift control variants: none, PositionProjection (plastic rows), CombinedProjection (every e)
-_DRIFTS = {"none": None, "proj": mo.PositionProjection, "comb": mo.CombinedProjection}
+#: drift control variants: none, PositionProjection (plastic rows; "projv": with velocity=True),
+#: CombinedProjection (every e)
+_DRIFTS = {"none": None, "proj": mo.PositionProjection, "projv": lambda: mo.PositionProjection(velocity=True),
+           "comb": mo.CombinedProjection}
 
 
 @dataclass(frozen=True)
 class Config:
     """One configuration: integrator (``"mid"``, ``"theta"`` or ``"ec"``: energy-consistent), solver, drift control
-    (``"none"``, ``"proj"``: :class:`~moreau.PositionProjection`, ``"comb"``:
-    :class:`~moreau.CombinedProjection`; ``False``/``True`` mean none/proj)."""
+    (``"none"``, ``"proj"``: :class:`~moreau.PositionProjection`, ``"projv"``: the same with ``velocity=True``,
+    ``"comb"``: :class:`~moreau.CombinedProjection`; ``False``/``True`` mean none/proj)."""
 
     integrator: str
     solver: str

@@ -201,7 +201,8 @@ class PistonProblem(Problem):
         key = (config, float(h))
         if key not in self._cache:
             rec = 1 if config.adaptive else max(1, int(round(self.record_dt / h)))
-            hs, kw = config.run_args(h, h_max=1e-3)  # adaptive: the largest step the clearance allows
+            # adaptive: the largest step; without drift control the one the clearance allows
+            hs, kw = config.run_args(h, h_max=1e-3 if config.drift == "none" else 1e-2)
             traj, wall, status = _timed(lambda: self.model.simulate(
                 self.cycles, hs, record_every=rec, energy=False, **kw))
             f = self.figures(traj) if status == "completed" else {}

@@ -184,7 +184,7 @@ def plot(runs: Sequence[Run], orders: dict, problems: Sequence[Problem], path: s
 
     colors = {"osqp": "C0", "osqp1e-5": "C1", "osqp1e-3": "C3", "enum": "C2", "daqp": "C4", "exact": "C5"}
     styles = {"mid": "-", "theta": "--", "ec": ":"}
-    markers = {"none": "o", "proj": "s", "comb": "^"}
+    markers = {"none": "o", "proj": "s", "projv": "D", "comb": "^"}
     n = len(problems)
     ncol = 3
     nrow = math.ceil((n + 1) / ncol)
@@ -226,7 +226,8 @@ def plot(runs: Sequence[Run], orders: dict, problems: Sequence[Problem], path: s
     handles = [Line2D([], [], color=v, label=k) for k, v in colors.items()]
     handles += [Line2D([], [], color="k", lw=2.2, label="StepControl(tol): p = slope in tol")]
     handles += [Line2D([], [], color="k", ls=v, label=k) for k, v in styles.items()]
-    names = {"none": "no drift control", "proj": "PositionProjection", "comb": "CombinedProjection"}
+    names = {"none": "no drift control", "proj": "PositionProjection", "projv": "PositionProjection(velocity=True)",
+             "comb": "CombinedProjection"}
     handles += [Line2D([], [], color="k", marker=v, ls="", label=names[k]) for k, v in markers.items()]
     fig.legend(handles=handles, loc="lower center", ncol=len(handles), fontsize=8)
     fig.suptitle("moreau work–precision: error against wall time (p = fitted order in h)")
