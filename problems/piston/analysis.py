@@ -103,7 +103,9 @@ def change_times(traj: mo.Trajectory, idx: np.ndarray, new_side: np.ndarray) -> 
         return times
     right = np.isin(imp.row, RIGHT_ROWS)
     for j, (i, s) in enumerate(zip(idx, new_side)):
-        lo = traj.t[i - 1] if i > 0 else -np.inf
+        # the landing step starts at or after the record before (less 1e-6 of the interval: the
+        # round-off of a time summed step by step)
+        lo = traj.t[i - 1] - 1e-6 * (traj.t[i] - traj.t[i - 1]) if i > 0 else -np.inf
         on_side = (right if s == 1 else ~right) & (imp.t >= lo) & (imp.t <= traj.t[i])
         if on_side.any():
             times[j] = imp.t[on_side].min()
