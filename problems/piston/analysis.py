@@ -98,17 +98,22 @@ def change_times(traj: mo.Trajectory, idx: np.ndarray, new_side: np.ndarray) -> 
     records alone is known to the record spacing (``record_every`` steps); the onset log
     places the landing to the step."""
     times = traj.t[idx].astype(float)
-    imp = traj.onsets
-    if not len(imp) or not idx.size:
+    if not idx.size:
         return times
+    imp = traj.onsets
     right = np.isin(imp.row, RIGHT_ROWS)
-    for j, (i, s) in enumerate(zip(idx, new_side)):
-        # the landing step starts at or after the record before (less 1e-6 of the interval: the
-        # round-off of a time summed step by step)
-        lo = traj.t[i - 1] - 1e-6 * (traj.t[i] - traj.t[i - 1]) if i > 0 else -np.inf
-        on_side = (right if s == 1 else ~right) & (imp.t >= lo) & (imp.t <= traj.t[i])
-        if on_side.any():
-            times[j] = imp.t[on_side].min()
+    t = traj.t
+    # the landing step starts at or after the record before (less 1e-6 of the interval: the
+    # round-off of a time summed step by step)
+    lo = np.where(idx > 0, t[idx - 1] - 1e-6 * (t[idx] - t[idx - 1]), -np.inf)
+    for side, on in ((1, right), (-1, ~right)):
+        ts = np.sort(imp.t[on])
+        sel = np.flatnonzero(new_side == side)
+        k = np.searchsorted(ts, lo[sel])  # the first onset on that side from lo on
+        found = k < ts.size
+        first = ts[np.minimum(k, max(ts.size - 1, 0))] if ts.size else np.zeros(sel.size)
+        hit = found & (first <= t[idx[sel]])
+        times[sel[hit]] = first[hit]
     return times
 
 
