@@ -63,6 +63,7 @@ e = 0.9 piston (:func:`osqp_comparison`) shows both.
 Run::
 
     python benchmarks/work_precision.py --quick      # ~2 min: prints the tables
+    python benchmarks/work_precision.py --replot     # the figure again from docs/work_precision.csv
     python benchmarks/work_precision.py              # full study (~34 min), writes
                                                      # docs/work_precision.{csv,png}
 
@@ -109,6 +110,7 @@ from wp_report import (  # noqa: E402
     format_osqp,
     format_table,
     plot,
+    read_csv,
     step_control_gain,
     write_csv,
 )
@@ -127,6 +129,7 @@ __all__ = [
     "impact_times", "configs",
     "make_problems", "run_study", "fit_orders", "drift_cost", "osqp_comparison",
     "format_table", "format_orders", "format_drift", "format_osqp", "cheapest", "format_cheapest", "write_csv",
+    "read_csv",
     "plot", "main",
 ]
 
@@ -139,7 +142,17 @@ def main(argv=None) -> int:
     ap.add_argument("--problems", default=None,
                     help="comma-separated subset: ball,pendulum,pendulum-smooth,chain,block,woodpecker,"
                          "piston-e0,piston-e0.9")
+    ap.add_argument("--replot", action="store_true", help="draw work_precision.png again from the CSV in --out "
+                                                             "(default docs/), running nothing")
     args = ap.parse_args(argv)
+    if args.replot:
+        out = args.out or os.path.join(_ROOT, "docs")
+        runs, orders = read_csv(os.path.join(out, "work_precision.csv"))
+        names = {r.problem for r in runs}
+        problems = [p for p in make_problems(False) if p.name in names]
+        plot(runs, orders, problems, os.path.join(out, "work_precision.png"))
+        print(f"redrew {os.path.join(out, 'work_precision.png')} from its CSV")
+        return 0
 
     def log(msg):
         print(msg, file=sys.stderr, flush=True)

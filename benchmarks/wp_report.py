@@ -8,7 +8,7 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from wp_configs import SOLVERS, Run
+from wp_configs import SOLVERS, Config, Run
 from wp_problems import Problem
 from wp_study import fit_orders
 
@@ -172,6 +172,22 @@ def write_csv(runs: Sequence[Run], orders: dict, path: str) -> None:
                         *[("" if r.metrics.get(k) is None else f"{r.metrics[k]:.6g}") for k in names]])
 
 
+def read_csv(path: str) -> tuple[list[Run], dict]:
+    """The runs and fitted orders of a CSV written by :func:`write_csv` (metrics as floats,
+    empty ones left out)."""
+    runs, orders = [], {}
+    with open(path, newline="") as fh:
+        for row in csv.DictReader(fh):
+            c = Config(row.pop("integrator"), row.pop("solver"), row.pop("drift"), row.pop("adaptive") == "True")
+            row.pop("checked")
+            r = Run(row.pop("problem"), c, float(row.pop("h")), float(row.pop("wall_s")), int(row.pop("steps")),
+                    int(row.pop("fallbacks")), row.pop("status"), float(row.pop("error")))
+            orders[(r.problem, c.label)] = float(row.pop("order"))
+            r.metrics = {k: float(v) for k, v in row.items() if v != ""}
+            runs.append(r)
+    return runs, orders
+
+
 def plot(runs: Sequence[Run], orders: dict, problems: Sequence[Problem], path: str) -> None:
     """Log–log error against wall time, one panel per problem, one line per
     configuration (colour: solver, line: integrator, marker: drift control); the legend
@@ -210,14 +226,14 @@ def plot(runs: Sequence[Run], orders: dict, problems: Sequence[Problem], path: s
         if not p.name.startswith("piston"):
             continue
         for c in p.configs:
-            if c.solver not in ("enum", "exact"):
+            if c.solver not in ("enum", "exact") or c.adaptive:  # (a step-controlled run's ladder is its tol)
                 continue
             rs = [r for r in runs if r.problem == p.name and r.config == c and "penetration_run" in r.metrics]
             if rs:
                 ax.loglog([r.h for r in rs], [max(r.metrics["penetration_run"], 1e-6) for r in rs],
                           styles[c.integrator], marker=markers[c.drift], ms=4,
                           label=f"{p.name} {c.label}")
-    ax.set_title("piston: max penetration / clearance (last cycle; floor 1e-6)")
+    ax.set_title("piston: max penetration / clearance, fixed h (last cycle; floor 1e-6)")
     ax.set_xlabel("h (non-dimensional)")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=6)
