@@ -1,6 +1,8 @@
 """Step-size control (mo.StepControl): errors against analytic and reference solutions,
 the order of the extrapolated step, and runs cut into chunks equal to uncut ones."""
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -146,3 +148,21 @@ def test_the_impact_log_names_accepted_steps(ball):
     im = traj.impacts
     assert len(im) >= 2 and im.step.max() < traj.stats.steps
     assert np.all(traj.t[im.step] <= im.t) and np.all(im.t < traj.t[im.step + 1])
+
+
+def test_an_error_floor_near_the_tolerance_does_not_stall_the_step():
+    """The e = 0 piston's step-doubling estimate has a round-off floor (about 2.7e-11 in one
+    velocity after t = 5.66, whatever H): at tol = 3e-11 every accepted step sat at 0.9 of
+    the tolerance at h_min, shrinking instead of growing, and the 2 cycles took 5.5 million
+    steps (tol = 4.4e-11: 36 000). A step accepted within the tolerance whose error did not
+    grow with H is grown through the floor."""
+    from moreau.problems.piston.model import piston_model
+    from moreau.problems.piston.params import PistonParameters
+
+    model = piston_model(PistonParameters(e=0.0))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # (steps forced at h_min where the floor is above tol: warned)
+        traj = model.simulate(2, 0.3, energy=False, drift_control=mo.PositionProjection(velocity=True),
+                              step_control=mo.StepControl(3e-11), progress=False)
+    assert traj.status == "completed"
+    assert traj.stats.steps < 200_000, traj.stats

@@ -22,8 +22,14 @@ the kind of step:
 An attempt with err <= 1 is accepted, and the next H is H · min(4, 0.9 err^(−1/(order+1)))
 (at most ``K_HMAX``); a rejected one is taken again with H · max(0.1, min(0.9,
 0.9 err^(−1/(order+1)))). Below ``K_HMIN`` an attempt is accepted anyway and counted
-(``C_FORCED``). The state of a rejected attempt is restored from ``layout.Snapshot``;
-the work it did is kept in the counters of solves and velocity updates.
+(``C_FORCED``). An error that does not grow with H is a floor (the round-off of the step
+and its contact solve), not the step's: a step accepted within the tolerance at ``K_HMIN``,
+or grown by more than 1.5 since the last accepted one of the same kind (not switching)
+while its error grew by less than the square root of that, is followed by one at least
+twice as long (``_at_floor``), so that a floor just under the tolerance cannot hold the
+step at ``K_HMIN`` for good. The state of a rejected attempt is restored from
+``layout.Snapshot``; the work it did is kept in the counters of solves and velocity
+updates.
 """
 
 from __future__ import annotations
@@ -52,10 +58,13 @@ from moreau.compiled.layout import (
     I_STEP,
     IMPACTS_FULL,
     K_ATOL,
+    K_EACC,
     K_END,
     K_H,
+    K_HACC,
     K_HMAX,
     K_HMIN,
+    K_KACC,
     K_RTOL,
     K_T,
     K_TOK,
@@ -147,6 +156,15 @@ def _error(q, v, sn, atol, rtol, c):
             if e > err or e != e:
                 err = e if e == e else math.inf
     return err
+
+
+@_part
+def _at_floor(H, err, hmin, hl, el):
+    """True when the error of a step of H accepted within the tolerance is a floor (the
+    round-off of the step and of its contact solve), not the step's: at the smallest step,
+    or not grown with H since the last accepted step (of hl, error el) as an error of
+    order >= 1 would (H^2). Such a step is grown, not shrunk towards h_min for good."""
+    return H <= hmin * (1.0 + 1e-9) or (hl > 0.0 and H > 1.5 * hl and err < el * math.sqrt(H / hl))
 
 
 @_part
@@ -274,6 +292,10 @@ def _run_adaptive(model, user, iset, fset, Minv, eligible, q, v, k_end, in_conta
         cnt[C_ACCEPTED] += 1
         ctl[K_T] = t_end if last else t + H
         grow = 4.0 if err == 0.0 else min(4.0, 0.9 * err ** (-1.0 / (order + 1)))
+        same = kind != 2 and ctl[K_KACC] == kind  # (errors of one kind scale alike with H)
+        if err <= 1.0 and _at_floor(H, err, hmin, ctl[K_HACC] if same else 0.0, ctl[K_EACC]):
+            grow = max(grow, 2.0)
+        ctl[K_HACC], ctl[K_EACC], ctl[K_KACC] = H, err, kind
         ctl[K_H] = min(hmax, max(hmin, H * max(grow, 0.1)))
         if cnt[C_ACCEPTED] % stride == 0 or last:
             rec = cnt[C_REC]

@@ -94,9 +94,9 @@ A_T_EWARN, A_T_PAINLEVE = 13, 14
 N_ACCUMULATORS = 15
 # step-size control's state (float array): the step to try next, the time reached, the end
 # time, the tolerances (absolute, relative), the largest and smallest step, the start of the
-# step of the last energy check that passed
-K_H, K_T, K_END, K_ATOL, K_RTOL, K_HMAX, K_HMIN, K_TOK = range(8)
-N_CONTROL = 8
+# step of the last energy check that passed, the last accepted step, its scaled error and kind
+K_H, K_T, K_END, K_ATOL, K_RTOL, K_HMAX, K_HMIN, K_TOK, K_HACC, K_EACC, K_KACC = range(11)
+N_CONTROL = 11
 
 # The step's parts are inlined into the loop by numba (IR level), as are the evaluation
 # functions (moreau.compiled.evaluate); the kernels and LCP routines they call are inlined by LLVM
