@@ -166,3 +166,5 @@ def test_an_error_floor_near_the_tolerance_does_not_stall_the_step():
                               step_control=mo.StepControl(3e-11), progress=False)
     assert traj.status == "completed"
     assert traj.stats.steps < 200_000, traj.stats
+    # where the floor is above tol the steps are forced at h_min, and the run says so
+    assert traj.stats.forced > 0 and any("raise tol" in w for w in traj.warnings)

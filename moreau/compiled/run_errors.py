@@ -36,7 +36,8 @@ def run_warnings(scene, traj: Trajectory, cnt, acc, h, work) -> None:
         warnings.warn(msg, RuntimeWarning, stacklevel=4)
     if cnt[lay.C_FORCED] > 0:
         msg = (f"step-size control: {int(cnt[lay.C_FORCED])} steps were accepted at the smallest step h_min "
-               "with a local error above the tolerance")
+               "with a local error above the tolerance: a switch that h_min does not resolve, or a tolerance "
+               "below the round-off of the step and its contact solve (lower h_min, or raise tol)")
         traj.warnings.append(msg)
         warnings.warn(msg, RuntimeWarning, stacklevel=4)
 
