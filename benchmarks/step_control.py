@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from wp_configs import _timed  # noqa: E402
+from wp_configs import _timed, settle  # noqa: E402
 from wp_friction import _returns  # noqa: E402
 from wp_problems import _angle_distance  # noqa: E402
 from wp_study import _warm_up_step_control  # noqa: E402
@@ -146,6 +146,7 @@ def main() -> None:
     args = ap.parse_args()
     mo.ensure_compiled()
     _warm_up_step_control()
+    settle()
     ball()
     pendulum()
     woodpecker()

@@ -162,7 +162,7 @@ def main(argv=None) -> int:
     if args.problems:
         keep = set(args.problems.split(","))
         problems = [p for p in problems if p.name in keep]
-    runs = run_study(problems, log)
+    runs = run_study(problems, log, freeze=True)
     orders = fit_orders(runs)
     print(f"work–precision ({'quick' if args.quick else 'full'} run); wall times in s, fb = fallbacks")
     print(format_table(runs, problems))

@@ -8,7 +8,7 @@ import time
 from collections.abc import Callable, Sequence
 
 import numpy as np
-from wp_configs import SOLVERS, Config, Run, configs
+from wp_configs import SOLVERS, Config, Run, configs, settle
 from wp_friction import BlockProblem, WoodpeckerProblem
 from wp_problems import (
     BallProblem,
@@ -112,14 +112,19 @@ def _warm_up_step_control() -> None:
     mo.simulate(woodpecker(), (0.0, 0.01), *GLOCKER_STATE, 1e-3, step_control=control)
 
 
-def run_study(problems: Sequence[Problem], log: Callable[[str], None] | None = None) -> list[Run]:
-    """Run every problem's configurations over its ladder; returns the runs in order."""
+def run_study(problems: Sequence[Problem], log: Callable[[str], None] | None = None,
+              freeze: bool = False) -> list[Run]:
+    """Run every problem's configurations over its ladder; returns the runs in order.
+    ``freeze``: after each problem's reference, :func:`wp_configs.settle` (for the study's
+    own process: it freezes every object alive then)."""
     if any(c.adaptive for p in problems for c in p.configs):
         _warm_up_step_control()
     runs = []
     for p in problems:
         t0 = time.perf_counter()
         p.prepare()
+        if freeze:
+            settle()  # (the reference compiled what this problem's runs use)
         if log and getattr(p, "ref_wall", None):
             what = _describe_ref(p.ref) if isinstance(p.ref, dict) else f"{len(p.ref.impacts)} impacts"
             log(f"{p.name}: reference {p.ref_config.label} at h = {p.h_ref:g} took {p.ref_wall:.1f} s: {what}")
