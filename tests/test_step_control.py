@@ -166,5 +166,13 @@ def test_an_error_floor_near_the_tolerance_does_not_stall_the_step():
                               step_control=mo.StepControl(3e-11), progress=False)
     assert traj.status == "completed"
     assert traj.stats.steps < 200_000, traj.stats
-    # where the floor is above tol the steps are forced at h_min, and the run says so
-    assert traj.stats.forced > 0 and any("raise tol" in w for w in traj.warnings)
+
+
+def test_steps_forced_at_h_min_are_counted_and_warned_with_the_remedy(ball):
+    """An h_min too large to resolve the ball's impacts to tol: the steps accepted there
+    above the tolerance are counted, and the warning names the causes and what to change."""
+    scene, _ = ball
+    with pytest.warns(RuntimeWarning, match="lower h_min, or raise tol"):
+        traj = mo.simulate(scene, (0.0, 1.0), [1.0], [0.0], 1e-2, energy=False,
+                           step_control=mo.StepControl(1e-6, h_min=5e-3))
+    assert traj.stats.forced > 0 and any("h_min" in w for w in traj.warnings)
