@@ -32,7 +32,7 @@ from moreau.compiled.layout import (  # the loop's layout
 )
 from moreau.compiled.layout import call as _call
 from moreau.compiled.layout import part as _part
-from moreau.compiled.records import _log_onset
+from moreau.compiled.records import _log_if_impact
 from moreau.compiled.step import _contact_solve, _user_failed
 from moreau.core import kernels as _k
 
@@ -185,7 +185,7 @@ def _approaching(GA, v, k, n):
 def _held_impulses(n, m, cnt, held, GA, PA, v, v_new, P_acc, act_acc, in_contact, last_imp, acc, L, tmp, gmax, onset):
     """The velocity pass's impulses, counted with the step's (records, contact work, and an
     onset in the impact log for a row not in contact before: a landing the projection
-    caught, tested as records._log_onsets tests the step's, with ``L`` the factor of M(q⁺)
+    caught, by the step's rule (records._log_if_impact), with ``L`` the factor of M(q⁺)
     and ``tmp`` (n,) for M⁻¹ f), and its velocity ``v_new`` into ``v``."""
     t, h, f, fgap, IMP = onset
     k = cnt[C_K]
@@ -207,10 +207,8 @@ def _held_impulses(n, m, cnt, held, GA, PA, v, v_new, P_acc, act_acc, in_contact
                     us = 0.0
                     for i in range(n):
                         us += GA[j, i] * tmp[i]
-                    fast = -ub > abs(h * us)  # faster than the smooth forces alone
-                    flight = gmax[r] > fgap[r]
-                    if fast or flight:
-                        _log_onset(IMP, cnt, t, k, r, ub, ua, PA[j], -0.5 * PA[j] * (ua + ub), flight, fast)
+                    _log_if_impact(IMP, cnt, t, k, r, ub, ua, h * us, PA[j], -0.5 * PA[j] * (ua + ub),
+                                   gmax[r] > fgap[r])
                 P_acc[r] += PA[j]
                 act_acc[r] = True
                 in_contact[r] = True

@@ -44,15 +44,18 @@ def _log_onsets(n, m, t, k, h, v, v_new, f, L, P, G, vfree, in_contact, gmax, fg
                 ub += G[r, i] * v[i]
                 ua += G[r, i] * v_new[i]
                 uf += G[r, i] * vfree[i]
-            fast = -ub > abs(uf - ub)  # faster than the smooth forces alone
-            flight = gmax[r] > fgap[r]  # after the gap opened by more than fgap
-            if fast or flight:  # (the energy lost: see impact_law)
-                _log_onset(IMP, cnt, t, k, r, ub, ua, P[r], -0.5 * P[r] * (ua + ub + rs[r, R_SHIFT]), flight, fast)
+            _log_if_impact(IMP, cnt, t, k, r, ub, ua, uf - ub, P[r], -0.5 * P[r] * (ua + ub + rs[r, R_SHIFT]),
+                           gmax[r] > fgap[r])  # (the energy lost: see impact_law)
 
 
 @_part
-def _log_onset(IMP, cnt, t, k, r, ub, ua, P, lost, flight, fast):
-    """One row of the impact log: row ``r``'s onset in step ``k`` (starting at ``t``)."""
+def _log_if_impact(IMP, cnt, t, k, r, ub, ua, du_smooth, P, lost, flight):
+    """Log row ``r``'s onset in step ``k`` (starting at ``t``) if it is an impact: the normal
+    velocity ``ub`` faster than the smooth forces alone change it in the step (``du_smooth``),
+    or ``flight``, after the gap opened beyond its flight gap."""
+    fast = -ub > abs(du_smooth)
+    if not (fast or flight):
+        return
     j = cnt[C_NIMP]
     IMP[j, I_T] = t
     IMP[j, I_STEP] = k
