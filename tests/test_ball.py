@@ -97,3 +97,5 @@ def test_two_identical_floors_equal_one():
         np.testing.assert_allclose(two.v, one.v, atol=1e-10, rtol=0)
         # generalized impulse Gᵀ P (G = [1; 1]): the sum over both floors equals one floor
         np.testing.assert_allclose(two.impulses.sum(axis=1), one.impulses[:, 0], atol=1e-10, rtol=1e-10)
+        # a floor that left the impulses to its twin penetrated as deep as the twin, no deeper: no warning
+        assert two.warnings == one.warnings == [], solver

@@ -209,6 +209,19 @@ def test_a_row_that_penetrates_without_any_impulse_warns_naming_it(backend):
     assert any("never enforced" in w for w in traj.warnings)
 
 
+def test_a_row_never_enforced_warns_beside_rows_that_bounce():
+    """The vanishing Jacobian of the test above on a second coordinate, beside a floor the
+    first one bounces on: the bounces' step scale h·|U⁻| does not hide the row that fell through."""
+    floor = mo.FunctionBarrier(lambda q: np.array([q[0]]), lambda q: np.array([[1.0, 0.0]]))
+    bad = mo.FunctionBarrier(lambda q: np.array([q[1]]), lambda q: np.array([[0.0, 1.0 if q[1] >= 0.01 else 0.0]]))
+    scene = mo.Scene(mo.FunctionSystem(np.eye(2)), [mo.ConstantForce([-G0, -G0])],
+                     [mo.Contact(floor, 0.5, name="floor"), mo.Contact(bad, 0.5, name="bad")])
+    with pytest.warns(RuntimeWarning, match="row 'bad' penetrated .* without any contact impulse"):
+        traj = mo.simulate(scene, (0.0, 2.0), [1.0, 1.0], [0.0, 0.0], 1e-3, progress=False)
+    assert len(traj.impacts) > 0 and set(traj.impacts.row.tolist()) == {0}
+    assert not any("'floor'" in w for w in traj.warnings)
+
+
 @pytest.mark.parametrize("backend", ["compiled", "python"])
 def test_a_rough_floor_redundant_with_a_rail_warns_naming_both(backend):
     """A block held on y = 0 by a rail and standing on a rough floor y >= 0: the normal load

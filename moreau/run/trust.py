@@ -8,8 +8,10 @@
   speed U⁻ of its impacts travels in one step) unless the caller gives one (the piston
   passes its clearance). A row that penetrated without ever carrying an impulse was never
   enforced (a Jacobian that vanishes near the barrier, say): it warns beyond its
-  activation tolerance, impact or not. A run beyond it warns once and records the warning
-  in ``traj.warnings``, which ``save``/``load`` keep.
+  activation tolerance and beyond the largest ``h·|U⁻|`` of the run's impacts (a row
+  redundant with one that carried the impulse penetrates as deep as that one). A run
+  beyond it warns once and records the warning in ``traj.warnings``, which
+  ``save``/``load`` keep.
 """
 
 from __future__ import annotations
@@ -65,14 +67,18 @@ def penetration_warnings(scene, traj, h: float, limit: float | None) -> list[str
                      8.0 * np.finfo(float).eps * gap_size)
     when = traj.max_penetration_t if traj.max_penetration_t is not None else np.full(len(pen), np.nan)
 
+    U_all = np.abs(traj.impacts.U_before)
+    scene_scale = h * float(U_all.max()) if U_all.size else 0.0  # the deepest step scale h·|U⁻| of any impact
+
     def at(r: int | np.integer) -> str:  # the time of the row's deepest penetration, when the run kept it
         return f" at t = {when[r]:.9g} s" if np.isfinite(when[r]) else ""
 
     for r in np.flatnonzero(pen > 0.0):
         if limit is not None:
             lim, why = float(limit), "the given limit"
-        elif not carried[r]:  # never an impulse: the row was never enforced (a vanishing Jacobian?)
-            if pen[r] > tol[r]:
+        elif not carried[r]:  # never an impulse: the row was never enforced (a vanishing Jacobian?), unless
+            # it penetrated no deeper than the scene's impacts may (a row whose twin carried the impulse, say)
+            if pen[r] > max(tol[r], scene_scale):
                 out.append(f"row {traj.row_names[r]!r} penetrated {pen[r]:.3g} (gap units){at(r)} without any contact "
                            "impulse: the contact was never enforced (does its Jacobian vanish there?)")
             continue
