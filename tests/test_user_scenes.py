@@ -11,6 +11,7 @@ import pytest
 
 import moreau as mo
 from moreau.compiled.lowering import lower
+from moreau.problems.bouncing_ball import bouncing_ball
 
 G0 = 9.81
 
@@ -207,6 +208,15 @@ def test_a_row_that_penetrates_without_any_impulse_warns_naming_it(backend):
         traj = oracle.simulate(scene, (0.0, 2.0), [1.0], [0.0], 1e-3, backend=backend, progress=False)
     assert len(traj.impacts) == 0 and traj.max_penetration[0] > 10.0
     assert any("never enforced" in w for w in traj.warnings)
+
+
+def test_a_row_crossed_in_the_last_step_warns_that_the_final_state_penetrates():
+    """One step of h = 0.01 from 1 mm above the floor at 0.15 m/s: its midpoint is above the
+    floor, its end 1 mm below, and the run ends there: not a vanishing Jacobian."""
+    with pytest.warns(RuntimeWarning, match="row 'floor' penetrated .* in the run's last step") as record:
+        traj = mo.simulate(bouncing_ball(0.5), (0.0, 0.01), [0.001], [-0.15], 0.01, progress=False)
+    assert traj.max_penetration[0] > 5e-4 and len(traj.impacts) == 0
+    assert not any("never enforced" in str(w.message) for w in record)
 
 
 def test_a_row_never_enforced_warns_beside_rows_that_bounce():

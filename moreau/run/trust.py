@@ -9,7 +9,8 @@
   passes its clearance). A row that penetrated without ever carrying an impulse was never
   enforced (a Jacobian that vanishes near the barrier, say): it warns beyond its
   activation tolerance and beyond the largest ``h·|U⁻|`` of the run's impacts (a row
-  redundant with one that carried the impulse penetrates as deep as that one). A run
+  redundant with one that carried the impulse penetrates as deep as that one); one that
+  crossed the barrier in the run's last step says so instead. A run
   beyond it warns once and records the warning in ``traj.warnings``, which
   ``save``/``load`` keep.
 """
@@ -79,8 +80,13 @@ def penetration_warnings(scene, traj, h: float, limit: float | None) -> list[str
         elif not carried[r]:  # never an impulse: the row was never enforced (a vanishing Jacobian?), unless
             # it penetrated no deeper than the scene's impacts may (a row whose twin carried the impulse, say)
             if pen[r] > max(tol[r], scene_scale):
-                out.append(f"row {traj.row_names[r]!r} penetrated {pen[r]:.3g} (gap units){at(r)} without any contact "
-                           "impulse: the contact was never enforced (does its Jacobian vanish there?)")
+                if _crossed_at_the_end(scene, traj, r, h, pen[r], when[r]):
+                    why = ("in the run's last step, before a step could close its contact: the final state penetrates "
+                           "(run on, or take a smaller h)")
+                else:
+                    why = ("without any contact impulse: the contact was never enforced (does its Jacobian vanish "
+                           "there?)")
+                out.append(f"row {traj.row_names[r]!r} penetrated {pen[r]:.3g} (gap units){at(r)} {why}")
             continue
         else:
             U = np.abs(traj.impacts.U_before[traj.impacts.row == r])
@@ -93,6 +99,16 @@ def penetration_warnings(scene, traj, h: float, limit: float | None) -> list[str
     if out:
         warnings.warn("; ".join(out), RuntimeWarning, stacklevel=3)
     return out
+
+
+def _crossed_at_the_end(scene, traj, r, h: float, pen: float, when: float) -> bool:
+    """Row ``r`` reached its deepest penetration ``pen`` at the run's end, no deeper than
+    the last step's travel at the final normal speed: it crossed in the last step, and no
+    step was left to close its contact."""
+    if not len(traj) or not abs(when - traj.t[-1]) <= 0.5 * h:
+        return False
+    G = np.atleast_2d(np.asarray(scene.jacobian(traj.q[-1]), dtype=float))
+    return pen <= h * abs(float(G[r] @ traj.v[-1]))
 
 
 def redundancy_warnings(scene, q0) -> list[str]:
