@@ -8,11 +8,11 @@
   speed U⁻ of its impacts travels in one step) unless the caller gives one (the piston
   passes its clearance). A row that penetrated without ever carrying an impulse was never
   enforced (a Jacobian that vanishes near the barrier, say): it warns beyond its
-  activation tolerance and beyond the largest ``h·|U⁻|`` of the run's impacts (a row
-  redundant with one that carried the impulse penetrates as deep as that one); one that
-  crossed the barrier in the run's last step says so instead. A run
-  beyond it warns once and records the warning in ``traj.warnings``, which
-  ``save``/``load`` keep.
+  activation tolerance, the penetration an initial state may have (1e-12) and the
+  largest ``h·|U⁻|`` of the run's impacts (a row redundant with one that carried the
+  impulse penetrates as deep as that one); one that crossed the barrier in the run's last
+  step says so instead. A run beyond it warns once and records the warning in
+  ``traj.warnings``, which ``save``/``load`` keep.
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ import numpy as np
 
 from moreau.contact.equality import eq_basis
 from moreau.model.barriers import finite_difference_jacobian
+from moreau.step.checks import START_PENETRATION_TOL
 
 __all__ = ["check_jacobians", "constraint_rank", "penetration_warnings", "redundancy_warnings"]
 
@@ -79,7 +80,7 @@ def penetration_warnings(scene, traj, h: float, limit: float | None) -> list[str
             lim, why = float(limit), "the given limit"
         elif not carried[r]:  # never an impulse: the row was never enforced (a vanishing Jacobian?), unless
             # it penetrated no deeper than the scene's impacts may (a row whose twin carried the impulse, say)
-            if pen[r] > max(tol[r], scene_scale):
+            if pen[r] > max(tol[r], scene_scale, START_PENETRATION_TOL):
                 if _crossed_at_the_end(scene, traj, r, h, pen[r], when[r]):
                     why = ("in the run's last step, before a step could close its contact: the final state penetrates "
                            "(run on, or take a smaller h)")

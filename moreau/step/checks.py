@@ -9,11 +9,14 @@ import numpy as np
 from moreau.core.validation import as_vector
 from moreau.model.scene import Scene
 
-__all__ = ["check_initial_state"]
+__all__ = ["START_PENETRATION_TOL", "check_initial_state"]
+
+#: the penetration (gap units) an initial state may have: round-off of a state on a barrier
+START_PENETRATION_TOL = 1e-12
 
 
 def check_initial_state(scene: Scene, t0: Any, q0: Any, v0: Any,
-                        penetration_tol: float = 1e-12) -> tuple[float, np.ndarray, np.ndarray]:
+                        penetration_tol: float = START_PENETRATION_TOL) -> tuple[float, np.ndarray, np.ndarray]:
     """Validate an initial state for ``scene``; return ``(t0, q0, v0)`` as floats/arrays.
 
     Raises ``ValueError`` for non-finite or wrongly shaped q0/v0, a mass matrix that is
