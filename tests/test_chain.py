@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 import moreau as mo
+from moreau.core import kernels
 from moreau.model.barriers import check_jacobian, finite_difference_jacobian
 from moreau.model.chain import (
     ChainGravity,
@@ -143,7 +144,7 @@ def test_point_line_gaps_from_the_joints_match_the_points_positions(rng, n):
     rows = [PointLineRow(int(k), tuple(rng.normal(size=2) * 0.1), tuple(rng.normal(size=2)), tuple(rng.normal(size=2)))
             for k in rng.permutation(np.arange(7) % n)]
     barrier = PointLineBarrier(chain, rows)
-    assert barrier.kernel()[0] == (mo.kernels.BAR_CHAIN_POINT if n >= 8 else mo.kernels.BAR_TRIG)
+    assert barrier.kernel()[0] == (kernels.BAR_CHAIN_POINT if n >= 8 else kernels.BAR_TRIG)
     for q in rng.uniform(-np.pi, np.pi, size=(5, chain.ndof)):
         want = [barrier.normals[i] @ (chain.point_position(q, r.link, r.local) - np.asarray(r.line_point))
                 for i, r in enumerate(rows)]
