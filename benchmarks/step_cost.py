@@ -16,7 +16,8 @@ measured side by side):
    (``moreau.problems.four_bar``: two bilateral rows every step), free and with a stop;
    the README's first example as written (plain numpy lambdas), with ``@njit`` callables and
    with a gap numba cannot compile (a Python callback); the woodpecker's whole
-   ``simulate()`` call recording every step against every 100th;
+   ``simulate()`` call recording every step against every 100th; a short run's whole call
+   against its loop (what checks, set-up and result cost per call);
 3. the compile time of the loop (a fresh numba cache, in a new process) and the time a
    new process takes to load it from the cache;
 4. the contact solvers on the piston sliding on a wall (e = 0): the loop's own (exact,
@@ -201,6 +202,24 @@ def woodpecker_call(quick: bool) -> tuple[float, float, int]:
     return secs[0], secs[1], int(round(t_end / h))
 
 
+def short_run_call() -> tuple[float, float, int]:
+    """(whole call, the loop's part, steps) in seconds of one short ``simulate()``: the forced
+    triple pendulum over half a forcing period at T/1600 (800 steps), as a Lyapunov exponent
+    or a time map (``moreau.dynamics``) runs it again and again; best of 50."""
+    from moreau.dynamics.benchmarks import forced_triple_pendulum
+
+    scene, T = forced_triple_pendulum(6.0, 3.0), 2 * np.pi / 6.0
+    run = lambda: mo.simulate(scene, (0.0, T / 2), np.zeros(3), np.zeros(3), T / 1600,  # noqa: E731
+                              solver="enum", progress=False)
+    run()
+    best, loop = np.inf, np.inf
+    for _ in range(50):
+        t0 = time.perf_counter()
+        traj = run()
+        best, loop = min(best, time.perf_counter() - t0), min(loop, traj.stats.wall_time)
+    return best, loop, traj.stats.steps
+
+
 _PROBE = """
 import time
 t0 = time.perf_counter()
@@ -284,6 +303,9 @@ def main(argv=None) -> None:
     every, sparse, wsteps = woodpecker_call(args.quick)
     print(f"the woodpecker's whole simulate() call, {wsteps} steps: every step recorded {every:.3f} s, every 100th "
           f"{sparse:.3f} s ({every / sparse:.2f}x; issue 41 asks <= 1.5x)")
+    call, loop, steps = short_run_call()
+    print(f"a short run (the forced triple pendulum, {steps} steps): the whole simulate() call {call * 1e3:.2f} ms, "
+          f"its loop {loop * 1e3:.2f} ms (checks, set-up and result {(call - loop) * 1e3:.2f} ms)")
     from moreau.problems.piston.pressure import calibrated_pressure
 
     fp = calibrated_pressure()

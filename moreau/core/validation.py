@@ -24,23 +24,25 @@ def is_number(x) -> bool:
 
 def _numeric_array(x, name: str) -> np.ndarray:
     """``x`` as a float array when every entry is a number, else ``ValueError``."""
-    bad = ValueError(f"{name} must be an array of numbers, got {x!r}")
+    def bad() -> ValueError:  # the message's repr of x only when it is raised
+        return ValueError(f"{name} must be an array of numbers, got {x!r}")
+
     if x is None or isinstance(x, (str, bytes, bool, np.bool_)):
-        raise bad
+        raise bad()
     try:
         # entry by entry: numpy would turn [1.0, True] into floats without a word
         raw = x if isinstance(x, np.ndarray) else np.array(x, dtype=object)
     except (TypeError, ValueError):
-        raise bad from None
+        raise bad() from None
     if raw.dtype.kind == "O":
         if not all(is_number(el) for el in raw.flat):
-            raise bad
+            raise bad()
     elif raw.dtype.kind not in "iuf":
-        raise bad
+        raise bad()
     try:
         return raw.astype(float)
     except (TypeError, ValueError, OverflowError):
-        raise bad from None
+        raise bad() from None
 
 
 def as_vector(x, name: str, size: int | None = None) -> np.ndarray:
