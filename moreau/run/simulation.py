@@ -160,7 +160,8 @@ def simulate(
                  check_jacobian, penetration_limit, flight_gap, initial_penetration, energy_growth, step_control)
     redundant = redundancy_warnings(scene, q0)
     traj = _run(scene, plan, q0, v0, integrator, drift_control, check_jacobian, progress, energy)
-    traj.warnings = redundant + traj.warnings + penetration_warnings(scene, traj, plan.h, plan.penetration_limit)
+    traj.warnings = redundant + traj.warnings + penetration_warnings(scene, traj, plan.h, plan.penetration_limit,
+                                                                         plan.initial_penetration)
     return traj
 
 

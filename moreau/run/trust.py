@@ -8,7 +8,7 @@
   speed U⁻ of its impacts travels in one step) unless the caller gives one (the piston
   passes its clearance). A row that penetrated without ever carrying an impulse was never
   enforced (a Jacobian that vanishes near the barrier, say): it warns beyond its
-  activation tolerance, the penetration an initial state may have (1e-12) and the
+  activation tolerance, the penetration the run accepted of its initial state and the
   largest ``h·|U⁻|`` of the run's impacts (a row redundant with one that carried the
   impulse penetrates as deep as that one); one that crossed the barrier in the run's last
   step says so instead. A run beyond it warns once and records the warning in
@@ -67,9 +67,11 @@ def _mismatch(g: np.ndarray, g_fd: np.ndarray) -> tuple[float, float]:
     return float(np.abs(g - g_fd).max()), max(float(np.abs(g).max()), float(np.abs(g_fd).max()), 1e-300)
 
 
-def penetration_warnings(scene, traj, h: float, limit: float | None) -> list[str]:
+def penetration_warnings(scene, traj, h: float, limit: float | None,
+                         initial_penetration: float = START_PENETRATION_TOL) -> list[str]:
     """Rows whose largest penetration over every step exceeds its limit (see the module
-    docstring), as messages; also issued once as a ``RuntimeWarning``."""
+    docstring), as messages; also issued once as a ``RuntimeWarning``.
+    ``initial_penetration``: what the run accepted of its initial state (gap units)."""
     pen = traj.max_penetration
     if pen is None or not np.any(pen > 0.0):
         return []
@@ -92,7 +94,7 @@ def penetration_warnings(scene, traj, h: float, limit: float | None) -> list[str
             lim, why = float(limit), "the given limit"
         elif not carried[r]:  # never an impulse: the row was never enforced (a vanishing Jacobian?), unless
             # it penetrated no deeper than the scene's impacts may (a row whose twin carried the impulse, say)
-            if pen[r] > max(tol[r], scene_scale, START_PENETRATION_TOL):
+            if pen[r] > max(tol[r], scene_scale, initial_penetration):
                 if _crossed_at_the_end(scene, traj, r, h, pen[r], when[r]):
                     why = ("in the run's last step, before a step could close its contact: the final state penetrates "
                            "(run on, or take a smaller h)")
