@@ -89,6 +89,14 @@ def test_ball_plastic_no_rebound():
     assert traj.impacts.U_after[0] == pytest.approx(0.0, abs=1e-12)
 
 
+def test_a_start_inside_two_floors_within_its_accepted_penetration_warns_nothing():
+    """At rest 5e-7 below two identical floors, accepted (initial_penetration=1e-6): one floor
+    carries the weight, the other nothing, and both stay 5e-7 deep, as accepted."""
+    traj = mo.simulate(bouncing_ball(0.5, floors=2), (0.0, 0.05), [-5e-7], [0.0], 1e-3, initial_penetration=1e-6)
+    assert traj.impulses[:, 1].sum() == 0.0 and traj.max_penetration[1] == pytest.approx(5e-7)
+    assert traj.warnings == []
+
+
 def test_two_identical_floors_equal_one():
     one = mo.simulate(bouncing_ball(0.7), (0.0, 1.5), [0.5], [0.0], 1e-3, solver="enum")
     for solver in ("enum", "osqp", "daqp"):
