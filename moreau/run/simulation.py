@@ -25,7 +25,7 @@ from moreau.run.backend import DriftControl, choose_backend, initial_state_only
 from moreau.run.flights import flight_gaps, initial_flight
 from moreau.run.progress import progress_bar
 from moreau.run.trust import check_jacobians, constraint_rank, penetration_warnings, redundancy_warnings
-from moreau.step.checks import check_initial_state
+from moreau.step.checks import START_PENETRATION_TOL, check_initial_state
 from moreau.step.control import StepControl
 from moreau.step.integrator import (
     MoreauJeanEnergyConsistent,
@@ -62,7 +62,7 @@ def simulate(
     check_jacobian: bool = True,
     penetration_limit: float | None = None,
     flight_gap: ArrayLike = 0.0,
-    initial_penetration: float = 1e-12,
+    initial_penetration: float = START_PENETRATION_TOL,
     energy_growth: tuple[float, float] | None = DEFAULT_ENERGY_GROWTH,
     step_control: StepControl | None = None,
 ) -> Trajectory:
