@@ -46,14 +46,21 @@ def counted(a: float, b: int, calls_dir: str) -> dict:
     open(os.path.join(d, uuid.uuid4().hex), "w").close()
     trigger = os.path.join(calls_dir, "interrupt_at")
     if os.path.exists(trigger) and open(trigger).read() == f"{a}_{b}":
-        with open(os.path.join(calls_dir, "interrupted"), "w") as f:  # when (a system-wide clock)
-            f.write(repr(time.monotonic()))
+        _stamp(os.path.join(calls_dir, "interrupted"))
         raise KeyboardInterrupt
     out = cheap(a, b)
     os.makedirs(os.path.join(calls_dir, "finished"), exist_ok=True)
-    with open(os.path.join(calls_dir, "finished", f"{a}_{b}"), "w") as f:
-        f.write(repr(time.monotonic()))
+    _stamp(os.path.join(calls_dir, "finished", f"{a}_{b}"))
     return out
+
+
+def _stamp(path: str) -> None:
+    """Write the time (a system-wide clock) to ``path`` through a unique name and a rename: a
+    worker stopped mid-write by the interrupt leaves no empty stamp."""
+    tmp = f"{path}.{uuid.uuid4().hex}.tmp"
+    with open(tmp, "w") as f:
+        f.write(repr(time.monotonic()))
+    os.replace(tmp, path)
 
 
 def _with_tuple(a: int, t: tuple) -> dict:
@@ -164,7 +171,8 @@ def test_interrupted_sweep_resumes_without_recomputing_finished_points(tmp_path,
     # every point that finished before the interrupt is kept (serially: the 7 before
     # (0.5, 2); with two workers, whatever the other had finished by then); not all
     t_stop = float((calls_dir / "interrupted").read_text())
-    kept_before = [p for p in (calls_dir / "finished").iterdir() if float(p.read_text()) < t_stop]
+    stamps = [p for p in (calls_dir / "finished").iterdir() if p.suffix != ".tmp"]
+    kept_before = [p for p in stamps if float(p.read_text()) < t_stop]
     assert len(kept_before) <= len(parts) < 15
     if executor == "serial":
         assert len(parts) == 7
