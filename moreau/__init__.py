@@ -51,7 +51,7 @@ from .model.forces import (
 )
 from .model.laws import NewtonImpact, NewtonImpactFriction
 from .model.scene import Contact, Scene
-from .model.system import FunctionSystem, MechanicalSystem
+from .model.system import FunctionSystem, MechanicalSystem, check_bias
 from .results import diagnostics
 from .results.trajectory import ImpactLog, SolverStats, Trajectory, load
 from .run.simulation import ensure_compiled, simulate
@@ -79,7 +79,7 @@ __all__ = [
     "Contact", "Scene", "Bilateral",
     "simulate", "ensure_compiled",
     "ContactSolver", "EnumerationSolver", "ExactSolver", "OSQPSolver", "QpsolversSolver", "make_solver",
-    "FunctionSystem", "MechanicalSystem",
+    "FunctionSystem", "check_bias", "MechanicalSystem",
     "diagnostics",
 ]
 

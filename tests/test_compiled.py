@@ -155,8 +155,8 @@ def _mass(q):
 
 
 @numba.njit
-def _bias(q, v):
-    return np.array([0.0, 0.05 * np.sin(q[1]) * v[0] ** 2])
+def _bias(q, v):  # −Ṁv + ½∇(vᵀMv) of _mass (simulate checks it)
+    return np.array([0.1 * np.sin(q[1]) * v[0] * v[1], -0.05 * np.sin(q[1]) * v[0] ** 2])
 
 
 @numba.njit
@@ -209,7 +209,11 @@ def test_compiled_failures_keep_the_run_and_name_the_step():
     def mass(q):  # stops being positive definite below q = 0.5
         return np.array([[q[0] - 0.5]])
 
-    scene = mo.Scene(mo.FunctionSystem(mass, ndof=1), [mo.ConstantForce([-1.0])])
+    @numba.njit
+    def bias(q, v):  # −½ M'(q) v², M' = 1
+        return np.array([-0.5 * v[0] ** 2])
+
+    scene = mo.Scene(mo.FunctionSystem(mass, ndof=1, bias=bias), [mo.ConstantForce([-1.0])])
     with pytest.raises(mo.SimulationError, match="stopped being symmetric positive definite at step") as info:
         mo.simulate(scene, (0.0, 5.0), [1.0], [0.0], 1e-3)
     traj = info.value.trajectory

@@ -14,13 +14,15 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from moreau.core.validation import as_matrix
 
-__all__ = ["MechanicalSystem", "FunctionSystem", "check_spd"]
+__all__ = ["MechanicalSystem", "FunctionSystem", "BiasCheck", "check_bias", "check_spd"]
 
 
 class MechanicalSystem(ABC):
@@ -53,7 +55,9 @@ class MechanicalSystem(ABC):
     def bias_force(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Velocity-squared generalized force (Coriolis, centrifugal), shape (n,).
 
-        It stands on the right-hand side: ``M(q) dv/dt = bias_force(q, v) + ...``.
+        It stands on the right-hand side: ``M(q) dv/dt = bias_force(q, v) + ...``, and
+        equals ``−Ṁ v + ½ ∇_q(vᵀ M v)`` (the Lagrange equations); :func:`moreau.simulate`
+        compares it with M(q)'s derivatives before a run (:func:`check_bias`).
         """
         return np.zeros(self.ndof)
 
@@ -83,8 +87,10 @@ class FunctionSystem(MechanicalSystem):
         Number of coordinates; inferred from a constant ``mass``. Required when ``mass``
         is a callable.
     bias : callable ``bias(q, v) -> (n,)``, optional
-        Velocity-squared generalized force on the right-hand side (see
-        :class:`MechanicalSystem`). Omit it for a constant mass matrix.
+        Velocity-squared generalized force on the right-hand side, ``−Ṁ v + ½ ∇_q(vᵀ M v)``
+        (see :class:`MechanicalSystem`; :func:`moreau.simulate` refuses one that is not
+        that of ``mass``, and a ``mass`` that depends on q without one). Omit it for a
+        constant mass matrix.
     name : str
         Label used in results.
 
@@ -169,6 +175,95 @@ def check_spd(M: np.ndarray, what: str = "M", where: str = "") -> None:
         raise ValueError(
             f"{what}{where} is not positive definite (smallest eigenvalue {eig[0]:.3g}): {M.tolist()}"
         ) from None
+
+
+def lagrangian_bias(mass: Callable[[np.ndarray], np.ndarray], q: np.ndarray, v: np.ndarray, eps: float = 1e-6, *,
+                    relative: bool = True) -> tuple[np.ndarray, float, float]:
+    """The velocity-squared force of a Lagrangian system with mass matrix ``mass(q)``,
+    ``f = −Ṁ v + ½ ∇_q(vᵀ M v)`` (Ṁ = Σ_k ∂M/∂q_k v_k), from central differences of M at
+    ``q`` (steps ``eps·max(1, |q_k|)``, or ``eps``): ``(f (n,), size, noise)``, ``size`` the
+    largest sum of the magnitudes of the terms that make up an entry of f, ``noise`` the
+    differences' round-off floor there (both in f's units)."""
+    n = q.shape[0]
+    a = np.abs(v)
+    mdot, mdot_abs = np.zeros((n, n)), np.zeros((n, n))  # Σ_k v_k ∂M/∂q_k, and of |terms|
+    grad, grad_abs = np.empty(n), np.empty(n)  # vᵀ ∂M/∂q_k v, and of |terms|
+    noise = 0.0
+    for k in range(n):  # one ∂M/∂q_k at a time: O(n²) memory
+        step = eps * max(1.0, abs(q[k])) if relative else eps
+        qp, qm = q.copy(), q.copy()
+        qp[k] += step
+        qm[k] -= step
+        Dk = (np.asarray(mass(qp), dtype=float) - np.asarray(mass(qm), dtype=float)) / (2.0 * step)
+        mdot += v[k] * Dk
+        mdot_abs += a[k] * np.abs(Dk)
+        grad[k] = v @ Dk @ v
+        grad_abs[k] = a @ np.abs(Dk) @ a
+        noise += a[k] / step
+    f = -(mdot @ v) + 0.5 * grad
+    size = float((mdot_abs @ a + 0.5 * grad_abs).max(initial=0.0))
+    scale_m = float(np.abs(np.asarray(mass(q), dtype=float)).max(initial=0.0))
+    noise *= 150.0 * np.finfo(float).eps * scale_m * float(a.sum())
+    return f, size, noise
+
+
+@dataclass(frozen=True)
+class BiasCheck:
+    """Result of :func:`check_bias`.
+
+    Attributes
+    ----------
+    q, v : ndarray, shape (n,)
+        Where the bias force was compared (a point near the given q, a fixed velocity).
+    analytic : ndarray, shape (n,)
+        The system's ``bias_force(q, v)`` (zeros for a system without one).
+    numeric : ndarray, shape (n,)
+        ``−Ṁ v + ½ ∇_q(vᵀ M v)`` from central differences of ``mass_matrix``.
+    max_abs_error : float
+        Largest ``|analytic − numeric|`` entry.
+    max_rel_error : float
+        ``max_abs_error`` over the size of the terms (theirs and the analytic force's);
+        0 when it is below the differences' round-off.
+    """
+
+    q: np.ndarray
+    v: np.ndarray
+    analytic: np.ndarray
+    numeric: np.ndarray
+    max_abs_error: float
+    max_rel_error: float
+
+    def ok(self, rtol: float = 1e-5) -> bool:
+        return self.max_rel_error <= rtol
+
+
+def check_bias(system: MechanicalSystem, q: ArrayLike, eps: float = 1e-6) -> BiasCheck:
+    """Compare a system's bias force with the velocity-squared terms of its mass matrix.
+
+    For a Lagrangian system with kinetic energy ½ vᵀ M(q) v the bias force (right-hand
+    side: ``M dv/dt = bias + forces``) is ``−Ṁ v + ½ ∇_q(vᵀ M v)``, fixed by M(q). It is
+    compared at a point a little off ``q`` (by ``1e-3·max(1, |q_k|)`` along a fixed direction:
+    a symmetric configuration such as a hanging chain zeroes every term) and a fixed
+    velocity of O(1) entries, with central differences of M; where the relative steps
+    disagree (a coordinate of thousands), with absolute steps of ``eps``.
+    """
+    q = np.asarray(q, dtype=float)
+    n = system.ndof
+    k = np.arange(1.0, n + 1.0)
+    qc = q + 1e-3 * np.maximum(1.0, np.abs(q)) * np.sin(2.4 * k)  # fixed, uneven entries
+    v = np.cos(1.7 * k) + np.sign(np.cos(1.7 * k))  # entries in ±(1, 2)
+    analytic = np.asarray(system.bias_force(qc, v), dtype=float) if system.has_bias else np.zeros(n)
+    best: BiasCheck | None = None
+    for relative in (True, False):
+        numeric, size, noise = lagrangian_bias(system.mass_matrix, qc, v, eps, relative=relative)
+        err = float(np.abs(analytic - numeric).max(initial=0.0))
+        rel = 0.0 if err <= noise else err / max(size, float(np.abs(analytic).max(initial=0.0)), np.finfo(float).tiny)
+        if best is None or rel < best.max_rel_error:
+            best = BiasCheck(qc, v, analytic, numeric, err, rel)
+        if best.ok():
+            break
+    assert best is not None
+    return best
 
 
 def _positive_int(x: Any, name: str) -> int:

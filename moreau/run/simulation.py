@@ -21,6 +21,7 @@ from moreau.core.validation import as_positive, as_record_every, as_time_span, c
 from moreau.model.scene import Scene
 from moreau.model.stability import DEFAULT_ENERGY_GROWTH, as_energy_growth
 from moreau.results.trajectory import Trajectory
+from moreau.run import trust
 from moreau.run.backend import DriftControl, choose_backend, initial_state_only
 from moreau.run.flights import flight_gaps, initial_flight
 from moreau.run.progress import progress_bar
@@ -112,8 +113,8 @@ def simulate(
     drift_control : CombinedProjection or PositionProjection or None
         Drift control after each step (see :mod:`moreau.step.drift`); default none.
     check_jacobian : bool
-        Compare every barrier's Jacobian with finite differences of its gap at q0 and
-        refuse a mismatch (``ValueError`` naming the row); default True.
+        Compare every barrier's Jacobian with finite differences of its gap at q0, and a system's
+        own bias force with its M(q)'s (:func:`moreau.check_bias`); refuse a mismatch; default True.
     initial_penetration : float
         An initial state with a gap below ``-initial_penetration`` (gap units) is refused
         (default 1e-12); to continue from where another run ended (an impact step may end
@@ -264,6 +265,8 @@ def _run(scene: Scene, plan: _Plan, q0: ArrayLike, v0: ArrayLike, integrator: ty
                              scene, plan.t0, q0, v0)
     if check_jacobian and scene.nrows:
         check_jacobians(scene, q)
+    if check_jacobian:
+        trust.check_bias_force(scene, q)
     rank, redundant = constraint_rank(scene, q)
     if redundant:  # reported, not an error: v stays unique
         log.info("scene %r: %d bilateral rows of rank %d at q0; redundant: %s", scene.name, scene.nconstraints, rank,

@@ -2,7 +2,10 @@
 
 * Before the run, every barrier's analytic Jacobian is compared with central finite
   differences of its gap at the initial state: a Jacobian of the wrong sign or scale
-  would otherwise let the contact drift through the barrier and the run "complete".
+  would otherwise let the contact drift through the barrier and the run "complete". A
+  user system's bias force is compared with the velocity-squared terms of its mass matrix
+  (:func:`moreau.model.system.check_bias`): a wrong sign there would otherwise show only as
+  energy growing at every h.
 * After the run, the largest penetration of every row over every step is compared with a
   limit: the scheme's own scale ``h·|U⁻|`` (the distance a contact approaching at the normal
   speed U⁻ of its impacts travels in one step) unless the caller gives one (the piston
@@ -23,9 +26,10 @@ import numpy as np
 
 from moreau.contact.equality import eq_basis
 from moreau.model.barriers import finite_difference_jacobian
+from moreau.model.system import check_bias
 from moreau.step.checks import START_PENETRATION_TOL
 
-__all__ = ["check_jacobians", "constraint_rank", "penetration_warnings", "redundancy_warnings"]
+__all__ = ["check_bias_force", "check_jacobians", "constraint_rank", "penetration_warnings", "redundancy_warnings"]
 
 
 def check_jacobians(scene, q0: np.ndarray, rtol: float = 1e-5) -> None:
@@ -59,6 +63,35 @@ def check_jacobians(scene, q0: np.ndarray, rtol: float = 1e-5) -> None:
                     f"(relative error {err / scale:.3g}); fix the Jacobian, or pass check_jacobian=False "
                     "for a gap that is not differentiable there")
         row += b.nrows
+
+
+def check_bias_force(scene, q0: np.ndarray, rtol: float = 1e-5) -> None:
+    """Raise ``ValueError`` when the bias force of a scene's own system (not a built-in
+    chain's) differs from ``−Ṁ v + ½ ∇_q(vᵀ M v)`` of its mass matrix by more than ``rtol``
+    near ``q0`` (:func:`~moreau.model.system.check_bias`), or when M depends on q and the
+    system has no bias force."""
+    system = scene.system
+    kernel = system.mass_kernel()
+    if system.constant_mass or (kernel is not None and kernel[0] != "user"):
+        return
+    c = check_bias(system, q0)
+    if c.ok(rtol):
+        return
+    name = getattr(system, "name", type(system).__name__)
+    at = (f"at q = {_short(c.q)}, v = {_short(c.v)} the velocity-squared terms of M(q), −Ṁv + ½∇(vᵀMv) by finite "
+          f"differences, are {_short(c.numeric)}")
+    if not system.has_bias:
+        raise ValueError(f"the mass matrix of system {name!r} depends on q but the system has no bias force: {at}; "
+                         "give them as bias= (FunctionSystem) or bias_force (MechanicalSystem, with has_bias = True), "
+                         "or pass check_jacobian=False to run without them")
+    raise ValueError(f"the bias force of system {name!r} does not match its mass matrix: {at}, bias_force gives "
+                     f"{_short(c.analytic)} (relative error {c.max_rel_error:.3g}); it stands on the right-hand side, "
+                     "M dv/dt = bias + forces, and other velocity-dependent forces belong in an effect "
+                     "(FunctionForce); pass check_jacobian=False to skip this check")
+
+
+def _short(x: np.ndarray) -> str:
+    return "[" + ", ".join(f"{float(e):.6g}" for e in x) + "]"
 
 
 def _mismatch(g: np.ndarray, g_fd: np.ndarray) -> tuple[float, float]:
