@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import math
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
@@ -19,7 +20,7 @@ from moreau.contact.solvers import ContactSolver
 from moreau.core.errors import attach_trajectory
 from moreau.core.validation import as_positive, as_record_every, as_time_span, checked_start
 from moreau.model.scene import Scene
-from moreau.model.stability import DEFAULT_ENERGY_GROWTH, as_energy_growth
+from moreau.model.stability import DEFAULT_ENERGY_GROWTH, as_energy_growth, explicit_limit_message
 from moreau.results.trajectory import Trajectory
 from moreau.run import trust
 from moreau.run.backend import DriftControl, choose_backend, initial_state_only
@@ -267,6 +268,11 @@ def _run(scene: Scene, plan: _Plan, q0: ArrayLike, v0: ArrayLike, integrator: ty
         check_jacobians(scene, q)
     if check_jacobian:
         trust.check_bias_force(scene, q)
+    # beyond the explicit forces' stability limit (constant M: the energy check cannot see it)
+    unstable = (explicit_limit_message(scene, t0, q, v, plan.h) if plan.energy_growth is not None
+                and plan.control is None and _compiled_step(integrator) == STEP_MIDPOINT else None)
+    if unstable:
+        warnings.warn(unstable, RuntimeWarning, stacklevel=3)
     rank, redundant = constraint_rank(scene, q)
     if redundant:  # reported, not an error: v stays unique
         log.info("scene %r: %d bilateral rows of rank %d at q0; redundant: %s", scene.name, scene.nconstraints, rank,
@@ -276,13 +282,15 @@ def _run(scene: Scene, plan: _Plan, q0: ArrayLike, v0: ArrayLike, integrator: ty
         step = _compiled_step(integrator)  # the loop's variant, before the progress bar moves: a compile says so
         cache.ensure_compiled(variant(plan.cs.ints, step, plan.iteration[0]), step_control=plan.control is not None)
         bar = progress_bar(progress, plan.n_steps, scene.name)
-        return run_compiled(scene, plan.cs, t0, q, v, plan.h, plan.n_steps,
+        traj = run_compiled(scene, plan.cs, t0, q, v, plan.h, plan.n_steps,
                             step=step, iteration=plan.iteration,
                             solver=plan.solver,
                             fallback=plan.fallback, stride=plan.stride, bar=bar, energy=energy, tol=plan.tol,
                             drift_control=drift_control, flight_gap=plan.flight_gap,
                             gmax0=initial_flight(scene, q, v), energy_growth=plan.energy_growth,
                             control=plan.control)
+        traj.warnings = ([unstable] if unstable else []) + traj.warnings
+        return traj
     except KeyboardInterrupt as exc:  # before the loop took over: the initial state is the run
         if getattr(exc, "trajectory", None) is None:
             attach_trajectory(exc, initial_state_only(scene, t0, q, v, plan.h, plan.stride, plan.solver,
