@@ -1,5 +1,7 @@
 """The energy check of the loop (the rule is :mod:`moreau.model.stability`'s)."""
 
+import math
+
 from moreau.compiled import evaluate as ev
 from moreau.compiled.layout import (  # the loop's layout
     A_DU,
@@ -7,18 +9,22 @@ from moreau.compiled.layout import (  # the loop's layout
     A_KE0,
     A_KEMAX,
     A_KEMAX_WARN,
+    A_RUNAWAY,
     A_T_EWARN,
     A_WORK_B,
     A_WORK_F,
     C_ELEVEL,
     C_EOK,
     C_EWARN,
+    C_KLAST,
+    C_RUNAWAY,
     DONE,
     ENERGY_GROWTH,
     F_ESTOP,
     F_EWARN,
     F_H,
     F_T0,
+    RUNAWAY_RATE,
     SC_MASS_KIND,
     SC_N,
     USER_FAILED,
@@ -63,6 +69,7 @@ def _energy_check(model, user, iset, fset, k, q, v, cq, sq, M, cnt, acc, q_warn,
         status, ke = _kinetic_energy(model, user, q, v, cq, sq, M, cnt)
     if status != DONE:
         return status
+    kemax = acc[A_KEMAX]  # before this check (the runaway test's floor)
     if ke > acc[A_KEMAX]:
         acc[A_KEMAX] = ke
     du = ke - acc[A_KE0] - (acc[A_WORK_F] - acc[A_WORK_B])
@@ -75,7 +82,17 @@ def _energy_check(model, user, iset, fset, k, q, v, cq, sq, M, cnt, acc, q_warn,
             level = 1
     prev = cnt[C_ELEVEL]
     cnt[C_ELEVEL] = level
-    if level == 0:
+    # the runaway test: the ledger balances an explicit step's runaway exactly (constant M: the
+    # kinetic energy change is the work of the forces applied); its growth beyond the largest
+    # kinetic energy so far, at a rate no resolved motion has, it does not
+    dk = k - cnt[C_KLAST]
+    fast = dk > 0 and kemax > 0.0 and ke > kemax * math.exp(RUNAWAY_RATE * dk)
+    cnt[C_RUNAWAY] = cnt[C_RUNAWAY] + 1 if fast else 0
+    if cnt[C_RUNAWAY] >= 2:
+        acc[A_RUNAWAY] = (ke / kemax) ** (1.0 / dk)  # the growth factor a step
+        return ENERGY_GROWTH
+    cnt[C_KLAST] = k
+    if level == 0 and not fast:
         cnt[C_EOK] = k
     # the stop bound counts when two checks in a row find it passed: a coarse step's
     # transient at an impact (one step) warns, but is not a growth

@@ -75,7 +75,10 @@ C_EOK = 16
 # (step-size control, moreau.compiled.adaptive: steps accepted, attempts rejected, steps
 # accepted at the smallest step above the tolerance)
 C_ACCEPTED, C_REJECTED, C_FORCED = 17, 18, 19
-N_COUNTERS = 20
+# (the energy check's runaway test: the step of its last check, and how many checks in a row
+# found the kinetic energy growing beyond its largest so far faster than a resolved motion can)
+C_KLAST, C_RUNAWAY = 20, 21
+N_COUNTERS = 22
 # accumulators (float array)
 # (the energy check: kinetic energy at the start, the largest so far, the unaccounted energy
 # at the warning and at the last check, the work of the bias terms)
@@ -91,7 +94,13 @@ A_KEMAX_WARN = 12
 # (the times the energy check first warned and Painlevé's region was first met: t0 + k h on
 # fixed steps, the adaptive step's own time with step-size control)
 A_T_EWARN, A_T_PAINLEVE = 13, 14
-N_ACCUMULATORS = 15
+# (A_RUNAWAY: the growth factor a step that stopped a run as a runaway, 0 otherwise)
+A_RUNAWAY = 15
+N_ACCUMULATORS = 16
+#: the runaway test's bound: a kinetic energy above the largest so far by more than
+#: exp(RUNAWAY_RATE) a step since the last check (an amplitude growing by more than a fifth a
+#: step), at two checks in a row, is a motion the step does not resolve
+RUNAWAY_RATE = 0.4
 # step-size control's state (float array): the step to try next, the time reached, the end
 # time, the tolerances (absolute, relative), the largest and smallest step, the start of the
 # step of the last energy check that passed, the last accepted step, its scaled error and kind

@@ -13,7 +13,7 @@ from moreau.compiled.usercalls import SLOT_WORDS, decode
 from moreau.contact.friction import FRICTION_RESIDUALS
 from moreau.contact.painleve import painleve_message
 from moreau.core.errors import SimulationError, SolverError
-from moreau.model.stability import energy_growth_message, not_converged_message
+from moreau.model.stability import energy_growth_message, not_converged_message, runaway_message
 from moreau.results.trajectory import Trajectory
 
 
@@ -47,6 +47,8 @@ def run_error(code, scene, k, t, q, v, h, fail, cs, user_status, acc, tol=float(
     """The exception for the loop's status ``code`` at step ``k`` (time ``t``, state q, v),
     naming what failed, where, and the residuals or the callable involved."""
     where = f"at step {k} (t = {t:.9g})"
+    if code == lay.ENERGY_GROWTH and acc[lay.A_RUNAWAY] > 0.0:
+        return SimulationError(runaway_message(scene, t, q, v, float(acc[lay.A_RUNAWAY]), h), None, k)
     if code == lay.ENERGY_GROWTH:
         return SimulationError(energy_growth_message(scene, t, q, v, float(acc[lay.A_DU]), float(acc[lay.A_KEMAX]), h),
                                None, k)

@@ -16,9 +16,12 @@ already be the runaway. The defaults (5 %, 10 %) leave alone the first-order ene
 resolved run (a three-rod chain of 0.3 m at h = 1e-3 drifts by 2.9 % of its kinetic
 energy in 2 s, 0.3 % at 1e-4).
 
-With a constant mass matrix the check is blind to a step beyond the explicit forces'
+With a constant mass matrix the ledger is blind to a step beyond the explicit forces'
 stability limit (a step's kinetic energy change is the work of the forces it applied,
-exactly): :func:`explicit_limit_message` names it before the run instead.
+exactly): :func:`explicit_limit_message` names it before the run, and the check's runaway
+test stops a run whose kinetic energy rises above its largest so far by more than e^0.4 a
+step (an amplitude growing by a fifth a step, which no resolved motion does) at two checks
+in a row (:func:`runaway_message`).
 """
 
 from __future__ import annotations
@@ -30,7 +33,7 @@ import numpy as np
 
 __all__ = ["ENERGY_CHECK_EVERY", "DEFAULT_ENERGY_GROWTH", "EXPLICIT_LIMIT", "as_energy_growth", "fastest_rates",
            "explicit_limit_message", "stable_step",
-           "step_advice", "kept_until", "not_converged_message", "energy_growth_message"]
+           "step_advice", "kept_until", "not_converged_message", "energy_growth_message", "runaway_message"]
 
 #: the check runs every this many steps (a mass-matrix evaluation each time)
 ENERGY_CHECK_EVERY = 8
@@ -153,6 +156,16 @@ def energy_growth_message(scene: Any, t: float, q: np.ndarray, v: np.ndarray, du
     return (f"the energy grew by {du:.3g} beyond the work of the applied forces by t = {t:.6g} "
             f"({du / ke_max:.1%} of the largest kinetic energy so far, {ke_max:.3g}) at h = {h:g}: "
             f"the step is too large for this motion; {advice}")
+
+
+def runaway_message(scene: Any, t: float, q: np.ndarray, v: np.ndarray, growth: float, h: float) -> str:
+    """The words of the energy check's runaway test: the kinetic energy rose above its
+    largest so far by ``growth`` a step, at two checks in a row
+    (``moreau.compiled.layout.RUNAWAY_RATE``)."""
+    return (f"the kinetic energy rose above its largest so far by a factor of {growth:.3g} a step up to t = "
+            f"{t:.6g}, at two energy checks in a row, at h = {h:g}: faster than any motion the step resolves (an "
+            f"explicit step's runaway, which the work of the applied forces matches); the step is too large for "
+            f"this motion; {step_advice(scene, t, q, v, h)}")
 
 
 def kept_until(message: str, t_kept: float) -> str:

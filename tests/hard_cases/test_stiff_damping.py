@@ -40,8 +40,10 @@ def test_damping_inside_the_step_limit_decays_exactly_as_predicted(hc):
 
 
 @pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")
-@pytest.mark.parametrize("hc", [2.05, 2.5])
+@pytest.mark.parametrize("hc", [2.05, 2.2])
 def test_damping_outside_the_step_limit_grows_and_overflows(hc):
+    # slow growth (|1 − h λ|² = 1.1, 1.44 a step in kinetic energy, below the runaway test's
+    # e^0.4 = 1.49): the state overflows
     scene, h = damped_1dof(hc)
     with pytest.raises(mo.SimulationError, match="state became non-finite") as info, \
             pytest.warns(RuntimeWarning, match=rf"h·ρ = {hc:g} > 2, and that motion grows without bound"):
@@ -51,6 +53,15 @@ def test_damping_outside_the_step_limit_grows_and_overflows(hc):
     # the last good state is where |1 − h λ|^n reaches the float range (~1.8e308)
     n = round(traj.t[-1] / h)
     assert n == pytest.approx(np.log(np.finfo(float).max) / np.log(hc - 1), rel=0.01)
+
+
+def test_damping_far_outside_the_step_limit_is_stopped_as_a_runaway():
+    scene, h = damped_1dof(2.5)  # 2.25 a step in kinetic energy
+    with pytest.raises(mo.SimulationError, match=r"rose above its largest so far by a factor of 2.25 a step") as info, \
+            pytest.warns(RuntimeWarning, match=r"h·ρ = 2.5 > 2"):
+        mo.simulate(scene, (0.0, 1e6 * h), [0.0], [1.0], h, record_every=1)
+    traj = info.value.trajectory  # up to the last check that passed: the start (the first check found it)
+    assert traj.status == "failed" and traj.t[-1] == 0.0 and "at h = 0.01" in str(info.value)
 
 
 def piston_damping_factor(factor):
