@@ -72,9 +72,13 @@ def test_a_mass_matrix_that_depends_on_q_needs_a_bias():
     with pytest.raises(ValueError, match=r"mass matrix of system 'double pendulum' depends on q but the system has "
                                          r"no bias force: at q = \[.*\] the velocity-squared terms"):
         run(double_pendulum(None))
-    # a callable returning a constant matrix needs none
+    # a callable returning a constant matrix needs none, and has none: a damping force given
+    # as the bias of a constant M is refused (it belongs in an effect)
     const = mo.Scene(mo.FunctionSystem(lambda q: 2.0 * np.eye(2), ndof=2), [mo.ConstantForce([0.0, -1.0])])
     assert run(const).completed
+    damped = mo.Scene(mo.FunctionSystem(2.0 * np.eye(2), bias=lambda q, v: -0.1 * v), [mo.ConstantForce([0.0, -1.0])])
+    with pytest.raises(ValueError, match=r"are \[0, 0\], bias_force gives \[.*belong in an effect"):
+        run(damped)
 
 
 class Cart(mo.MechanicalSystem):
