@@ -238,6 +238,16 @@ def finite_difference_jacobian(fun: Callable[[np.ndarray], np.ndarray], q: np.nd
     return J
 
 
+def near_point(q: np.ndarray) -> np.ndarray:
+    """A point a little off ``q`` (by ``1e-3·max(1, |q_k|)`` along a fixed direction of uneven
+    entries), where the checks of :func:`moreau.simulate` look as well: at a symmetric start
+    (a chain hanging straight down) the terms of a Jacobian or a bias force that a mistake
+    leaves out or swaps may all vanish (those of first order in q − q0 show there at O(1)
+    of the row; second-order ones, at 1e-6, do not)."""
+    k = np.arange(1.0, q.shape[0] + 1.0)
+    return q + 1e-3 * np.maximum(1.0, np.abs(q)) * np.sin(2.4 * k)
+
+
 @dataclass(frozen=True)
 class JacobianCheck:
     """Result of :func:`check_jacobian`.

@@ -21,6 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from moreau.core.validation import as_matrix
+from moreau.model.barriers import near_point
 
 __all__ = ["MechanicalSystem", "FunctionSystem", "BiasCheck", "check_bias", "check_spd"]
 
@@ -250,7 +251,7 @@ def check_bias(system: MechanicalSystem, q: ArrayLike, eps: float = 1e-6) -> Bia
     q = np.asarray(q, dtype=float)
     n = system.ndof
     k = np.arange(1.0, n + 1.0)
-    qc = q + 1e-3 * np.maximum(1.0, np.abs(q)) * np.sin(2.4 * k)  # fixed, uneven entries
+    qc = near_point(q)
     v = np.cos(1.7 * k) + np.sign(np.cos(1.7 * k))  # entries in ±(1, 2)
     analytic = np.asarray(system.bias_force(qc, v), dtype=float) if system.has_bias else np.zeros(n)
     best: BiasCheck | None = None

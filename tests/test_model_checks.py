@@ -1,7 +1,10 @@
-"""A user system's bias force against its mass matrix: ``simulate`` refuses a bias that is
-not −Ṁv + ½∇(vᵀMv) of M(q) (the Lagrange equations), and a q-dependent M without one.
-A wrong sign there otherwise shows only as energy growing at every h, which the energy
-check reports as a step too large."""
+"""A user model's derivatives, checked before a run.
+
+The bias force against the mass matrix: ``simulate`` refuses a bias that is not
+−Ṁv + ½∇(vᵀMv) of M(q) (the Lagrange equations), and a q-dependent M without one. A wrong
+sign there otherwise shows only as energy growing at every h, which the energy check
+reports as a step too large. A barrier's Jacobian against its gap: at the initial state
+and, for a user's barrier, a little off it, where a symmetric start does not hide a term."""
 
 import warnings
 
@@ -128,3 +131,20 @@ def test_the_built_in_chains_bias_is_that_of_their_mass_matrix():
     for system, q in ((triple, [0.3, -0.2, 0.5]), (piston, [1.0, 0.1, 1e-3])):
         c = check_bias(system, q)
         assert c.ok(1e-6) and np.abs(c.numeric).max() > 1e-3, (system, c)
+
+
+def floor(jacobian):
+    """A floor under the hanging double pendulum's tip: g = 1.9 − l1 cos θ1 − l2 cos θ2."""
+    return mo.FunctionBarrier(lambda q: np.array([1.9 - L1 * np.cos(q[0]) - L2 * np.cos(q[1])]), jacobian)
+
+
+def test_a_jacobian_right_only_at_a_symmetric_start_is_refused():
+    right = floor(lambda q: np.array([[L1 * np.sin(q[0]), L2 * np.sin(q[1])]]))
+    pasted = floor(lambda q: np.array([[L1 * np.sin(q[0]), L2 * np.sin(q[0])]]))  # θ1 for θ2: both 0 at θ = 0
+    scene = lambda barrier: mo.Scene(double_pendulum().system, double_pendulum().effects,  # noqa: E731
+                                     [mo.Contact(barrier, 0.5, name="floor")])
+    assert run(scene(right)).completed
+    assert mo.check_jacobian(pasted, [0.0, 0.0]).max_abs_error == 0.0  # where the run starts, it is right
+    with pytest.raises(ValueError, match=r"Jacobian of contact row 'floor' \(row 0\) does not match its gap near "
+                                         r"the initial state \(at q = \[.*\]\)"):
+        run(scene(pasted))
