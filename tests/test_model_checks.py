@@ -148,3 +148,21 @@ def test_a_jacobian_right_only_at_a_symmetric_start_is_refused():
     with pytest.raises(ValueError, match=r"Jacobian of contact row 'floor' \(row 0\) does not match its gap near "
                                          r"the initial state \(at q = \[.*\]\)"):
         run(scene(pasted))
+
+
+def test_a_bilateral_constraints_jacobian_is_checked_too():
+    # a pendulum as a point on a rod; the rod's Jacobian with its entries swapped used to run
+    # until the hold failed at step 94, "a singular configuration, or a step too large"
+    def rod(jacobian):
+        return mo.Bilateral(mo.FunctionBarrier(lambda q: np.array([np.hypot(q[0], q[1]) - 1.0]), jacobian), name="rod")
+
+    def scene(constraint):
+        return mo.Scene(mo.FunctionSystem(np.eye(2)), [mo.ConstantForce([0.0, -G0])], [], constraints=[constraint])
+
+    q0 = [-np.sin(0.5), -np.cos(0.5)]
+    right = rod(lambda q: np.array([[q[0], q[1]]]) / np.hypot(q[0], q[1]))
+    swapped = rod(lambda q: np.array([[q[1], q[0]]]) / np.hypot(q[0], q[1]))
+    assert mo.simulate(scene(right), (0.0, 0.5), q0, [0.0, 0.0], 1e-3).completed
+    with pytest.raises(ValueError, match=r"Jacobian of constraint row 'rod' \(row 0\) does not match its gap at the "
+                                         r"initial state"):
+        mo.simulate(scene(swapped), (0.0, 0.5), q0, [0.0, 0.0], 1e-3)

@@ -264,7 +264,7 @@ def _run(scene: Scene, plan: _Plan, q0: ArrayLike, v0: ArrayLike, integrator: ty
     """The run on the compiled loop, from a checked initial state."""
     t0, q, v = checked_start(lambda: check_initial_state(scene, plan.t0, q0, v0, plan.initial_penetration),
                              scene, plan.t0, q0, v0)
-    if check_jacobian and scene.nrows:
+    if check_jacobian and (scene.nrows or scene.nconstraints):
         check_jacobians(scene, q)
     if check_jacobian:
         trust.check_bias_force(scene, q)

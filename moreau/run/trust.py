@@ -33,19 +33,21 @@ __all__ = ["check_bias_force", "check_jacobians", "constraint_rank", "penetratio
 
 
 def check_jacobians(scene, q0: np.ndarray, rtol: float = 1e-5) -> None:
-    """Raise ``ValueError`` naming the contact row whose analytic Jacobian differs from
-    central finite differences of its gap at ``q0`` by more than ``rtol`` (relative to
-    the row's largest entry; an absolute floor of 1e-8 for rows that vanish there); for a
-    user's barrier also a little off ``q0`` (:func:`~moreau.model.barriers.near_point`).
+    """Raise ``ValueError`` naming the contact or bilateral constraint row whose analytic
+    Jacobian differs from central finite differences of its gap at ``q0`` by more than
+    ``rtol`` (relative to the row's largest entry; an absolute floor of 1e-8 for rows that
+    vanish there); for a user's barrier also a little off ``q0``
+    (:func:`~moreau.model.barriers.near_point`).
 
     The differences are taken with steps relative to ``|q0|`` and, where that fails, with
     absolute steps of 1e-6: a crank angle of thousands of radians makes the relative step
     too coarse for a gap that varies on the scale of one radian (a false alarm)."""
-    row = 0
-    for c in scene.contacts:
-        b = c.barrier
-        names = b.row_names(c.name)
-        _check_rows(b, q0, names, row, rtol, "at the initial state")
+    groups = [(c.barrier, c.barrier.row_names(c.name), "contact row") for c in scene.contacts]
+    groups += [(e.geometry, e.row_names(), "constraint row") for e in scene.constraints]
+    first = {"contact row": 0, "constraint row": 0}  # each group's first row in its own numbering
+    for b, names, kind in groups:
+        row = first[kind]
+        _check_rows(b, q0, names, row, rtol, "at the initial state", kind)
         kernel = b.kernel()
         if kernel is None or kernel[0] == "user":  # a built-in barrier's own Jacobian is tested
             qc = near_point(q0)
@@ -55,12 +57,12 @@ def check_jacobians(scene, q0: np.ndarray, rtol: float = 1e-5) -> None:
             except Exception:  # noqa: BLE001 - a gap undefined off q0: the run says where it fails
                 defined = False
             if defined:
-                _check_rows(b, qc, names, row, rtol, f"near the initial state (at q = {_short(qc)})")
-        row += b.nrows
+                _check_rows(b, qc, names, row, rtol, f"near the initial state (at q = {_short(qc)})", kind)
+        first[kind] += b.nrows
 
 
-def _check_rows(b, q: np.ndarray, names: list[str], row: int, rtol: float, where: str) -> None:
-    """:func:`check_jacobians` for one barrier at one point."""
+def _check_rows(b, q: np.ndarray, names: list[str], row: int, rtol: float, where: str, kind: str) -> None:
+    """:func:`check_jacobians` for one barrier (``kind``: its rows' word) at one point."""
     G = np.atleast_2d(np.asarray(b.jacobian(q), dtype=float))
     relative = finite_difference_jacobian(b.gap, q)
     absolute = None  # the differences with absolute steps, taken where the relative ones fail
@@ -75,7 +77,7 @@ def _check_rows(b, q: np.ndarray, names: list[str], row: int, rtol: float, where
                 err, scale, Gfd = err_a, scale_a, absolute
         if err > rtol * scale and err > 1e-8:
             raise ValueError(
-                f"the Jacobian of contact row {names[r]!r} (row {row + r}) does not match its gap {where}: "
+                f"the Jacobian of {kind} {names[r]!r} (row {row + r}) does not match its gap {where}: "
                 f"analytic {G[r].tolist()}, finite differences {Gfd[r].tolist()} (relative error "
                 f"{err / scale:.3g}); fix the Jacobian, or pass check_jacobian=False for a gap that is not "
                 "differentiable there")
