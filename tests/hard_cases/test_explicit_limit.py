@@ -63,10 +63,11 @@ def test_a_damper_beyond_h_rho_2_warns_and_stops():
             pytest.raises(mo.SimulationError, match=RUNAWAY) as info:
         mo.simulate(mo.Scene(mo.FunctionSystem([[M]]), [mo.LinearDamping([[50.0]])]), (0.0, 1.0), [0.0], [1.0],
                     2.5 / rho, record_every=1)
+    # v ← (1 − h ρ) v: the kinetic energy grows by |1 − h ρ|² = 2.25 a step, which the stop quotes;
+    # the first check (step 8) already found it, so the run is kept up to its start
+    assert "factor of 2.25 a step" in str(info.value)
     kept = info.value.trajectory
-    n = np.arange(len(kept))
-    np.testing.assert_allclose(kept.v[:, 0], (1.0 - 2.5) ** n, rtol=1e-12)  # v ← (1 − h ρ) v
-    assert "factor of 2.25 a step" in str(info.value)  # |1 − h ρ|² in kinetic energy
+    assert kept.t.tolist() == [0.0] and kept.v[0, 0] == 1.0
 
 
 def test_the_woodpecker_spring_at_a_coarse_step():
