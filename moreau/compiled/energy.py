@@ -83,8 +83,8 @@ def _energy_check(model, user, iset, fset, k, q, v, cq, sq, M, cnt, acc, q_warn,
     prev = cnt[C_ELEVEL]
     cnt[C_ELEVEL] = level
     # the runaway test: the ledger balances an explicit step's runaway exactly (constant M: the
-    # kinetic energy change is the work of the forces applied); its growth beyond the largest
-    # kinetic energy so far, at a rate no resolved motion has, it does not
+    # kinetic energy change is the work of the forces applied); T rising above its largest so
+    # far at a rate no resolved motion has shows it
     dk = k - cnt[C_KLAST]
     fast = dk > 0 and kemax > 0.0 and ke > kemax * math.exp(RUNAWAY_RATE * dk)
     cnt[C_RUNAWAY] = cnt[C_RUNAWAY] + 1 if fast else 0

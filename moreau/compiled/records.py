@@ -44,8 +44,8 @@ def _log_onsets(n, m, t, k, h, v, v_new, f, L, P, G, vfree, in_contact, gmax, fg
                 ub += G[r, i] * v[i]
                 ua += G[r, i] * v_new[i]
                 uf += G[r, i] * vfree[i]
-            _log_if_impact(IMP, cnt, t, k, r, ub, ua, uf - ub, P[r], -0.5 * P[r] * (ua + ub + rs[r, R_SHIFT]),
-                           gmax[r] > fgap[r])  # (the energy lost: see impact_law)
+            lost = -0.5 * P[r] * (ua + ub + rs[r, R_SHIFT])  # the energy lost: see impact_law
+            _log_if_impact(IMP, cnt, t, k, r, ub, ua, uf - ub, P[r], lost, gmax[r] > fgap[r])
 
 
 @_part

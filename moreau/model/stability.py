@@ -106,7 +106,7 @@ def explicit_limit_message(scene: Any, t: float, q: np.ndarray, v: np.ndarray, h
     return (f"h = {h:g} is beyond the stability limit of the midpoint step, whose forces are explicit, for this "
             f"model at t = {t:g}: its fastest {what} = {rate:.3g} per time unit gives h·{what[-1]} = {h * rate:.3g} "
             f"> {EXPLICIT_LIMIT:g}, and that motion grows without bound; take h < {EXPLICIT_LIMIT / rate:.2g} "
-            f"(about h = {stable_step(scene, t, q, v):.2g} resolves it)")
+            f"(about h = {_resolving_step(omega, rho):.2g} resolves it)")
 
 
 #: the step resolves a motion of angular frequency ω when h ω <= RESOLVE (about 16 steps per
@@ -119,7 +119,11 @@ def stable_step(scene: Any, t: float, q: np.ndarray, v: np.ndarray) -> float:
     min(RESOLVE/ω, RESOLVE/(2ρ)); inf for a model with neither. A resolution rule, not a
     proven bound: faster motion later in the run needs a smaller step (the 40-link chain's
     whip reaches ω = 4500/s at t = 1.4 s from 750/s at 0.45 s; tests/hard_cases)."""
-    omega, rho = fastest_rates(scene, t, q, v)
+    return _resolving_step(*fastest_rates(scene, t, q, v))
+
+
+def _resolving_step(omega: float, rho: float) -> float:
+    """:func:`stable_step` from the rates."""
     return min(RESOLVE / omega if omega > 0 else math.inf, 0.5 * RESOLVE / rho if rho > 0 else math.inf)
 
 

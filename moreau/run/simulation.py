@@ -268,9 +268,10 @@ def _run(scene: Scene, plan: _Plan, q0: ArrayLike, v0: ArrayLike, integrator: ty
         check_jacobians(scene, q)
     if check_jacobian:
         trust.check_bias_force(scene, q)
+    step = _compiled_step(integrator)
     # beyond the explicit forces' stability limit (constant M: the energy check cannot see it)
     unstable = (explicit_limit_message(scene, t0, q, v, plan.h) if plan.energy_growth is not None
-                and plan.control is None and _compiled_step(integrator) == STEP_MIDPOINT else None)
+                and plan.control is None and step == STEP_MIDPOINT else None)
     if unstable:
         warnings.warn(unstable, RuntimeWarning, stacklevel=3)
     rank, redundant = constraint_rank(scene, q)
@@ -279,7 +280,7 @@ def _run(scene: Scene, plan: _Plan, q0: ArrayLike, v0: ArrayLike, integrator: ty
                  ", ".join(redundant))
     bar = None
     try:
-        step = _compiled_step(integrator)  # the loop's variant, before the progress bar moves: a compile says so
+        # the loop's variant, before the progress bar moves: a compile says so
         cache.ensure_compiled(variant(plan.cs.ints, step, plan.iteration[0]), step_control=plan.control is not None)
         bar = progress_bar(progress, plan.n_steps, scene.name)
         traj = run_compiled(scene, plan.cs, t0, q, v, plan.h, plan.n_steps,

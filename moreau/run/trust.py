@@ -1,8 +1,9 @@
 """Run-level checks of :func:`moreau.simulate`: what a step's own checks cannot see.
 
-* Before the run, every barrier's analytic Jacobian is compared with central finite
-  differences of its gap at the initial state: a Jacobian of the wrong sign or scale
-  would otherwise let the contact drift through the barrier and the run "complete". A
+* Before the run, every barrier's analytic Jacobian (contacts and bilateral constraints) is
+  compared with central finite differences of its gap at the initial state, a user's also a
+  little off it: a Jacobian of the wrong sign or scale would otherwise let the contact
+  drift through the barrier and the run "complete". A
   user system's bias force is compared with the velocity-squared terms of its mass matrix
   (:func:`moreau.model.system.check_bias`): a wrong sign there would otherwise show only as
   energy growing at every h.
@@ -47,23 +48,23 @@ def check_jacobians(scene, q0: np.ndarray, rtol: float = 1e-5) -> None:
     first = {"contact row": 0, "constraint row": 0}  # each group's first row in its own numbering
     for b, names, kind in groups:
         row = first[kind]
-        _check_rows(b, q0, names, row, rtol, "at the initial state", kind)
+        _check_rows(b, q0, b.jacobian(q0), names, row, rtol, "at the initial state", kind)
         kernel = b.kernel()
         if kernel is None or kernel[0] == "user":  # a built-in barrier's own Jacobian is tested
             qc = near_point(q0)
             try:
-                b.gap(qc), b.jacobian(qc)
-                defined = True
-            except Exception:  # noqa: BLE001 - a gap undefined off q0: the run says where it fails
-                defined = False
-            if defined:
-                _check_rows(b, qc, names, row, rtol, f"near the initial state (at q = {_short(qc)})", kind)
+                Gc = b.jacobian(qc)
+            except Exception:  # noqa: BLE001 - a barrier undefined off q0: the run says where it fails
+                Gc = None
+            if Gc is not None:
+                _check_rows(b, qc, Gc, names, row, rtol, f"near the initial state (at q = {_short(qc)})", kind)
         first[kind] += b.nrows
 
 
-def _check_rows(b, q: np.ndarray, names: list[str], row: int, rtol: float, where: str, kind: str) -> None:
-    """:func:`check_jacobians` for one barrier (``kind``: its rows' word) at one point."""
-    G = np.atleast_2d(np.asarray(b.jacobian(q), dtype=float))
+def _check_rows(b, q: np.ndarray, G, names: list[str], row: int, rtol: float, where: str, kind: str) -> None:
+    """:func:`check_jacobians` for one barrier (``kind``: its rows' word) at one point, ``G``
+    its analytic Jacobian there."""
+    G = np.atleast_2d(np.asarray(G, dtype=float))
     relative = finite_difference_jacobian(b.gap, q)
     absolute = None  # the differences with absolute steps, taken where the relative ones fail
     for r in range(b.nrows):
