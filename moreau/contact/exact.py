@@ -32,7 +32,7 @@ class _CompiledLCPSolver(ContactSolver):
         GA = np.ascontiguousarray(G[rows], dtype=float)
         if solve_one_step(M, L, np.ascontiguousarray(b, dtype=float), GA,
                           np.ascontiguousarray(c[rows], dtype=float), P, v, k, self._method, 1e-12,
-                          workspace(n, k)) != 0:
+                          workspace(n, k), True, False) != 0:  # every argument given: numba's fast dispatch
             raise SolveFailed(f"{self.name} found no solution for {k} active rows")
         return v, P
 
