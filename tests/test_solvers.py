@@ -237,3 +237,25 @@ def test_the_compiled_solvers_called_from_python_take_numbas_fast_dispatch(name,
     v, P = solver.solve(M, b, G, c, rows)
     assert typed == []
     assert kkt_residuals(M, b, G, c, v, P).worst < 1e-8
+
+
+def test_an_instance_of_the_loops_own_solver_runs_as_its_name_does(monkeypatch):
+    """``solver=mo.ExactSolver()`` is the loop's own method, as ``"exact"`` is, not a call
+    back into the same code from the loop (16x the piston's step): the same trajectory bit
+    for bit and the instance's ``solve`` never called. An enumeration with other settings
+    than the name's is still called back."""
+    from moreau.contact.exact import _CompiledLCPSolver
+
+    calls = []
+    original = _CompiledLCPSolver.solve
+    monkeypatch.setattr(_CompiledLCPSolver, "solve", lambda self, *a: calls.append(self.name) or original(self, *a))
+    scene, q0, v0 = bouncing_ball(0.5), [1.0], [0.0]
+    for name, instance in (("exact", mo.ExactSolver()), ("enum", mo.EnumerationSolver())):
+        fallback = "exact" if name == "enum" else "enum"
+        by_name, by_instance = (mo.simulate(scene, (0.0, 1.0), q0, v0, 1e-3, solver=s, fallback=fallback)
+                                for s in (name, instance))
+        assert by_instance.stats.solver == name and by_instance.stats.solves == by_name.stats.solves > 0
+        assert np.array_equal(by_name.q, by_instance.q) and np.array_equal(by_name.v, by_instance.v)
+    assert calls == []
+    mo.simulate(scene, (0.0, 1.0), q0, v0, 1e-3, solver=mo.EnumerationSolver(max_rows=4), fallback="exact")
+    assert calls and set(calls) == {"enum"}

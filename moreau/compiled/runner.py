@@ -23,6 +23,7 @@ from moreau.compiled.at_records import slips
 from moreau.compiled.callbacks import SolverCallback
 from moreau.compiled.lowering import CompiledScene, lower
 from moreau.compiled.run_errors import _name, run_error, run_warnings
+from moreau.contact.exact import EnumerationSolver, ExactSolver
 from moreau.contact.solvers import make_solver
 from moreau.core.errors import SimulationError, attach_trajectory
 from moreau.model.stability import ENERGY_CHECK_EVERY, kept_until
@@ -47,6 +48,9 @@ def _method(spec, n: int, m: int) -> tuple[int, SolverCallback | None]:
         return -1, None
     if isinstance(spec, str) and spec in COMPILED_SOLVERS:
         return COMPILED_SOLVERS[spec], None
+    # an instance of the loop's own solvers, as their names make them: the loop's method, not a call back into it
+    if type(spec) is ExactSolver or (type(spec) is EnumerationSolver and spec.max_rows == EnumerationSolver().max_rows):
+        return COMPILED_SOLVERS[spec.name], None
     return lay.METHOD_EXTERNAL, SolverCallback(make_solver(spec), n, m)
 
 

@@ -58,7 +58,8 @@ class ExactSolver(_CompiledLCPSolver):
     """Exact LCP solver (:mod:`moreau.contact.lcp`): block principal pivoting from 8 rows,
     and the dual active-set method (Goldfarb–Idnani on the LCP) below that or when the
     pivoting gives up; any number of active rows, redundant rows included. The default
-    of the compiled loop (also as ``solver="auto"``), and the same code here."""
+    of the compiled loop (also as ``solver="auto"``), and the same code here; an instance
+    passed as ``solver`` runs as ``"exact"`` does, in the loop."""
 
     name = "exact"
     _method = 0
@@ -68,7 +69,8 @@ class EnumerationSolver(_CompiledLCPSolver):
     """Exact LCP solver by enumeration of active sets, smallest first (:mod:`moreau.contact.lcp`).
 
     For k active rows it tries at most 2^k sets, each a k x k Cholesky solve; singular
-    sub-blocks (redundant rows) are skipped. The default fallback.
+    sub-blocks (redundant rows) are skipped. The default fallback; an instance with the
+    default ``max_rows`` passed as ``solver`` runs as ``"enum"`` does, in the loop.
 
     Parameters
     ----------
