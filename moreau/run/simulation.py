@@ -163,7 +163,7 @@ def simulate(
     redundant = redundancy_warnings(scene, q0)
     traj = _run(scene, plan, q0, v0, integrator, drift_control, check_jacobian, progress, energy)
     traj.warnings = redundant + traj.warnings + penetration_warnings(scene, traj, plan.h, plan.penetration_limit,
-                                                                         plan.initial_penetration)
+                                                                         plan.initial_penetration, drift_control)
     return traj
 
 

@@ -15,8 +15,10 @@
   activation tolerance, the penetration the run accepted of its initial state and the
   largest ``h·|U⁻|`` of the run's impacts (a row redundant with one that carried the
   impulse penetrates as deep as that one); one that crossed the barrier in the run's last
-  step says so instead. A run beyond it warns once and records the warning in
-  ``traj.warnings``, which ``save``/``load`` keep.
+  step says so instead; a penetration deepest in contact, away from the row's impacts, in
+  a run without drift control, is named as the drift of a persistent contact. A run
+  beyond it warns once and records the warning in ``traj.warnings``, which
+  ``save``/``load`` keep.
 """
 
 from __future__ import annotations
@@ -120,10 +122,12 @@ def _mismatch(g: np.ndarray, g_fd: np.ndarray) -> tuple[float, float]:
 
 
 def penetration_warnings(scene, traj, h: float, limit: float | None,
-                         initial_penetration: float = START_PENETRATION_TOL) -> list[str]:
+                         initial_penetration: float = START_PENETRATION_TOL, drift_control=None) -> list[str]:
     """Rows whose largest penetration over every step exceeds its limit (see the module
     docstring), as messages; also issued once as a ``RuntimeWarning``.
-    ``initial_penetration``: what the run accepted of its initial state (gap units)."""
+    ``initial_penetration``: what the run accepted of its initial state (gap units);
+    ``drift_control``: the run's (None: a penetration deepest in contact, away from the
+    row's impacts, is named as the drift it is)."""
     pen = traj.max_penetration
     if pen is None or not np.any(pen > 0.0):
         return []
@@ -161,8 +165,12 @@ def penetration_warnings(scene, traj, h: float, limit: float | None,
                 continue  # no impact: the drift of a sliding contact, left to drift control
             lim, why = h * float(U.max()), f"h·|U⁻| = {h:g} × {float(U.max()):.3g}, the step's own scale"
         if pen[r] > lim:
+            away = float(np.min(np.abs(traj.impacts.t[traj.impacts.row == r] - when[r]), initial=np.inf))
+            cause = ("the contact is not resolved at this step size" if drift_control is not None or not away > 2.0 * h
+                     else f"deepest {away:.3g} s from its impacts, in contact: the drift of a persistent contact, "
+                          "which drift control holds (drift_control=mo.CombinedProjection()) and a smaller h reduces")
             out.append(f"row {traj.row_names[r]!r} penetrated {pen[r]:.3g} (gap units){at(r)}, beyond {why} "
-                       f"({lim:.3g}): the contact is not resolved at this step size")
+                       f"({lim:.3g}): {cause}")
     if out:
         warnings.warn("; ".join(out), RuntimeWarning, stacklevel=3)
     return out
