@@ -98,6 +98,8 @@ CATALOGUE = [
     ("t_span with NaN", lambda: sim(t_span=(np.nan, 1.0)), ValueError, r"t_span must be finite, got \(nan, 1\.0\)"),
     ("t_span of one number", lambda: sim(t_span=(0.0,)), ValueError, r"t_span must be two numbers \(t0, t1\), got \(0\.0,\)"),
     ("t_span empty interval", lambda: sim(t_span=(1.0, 1.0)), ValueError, r"t1 > t0, got t_span = \(1\.0, 1\.0\)"),
+    ("h longer than t_span", lambda: sim(t_span=(0.0, 0.001), h=0.01), ValueError,
+     r"step size h = 0\.01 is longer than t_span = \(0\.0, 0\.001\): the run would end at t = 0\.01; give h <= 0\.001"),
     ("h infinite", lambda: sim(h=np.inf), ValueError, "step size h must be finite and positive, got inf"),
     ("h not a number", lambda: sim(h="fast"), ValueError, "step size h must be a number, got 'fast'"),
     ("q0 of strings", lambda: sim(q0=["up"]), ValueError, r"q0 must be an array of numbers, got \['up'\]"),

@@ -83,7 +83,7 @@ def simulate(
         refused (``ValueError``); an approaching velocity on a closed contact is
         resolved by the first step's impact.
     h : float
-        Step size (> 0); with ``step_control`` the largest step.
+        Step size (> 0, at most t1 − t0); with ``step_control`` the largest step.
     backend : {"auto", "compiled"}
         Kept for existing code: every scene runs in the compiled loop
         (:mod:`moreau.compiled.loop`); ``"python"`` is deprecated (``DeprecationWarning``)
@@ -200,6 +200,9 @@ def _plan(scene: Scene, t_span: tuple[float, float], h: float, tol: float, recor
         raise ValueError(f"scene must be a Scene, got {scene!r}")
     h, tol = as_positive(h, "step size h"), as_positive(tol, "tol")
     t0, t1, n_steps, stride, n_rec = _steps_and_records(scene, t_span, h, record_every)
+    if step_control is None and h > (t1 - t0) * (1.0 + 1e-9):  # one step would end far past t1
+        raise ValueError(f"step size h = {h!r} is longer than t_span = ({t0!r}, {t1!r}): the run would end at "
+                         f"t = {t0 + h!r}; give h <= {t1 - t0!r}")
     if not (isinstance(integrator, type) and issubclass(integrator, OneStepIntegrator)):
         raise ValueError(f"integrator must be a OneStepIntegrator subclass, got {integrator!r}")
     iteration = _iteration(integrator)  # an iterating step's settings, checked for both paths
