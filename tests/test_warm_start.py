@@ -40,7 +40,7 @@ def fresh(M, L, b, G, c):
     """The dual active-set method's answer, with the work arrays it leaves (its factor)."""
     n, k = G.shape[1], G.shape[0]
     ws, P, v = workspace(n, k), np.zeros(k), np.zeros(n)
-    assert solve_one_step(M, L, b, G, c, P, v, k, 0, 1e-12, ws) == 0
+    assert solve_one_step(M, L, b, G, c, P, v, k, 0, 1e-12, ws, True, False) == 0  # the loop's own signature
     return ws, P, v
 
 
