@@ -8,6 +8,8 @@ moreau/dynamics/benchmarks.py.
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 import pytest
 
@@ -127,7 +129,7 @@ def test_detect_period():
     assert detect_period(rng.random((60, 2)), max_period=8) is None
 
 
-def test_poincare_sections_from_a_trajectory_and_on_the_fly():
+def test_poincare_sections_from_a_trajectory_and_on_the_fly(caplog):
     """Undamped oscillator x = sin(ω0 t): upward crossings of x = 0 at t = 2πk/ω0, from a
     recorded run and on the fly, to O(h²)."""
     k = 4.0
@@ -145,6 +147,11 @@ def test_poincare_sections_from_a_trajectory_and_on_the_fly():
     assert np.allclose(up.v[:, 0], 2.0, atol=1e-4)
     fly = poincare_on_the_fly(scene, [0.0], [2.0], h, surf, n_crossings=3, t_start=0.1)
     assert np.allclose(fly.t, up.t[:3], atol=1e-12) and np.allclose(fly.v, up.v[:3], atol=1e-12)
+    # chunks of 1 s up to t_max = 7.0005: the last is half a step long and still takes its step
+    with caplog.at_level(logging.WARNING, logger="moreau.dynamics.sections"):
+        short = poincare_on_the_fly(scene, [0.0], [2.0], h, surf, n_crossings=3, t_start=0.1, t_max=7.0005,
+                                    chunk_steps=1000)
+    assert np.allclose(short.t, up.t[:2], atol=1e-12) and "2 of 3 crossings" in caplog.text
 
 
 def test_poincare_map_multiplier_of_a_damped_oscillator():

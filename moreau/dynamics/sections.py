@@ -173,7 +173,9 @@ def poincare_on_the_fly(scene: mo.Scene, q0, v0, h: float,
     V: list[np.ndarray] = []
     found, pen = 0, float(kw.pop("initial_penetration", 1e-12))
     while found < n_crossings and t < t_max:
-        traj = mo.simulate(scene, (t, min(t + chunk_steps * h, t_max)), q, v, h, initial_penetration=pen, **kw)
+        # at least one step: a chunk ends past t_max by less than h, as a run of one span would
+        end = max(min(t + chunk_steps * h, t_max), t + h)
+        traj = mo.simulate(scene, (t, end), q, v, h, initial_penetration=pen, **kw)
         sec = poincare(traj, surface, direction=direction, t_start=t_start)
         take = min(len(sec), n_crossings - found)
         T.append(sec.t[:take])
