@@ -248,6 +248,9 @@ def test_the_drift_of_a_sliding_contact_is_named_as_such_not_blamed_on_the_step(
         assert len(traj.impacts) == 1 and traj.max_penetration_t[0] - traj.impacts.t[0] > 1.0
         pen.append(traj.max_penetration[0])
     assert 1.7 < pen[0] / pen[1] < 2.3  # first order in h
+    # sliding from the start under a given limit: no impact to measure from
+    with pytest.warns(RuntimeWarning, match=r"beyond the given limit \(1e-06\): with no impact, in contact: the drift"):
+        mo.simulate(scene, (0.0, 2.0), [0.0, -1.0], [1.0, 0.0], 1e-3, progress=False, penetration_limit=1e-6)
     held = mo.simulate(scene, (0.0, 2.0), [0.6, 0.0], [0.0, 0.0], 1e-3, progress=False,
                        drift_control=mo.CombinedProjection())
     assert held.warnings == [] and held.max_penetration[0] < 1e-12

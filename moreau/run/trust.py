@@ -165,10 +165,13 @@ def penetration_warnings(scene, traj, h: float, limit: float | None,
                 continue  # no impact: the drift of a sliding contact, left to drift control
             lim, why = h * float(U.max()), f"h·|U⁻| = {h:g} × {float(U.max()):.3g}, the step's own scale"
         if pen[r] > lim:
-            away = float(np.min(np.abs(traj.impacts.t[traj.impacts.row == r] - when[r]), initial=np.inf))
-            cause = ("the contact is not resolved at this step size" if drift_control is not None or not away > 2.0 * h
-                     else f"deepest {away:.3g} s from its impacts, in contact: the drift of a persistent contact, "
-                          "which drift control holds (drift_control=mo.CombinedProjection()) and a smaller h reduces")
+            t_imp = traj.impacts.t[traj.impacts.row == r]
+            away = float(np.min(np.abs(t_imp - when[r]), initial=np.inf))
+            cause = "the contact is not resolved at this step size"
+            if drift_control is None and carried[r] and away > 2.0 * h:  # deepest in contact, not at an impact
+                cause = (f"deepest {away:.3g} s from its impacts" if t_imp.size else "with no impact") + \
+                        (", in contact: the drift of a persistent contact, which drift control holds "
+                         "(drift_control=mo.CombinedProjection()) and a smaller h reduces")
             out.append(f"row {traj.row_names[r]!r} penetrated {pen[r]:.3g} (gap units){at(r)}, beyond {why} "
                        f"({lim:.3g}): {cause}")
     if out:
