@@ -261,3 +261,25 @@ def test_no_cached_function_is_compiled_again_for_a_literal_argument():
                 twice.append(f"{os.path.basename(path)}: {[str(t) for t in sig if isinstance(t, types.Literal)]}")
             seen.setdefault(plain, sig)
     assert not twice
+
+
+def test_the_loops_friction_solve_is_the_one_a_python_caller_gets():
+    """The loop and :func:`moreau.contact.friction.friction_one_step` call the friction
+    solve with the same argument types (the method given), so the cache holds one compiled
+    copy of it: a second copy was 5 s of the test suite's cold compile."""
+    import pickle
+
+    from moreau.contact.friction import friction_one_step
+    from moreau.core import jitcache
+
+    mo.ensure_compiled()  # the full variant compiles (or loads) the loop's friction solve
+    st, *_ = friction_one_step(np.eye(2), np.array([1.0, -1.0]), np.array([[0.0, 1.0]]), np.zeros(1),
+                               np.array([[1.0, 0.0]]), np.array([0.5]))
+    assert st == 0
+    index = [p for p in jitcache._cached_files()
+             if os.path.basename(p).startswith("friction.solve_friction_step") and p.endswith(".nbi")]
+    assert len(index) == 1
+    with open(index[0], "rb") as f:
+        pickle.load(f)  # numba's version
+        _, overloads = pickle.loads(f.read())
+    assert len(overloads) == 1, [str(key[0]) for key in overloads]

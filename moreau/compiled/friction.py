@@ -24,7 +24,7 @@ from moreau.compiled.layout import (
     FrictionWork,
 )
 from moreau.compiled.layout import part as _part
-from moreau.contact.friction import friction_workspace, solve_friction_step
+from moreau.contact.friction import FRICTION_AUTO, friction_workspace, solve_friction_step
 from moreau.contact.painleve import PAINLEVE_MARGIN
 
 __all__ = ["friction_work", "friction_parts"]
@@ -73,8 +73,9 @@ def _friction_solve(n, m, M, L, b, G, GA, cA, active, na, v_new, PA, fset, acc, 
         return 0
     if eqw is not None and rank >= 0:
         _eq_reduce(Lo, eqw.Q, eqw.y, eqw.x, rank, GA, na, na + kf, cA)
+    # ``method`` given, as friction_one_step gives it: one compiled signature serves both
     st = solve_friction_step(M, L, b, GA, cA, muA, fidx, np.int64(na), np.int64(kf), PA, v_new, fset[F_TOL], res,
-                             fws)
+                             fws, np.int64(FRICTION_AUTO))
     if st != 0:
         for i in range(6):
             fail[0, i] = res[i]
