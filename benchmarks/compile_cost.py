@@ -16,8 +16,9 @@ the script alone):
 Each row: the seconds of ``moreau.ensure_compiled`` for that variant, the process's wall
 and CPU time and peak resident memory; then the compile time per kernel family of rows 1
 and 2 (the module of the compiled function: its own share, callees excluded; and the
-functions compiled a second time because a call passed a literal constant), and the
-seconds from ``simulate()`` to its end (0.1 s of stepping) of two scenes of user
+functions compiled a second time because a call passed a literal constant, and where the
+loop function's own compile goes: numba's passes over it and LLVM's phases on its module),
+and the seconds from ``simulate()`` to its end (0.1 s of stepping) of two scenes of user
 ``@numba.njit`` callables (their own compile) in rows 1 and 4.
 
     python benchmarks/compile_cost.py
@@ -68,6 +69,24 @@ _PROBE = textwrap.dedent('''
                 stack[-1][1] += d
 
     event.register("numba:compile", Exclusive())
+
+    from numba.core import codegen
+    llvm = defaultdict(float)  # LLVM's seconds on the loop function's module, by phase
+
+    def timed(name):
+        orig = getattr(codegen.CPUCodeLibrary, name)
+
+        def run(self, *a, **k):
+            t = time.perf_counter()
+            try:
+                return orig(self, *a, **k)
+            finally:
+                if "_run_chunk" in self.name:
+                    llvm[name] += time.perf_counter() - t
+        setattr(codegen.CPUCodeLibrary, name, run)
+
+    for name in ("_optimize_functions", "_optimize_final_module", "_finalize_final_module"):
+        timed(name)
     import moreau as mo
     t_import = time.perf_counter() - t0
     t = time.perf_counter()
@@ -75,6 +94,12 @@ _PROBE = textwrap.dedent('''
     for full in json.loads(sys.argv[1]):
         ensure_compiled(full)
     t_loop = time.perf_counter() - t
+    from moreau.compiled.loop import _run_chunk
+    passes = defaultdict(float)  # numba's passes over the loop function (compiled here)
+    for cres in _run_chunk.overloads.values():
+        for times in (cres.metadata or {}).get("pipeline_times", {}).values():  # None when loaded
+            for key, tm in times.items():
+                passes[key.split("_", 1)[1]] += tm.run
 
     def user_scene(k):
         @numba.njit
@@ -108,7 +133,7 @@ _PROBE = textwrap.dedent('''
     print(json.dumps({"import": t_import, "loop": t_loop, "user": users, "drivers": drivers,
                       "wall": time.perf_counter() - t0,
                       "cpu": cpu.ru_utime + cpu.ru_stime, "rss_mb": cpu.ru_maxrss / 1024, "own": own,
-                      "again": again}))
+                      "again": again, "passes": passes, "llvm": llvm}))
 ''')
 
 
@@ -147,6 +172,12 @@ def main() -> None:
             if sec >= 0.05:
                 print(f"  {fam:32s} {sec:9.2f}")
         print(f"  {'compiled again for a literal argument':38s} {r['again'][0]:3d} functions, {r['again'][1]:.2f} s")
+        p, ll = r["passes"], r["llvm"]
+        print(f"  the loop function: type inference {p.get('nopython_type_inference', 0):.1f} s (its callees' "
+              f"compiles included), inlining the parts {p.get('inline_inlinables', 0):.1f} s, lowering "
+              f"{p.get('native_lowering', 0):.1f} s; of it LLVM on its module: its functions "
+              f"{ll.get('_optimize_functions', 0):.1f} s, linked with its callees "
+              f"{ll.get('_optimize_final_module', 0):.1f} s, machine code {ll.get('_finalize_final_module', 0):.1f} s")
     print(f"\n(benchmark wall time {time.perf_counter() - t_start:.0f} s)")
 
 
