@@ -15,7 +15,8 @@ measured side by side):
    issue 26's 40-link chain falling onto a floor with the energy-consistent step; the four-bar linkage
    (``moreau.problems.four_bar``: two bilateral rows every step), free and with a stop;
    the README's first example as written (plain numpy lambdas), with ``@njit`` callables and
-   with a gap numba cannot compile (a Python callback); the woodpecker's whole
+   with a gap numba cannot compile (a Python callback), and built anew in a user's loop
+   (its callables compiled for a new value, reused for one run before); the woodpecker's whole
    ``simulate()`` call recording every step against every 100th; a short run's whole call
    against its loop (what checks, set-up and result cost per call);
 3. the compile time of the loop (a fresh numba cache, in a new process) and the time a
@@ -185,6 +186,22 @@ def user_scene_table(quick: bool) -> list[tuple]:
             for name, scene in scenes.items()]
 
 
+def rebuilt_scene_calls() -> tuple[float, float]:
+    """Seconds of ``simulate()`` (0.2 s at h = 1e-3) on the README example as a user's loop
+    builds it anew each pass (new lambdas over the slope): for a slope not run before (its
+    callables compiled) and for one run before (reused; best of 3)."""
+    def make(slope):
+        return _inclined(lambda q: np.array([q[1] - slope * q[0]]), lambda q: np.array([[-slope, 1.0]]))
+
+    def call(slope):
+        t0 = time.perf_counter()
+        mo.simulate(make(slope), (0.0, 0.2), [0.0, 1.0], [1.0, 0.0], 1e-3, progress=False)
+        return time.perf_counter() - t0
+
+    new = call(0.2 + 0.01 * np.random.default_rng().random())  # a value no earlier pass compiled
+    return new, min(call(0.2) for _ in range(3))
+
+
 def woodpecker_call(quick: bool) -> tuple[float, float, int]:
     """Seconds of the whole ``simulate()`` call of the woodpecker (h = 2e-5, 1.5 s; 0.3 s in
     quick mode), recording every step and every 100th: the result's cost beside the loop's."""
@@ -300,6 +317,9 @@ def main(argv=None) -> None:
     callback = cost["README example, gap a Python callback"] / cost["README example, @njit callables"]
     print(f"a user's scene: the README example as written costs {readme:.2f}x the same with @njit callables "
           f"(issue 41 asks <= 2x); with its gap a Python callback {callback:.0f}x (<= 50x)")
+    new, again = rebuilt_scene_calls()
+    print(f"the README example built anew in a user's loop: simulate() {new:.2f} s for a slope not run before "
+          f"(its callables compiled), {again * 1e3:.1f} ms for one run before (reused)")
     every, sparse, wsteps = woodpecker_call(args.quick)
     print(f"the woodpecker's whole simulate() call, {wsteps} steps: every step recorded {every:.3f} s, every 100th "
           f"{sparse:.3f} s ({every / sparse:.2f}x; issue 41 asks <= 1.5x)")

@@ -75,6 +75,40 @@ def test_a_plain_callable_is_compiled_again_when_a_value_it_reads_changes():
     assert second.impacts.t[0] < first.impacts.t[0]  # the floor moved up: the first impact comes earlier
 
 
+def test_a_scene_built_again_with_the_same_values_reuses_its_compiled_callables():
+    def make(slope):
+        return inclined(lambda q: np.array([q[1] - slope * q[0]]), lambda q: np.array([[-slope, 1.0]]))
+
+    first = lower(make(0.2)).user
+    assert lower(make(0.2)).user is first  # new lambdas, the same code and values: not compiled again
+    assert lower(make(0.25)).user is not first  # another value: compiled for it
+    np.testing.assert_array_equal(run(make(0.2)).q, run(inclined(plain_gap, plain_jac)).q)
+
+
+def test_a_zero_of_the_other_sign_is_another_value_to_a_compiled_callable():
+    from moreau.compiled.callbacks import fingerprint
+
+    def make(c):
+        return lambda q: np.array([np.copysign(1.0, c) * q[1]])
+
+    assert fingerprint(make(0.0)) == fingerprint(make(0.0))
+    assert fingerprint(make(0.0)) != fingerprint(make(-0.0))
+
+
+def test_a_callback_calls_the_functions_of_its_own_scene():
+    offsets = {"floor": 0.0}
+
+    def make():
+        def gap(q):  # a dict lookup: called back
+            return np.array([q[1] - 0.2 * q[0] + offsets["floor"]])
+        return gap
+
+    gaps = [make(), make()]  # the same code and values, two functions
+    users = [lower(inclined(g, plain_jac)).user for g in gaps]
+    assert users[0] is not users[1]
+    assert [u.callbacks[0].fns[0] for u in users] == gaps
+
+
 def test_a_callback_that_raises_stops_the_run_naming_it_and_keeps_the_states():
     calls = {"n": 0}
 

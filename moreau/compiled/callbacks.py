@@ -44,27 +44,48 @@ def is_dispatcher(fun: Any) -> bool:
     return isinstance(fun, CPUDispatcher)
 
 
+class _Same:
+    """A key equal only to one for the same object; it holds the object, so that its id
+    cannot pass to another while the key lives."""
+
+    __slots__ = ("obj",)
+
+    def __init__(self, obj: Any) -> None:
+        self.obj = obj
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, _Same) and other.obj is self.obj
+
+    def __hash__(self) -> int:
+        return id(self.obj)
+
+
 def _value_key(x: Any) -> Any:
     """A hashable stand-in for the value of a global or closure variable."""
-    if isinstance(x, (bool, int, float, complex, str, bytes, type(None))):
+    if isinstance(x, (float, complex)):  # repr: -0.0 is not 0.0 to a compiled function
+        return (type(x).__name__, repr(x))
+    if isinstance(x, (bool, int, str, bytes, type(None))):
         return (type(x).__name__, x)
     if isinstance(x, np.ndarray) and x.size <= 1 << 16:
         return ("ndarray", x.shape, x.dtype.str, hashlib.sha1(np.ascontiguousarray(x).tobytes()).hexdigest())
     if isinstance(x, np.generic):
-        return ("scalar", x.dtype.str, x.item())
+        return ("scalar", x.dtype.str, x.tobytes())
     if isinstance(x, tuple) and len(x) <= 64:
         return ("tuple",) + tuple(_value_key(y) for y in x)
-    return ("id", id(x))
+    return _Same(x)
 
 
 def fingerprint(fun: Any) -> Any:
-    """The key of a callable's compiled form: the function and the values of the globals
-    and closure variables it reads (what numba freezes), or the object itself."""
+    """The key of a callable's compiled form: the function's code, its module and defaults,
+    and the values of the globals and closure variables it reads (what numba freezes), or
+    the object itself. A function made again with the same values (a scene built again)
+    has the same key: its compiled form is reused."""
     if not isinstance(fun, pytypes.FunctionType):
         return fun
     cells = tuple(_value_key(c.cell_contents) for c in (fun.__closure__ or ()))
     names = tuple((nm, _value_key(fun.__globals__[nm])) for nm in fun.__code__.co_names if nm in fun.__globals__)
-    return (fun, cells, names)
+    return (fun.__code__, _Same(fun.__globals__), _value_key(fun.__defaults__),
+            _value_key(tuple(sorted((fun.__kwdefaults__ or {}).items()))), cells, names)
 
 
 def compile_or_reason(fun: Any, argtypes: tuple) -> tuple[Any, str]:

@@ -248,7 +248,8 @@ class UserKernels:
 
 
 _lock = threading.Lock()
-_memo: dict[tuple, UserKernels] = {}
+#: fingerprints -> (the slots, the callables they were built from)
+_memo: dict[tuple, tuple[UserKernels, tuple]] = {}
 
 
 def user_kernels(mass: Any, bias: Any, forces: tuple, barriers: tuple, rows: tuple[int, ...],
@@ -272,9 +273,12 @@ def user_kernels(mass: Any, bias: Any, forces: tuple, barriers: tuple, rows: tup
     names = names or {}
     key = (fingerprint(mass), fingerprint(bias), tuple(map(fingerprint, forces)),
            tuple((fingerprint(g), fingerprint(j)) for g, j in barriers), rows, nrows)
+    fns = (mass, bias, forces, barriers)
     with _lock:
-        got = _memo.get(key)
-        if got is not None:
+        got, built_from = _memo.get(key, (None, None))
+        # compiled slots serve every function of the same code and values; a callback calls
+        # the very functions it was built from
+        if got is not None and (not got.callbacks or _same_functions(built_from, fns)):
             return got
 
         def label(slot: str, count: int) -> tuple[str, ...]:  # the names given, else "gaps[0]", ...
@@ -293,8 +297,15 @@ def user_kernels(mass: Any, bias: Any, forces: tuple, barriers: tuple, rows: tup
                                           label("jacobians", len(barriers)), rows, nrows)
         addresses = np.array([0 if w is None else w.address for w in wrappers], dtype=np.int64)
         got = UserKernels(addresses, tuple(wrappers))
-        _memo[key] = got
+        _memo[key] = (got, fns)
         return got
+
+
+def _same_functions(a: Any, b: Any) -> bool:
+    """Whether two nests of tuples hold the very same callables, place by place."""
+    if isinstance(a, tuple) and isinstance(b, tuple):
+        return len(a) == len(b) and all(_same_functions(x, y) for x, y in zip(a, b))
+    return a is b
 
 
 def decode(status: int) -> tuple[str, int, str]:
