@@ -5,6 +5,7 @@ import os
 import subprocess
 import sys
 import textwrap
+import time
 
 import numba
 import numpy as np
@@ -263,23 +264,60 @@ def test_no_cached_function_is_compiled_again_for_a_literal_argument():
     assert not twice
 
 
-def test_the_loops_friction_solve_is_the_one_a_python_caller_gets():
-    """The loop and :func:`moreau.contact.friction.friction_one_step` call the friction
-    solve with the same argument types (the method given), so the cache holds one compiled
-    copy of it: a second copy was 5 s of the test suite's cold compile."""
+@pytest.mark.parametrize("solve", ["one_step.solve_one_step", "friction.solve_friction_step"])
+def test_the_loops_contact_solves_are_the_ones_their_python_entries_compile(solve):
+    """The loop and the Python entries of its contact solves (ExactSolver.solve,
+    :func:`moreau.contact.friction.friction_one_step`) call them with the same argument
+    types, so the cache holds one compiled copy of each: a second copy of the friction
+    solve was 5 s of the test suite's cold compile, and the second process of a cold
+    compile (:mod:`moreau.compiled.side_compile`) saves the loop's copies through them."""
     import pickle
 
-    from moreau.contact.friction import friction_one_step
+    from moreau.compiled.side_compile import _compile
     from moreau.core import jitcache
 
-    mo.ensure_compiled()  # the full variant compiles (or loads) the loop's friction solve
-    st, *_ = friction_one_step(np.eye(2), np.array([1.0, -1.0]), np.array([[0.0, 1.0]]), np.zeros(1),
-                               np.array([[1.0, 0.0]]), np.array([0.5]))
-    assert st == 0
-    index = [p for p in jitcache._cached_files()
-             if os.path.basename(p).startswith("friction.solve_friction_step") and p.endswith(".nbi")]
+    mo.ensure_compiled()  # the loop's copies: compiled (or loaded) with each variant
+    _compile(True)  # the entries, as the second process calls them
+    index = [p for p in jitcache._cached_files() if os.path.basename(p).startswith(solve) and p.endswith(".nbi")]
     assert len(index) == 1
     with open(index[0], "rb") as f:
         pickle.load(f)  # numba's version
         _, overloads = pickle.loads(f.read())
     assert len(overloads) == 1, [str(key[0]) for key in overloads]
+
+
+def test_the_side_compile_needs_two_cores_and_can_be_turned_off(monkeypatch):
+    from moreau.compiled import side_compile
+
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0})
+    assert side_compile.start(False) is None
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1})
+    monkeypatch.setenv("MOREAU_SIDE_COMPILE", "0")
+    assert side_compile.start(False) is None
+
+
+def test_the_side_compile_ends_with_the_process_that_started_it(tmp_path):
+    """Its parent killed, the second process ends too, before its compiles are done (in
+    an empty cache they take seconds: the friction solve is not saved)."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), PYTHONPATH=os.getcwd())
+    parent = ("import os, sys; from moreau.compiled import side_compile; p = side_compile.start(True); "
+              "print(p.pid, flush=True); sys.stdin.read()")
+    proc = subprocess.Popen([sys.executable, "-c", parent], env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                            text=True)
+    child = int(proc.stdout.readline())
+    proc.kill()
+    proc.wait()
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and _alive(child):
+        time.sleep(0.1)
+    assert not _alive(child)
+    assert not list(tmp_path.rglob("friction.solve_friction_step*.nbi"))  # ended, not done
+
+
+def _alive(pid: int) -> bool:
+    """Whether ``pid`` runs (a zombie, ended but not yet reaped by init, does not)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False

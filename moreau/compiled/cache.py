@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from moreau.compiled import side_compile
 from moreau.compiled.layout import STEP_MIDPOINT
 from moreau.compiled.runner import run_compiled
 from moreau.core.compiling import compile_call
@@ -27,7 +28,7 @@ log = logging.getLogger(__name__)
 
 #: what the first compile of each variant of the loop takes on a 2-core machine, s, as the
 #: message says it (benchmarks/compile_cost.py; docs/performance.md has the figures)
-COMPILE_SECONDS = {False: 50, True: 85}
+COMPILE_SECONDS = {False: 45, True: 75}
 _NAMES = {False: "the plain midpoint step", True: "friction, bilateral rows and later passes"}
 _ready = {False: threading.Event(), True: threading.Event()}
 _drivers: set[bool] = set()  # the variants whose step-control driver this process has
@@ -73,22 +74,34 @@ def ensure_compiled(full: bool | None = None, step_control: bool = False) -> flo
                 log.warning("moreau: compiling the time loop for %s once for this machine (about %d s; later runs "
                             "load it from %s)", _NAMES[full], COMPILE_SECONDS[full],
                             d or "nowhere: the cache is not writable")
+            # the contact solves compiled beside the loop, in a second process
+            helper = side_compile.start(full) if cold and d is not None else None
             try:
-                # loading machine code runs through LLVM callbacks: a Ctrl-C or SIGTERM
-                # raised inside one aborted the process (seen: exit -6), so during a load
-                # (0.3 s) they wait and are acted on right after it
-                with (contextlib.nullcontext() if cold else _signals_deferred()):
-                    # (moreau.core.compiling: a fresh stack, fewer collections); a damaged file: compiled again
-                    call_recovering(lambda: compile_call(_warm_up, full))
-            except (pickle.UnpicklingError, EOFError, ValueError, TypeError, AttributeError,
-                    ImportError, OSError) as exc:  # an unreadable cache file not found in the traceback
-                removed = clear()
-                log.warning("moreau: numba's cache in %s could not be read (%s: %s); removed %d files of it "
-                            "and compiling the time loop again (about %d s)", d, type(exc).__name__, exc,
-                            removed, COMPILE_SECONDS[full])
-                compile_call(_warm_up, full)
+                _load_or_compile(full, cold, d)
+            except BaseException:
+                side_compile.stop(helper, grace=0.0)
+                raise
+            side_compile.stop(helper)
             _ready[full].set()
         return time.perf_counter() - t
+
+
+def _load_or_compile(full: bool, cold: bool, d: str | None) -> None:
+    """The variant loaded from numba's cache, or compiled (``cold``) into ``d``."""
+    try:
+        # loading machine code runs through LLVM callbacks: a Ctrl-C or SIGTERM raised
+        # inside one aborted the process (seen: exit -6), so during a load (0.3 s) they
+        # wait and are acted on right after it
+        with (contextlib.nullcontext() if cold else _signals_deferred()):
+            # (moreau.core.compiling: a fresh stack, fewer collections); a damaged file: compiled again
+            call_recovering(lambda: compile_call(_warm_up, full))
+    except (pickle.UnpicklingError, EOFError, ValueError, TypeError, AttributeError,
+            ImportError, OSError) as exc:  # an unreadable cache file not found in the traceback
+        removed = clear()
+        log.warning("moreau: numba's cache in %s could not be read (%s: %s); removed %d files of it "
+                    "and compiling the time loop again (about %d s)", d, type(exc).__name__, exc,
+                    removed, COMPILE_SECONDS[full])
+        compile_call(_warm_up, full)
 
 
 def cached_variants() -> set[bool]:
