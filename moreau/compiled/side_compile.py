@@ -15,7 +15,7 @@ It runs only on a machine with two cores or more and a cache shared with it, end
 compiles do or when the process that started it ends, and ``MOREAU_SIDE_COMPILE=0`` turns
 it off.
 
-    python -m moreau.compiled.side_compile {plain,full}
+    python -m moreau.compiled.side_compile {plain,full} PARENT_PID   # as start() runs it
 """
 
 from __future__ import annotations
