@@ -299,6 +299,8 @@ def test_the_side_compile_needs_two_cores_and_can_be_turned_off(monkeypatch):
 def test_the_side_compile_ends_with_the_process_that_started_it(tmp_path):
     """Its parent killed, the second process ends too, before its compiles are done (in
     an empty cache they take seconds: the friction solve is not saved)."""
+    from test_trust_stops import alive  # a zombie counts as ended
+
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), PYTHONPATH=os.getcwd())
     parent = ("import os, sys; from moreau.compiled import side_compile; p = side_compile.start(True); "
               "print(p.pid, flush=True); sys.stdin.read()")
@@ -308,16 +310,7 @@ def test_the_side_compile_ends_with_the_process_that_started_it(tmp_path):
     proc.kill()
     proc.wait()
     deadline = time.monotonic() + 60
-    while time.monotonic() < deadline and _alive(child):
+    while time.monotonic() < deadline and alive(child):
         time.sleep(0.1)
-    assert not _alive(child)
+    assert not alive(child)
     assert not list(tmp_path.rglob("friction.solve_friction_step*.nbi"))  # ended, not done
-
-
-def _alive(pid: int) -> bool:
-    """Whether ``pid`` runs (a zombie, ended but not yet reaped by init, does not)."""
-    try:
-        with open(f"/proc/{pid}/stat") as f:
-            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
-    except FileNotFoundError:
-        return False

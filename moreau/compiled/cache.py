@@ -78,10 +78,8 @@ def ensure_compiled(full: bool | None = None, step_control: bool = False) -> flo
             helper = side_compile.start(full) if cold and d is not None else None
             try:
                 _load_or_compile(full, cold, d)
-            except BaseException:
-                side_compile.stop(helper, grace=0.0)
-                raise
-            side_compile.stop(helper)
+            finally:
+                side_compile.stop(helper)
             _ready[full].set()
         return time.perf_counter() - t
 

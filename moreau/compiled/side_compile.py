@@ -45,13 +45,10 @@ def start(full: bool) -> subprocess.Popen | None:
         return None
 
 
-def stop(proc: subprocess.Popen | None, grace: float = 1.0) -> None:
-    """Wait up to ``grace`` seconds for the second process to end, then end it."""
-    if proc is None:
-        return
-    try:
-        proc.wait(grace)
-    except subprocess.TimeoutExpired:
+def stop(proc: subprocess.Popen | None) -> None:
+    """End the second process if it still runs: the compile it served is over (numba
+    writes a cache file under a temporary name, so a kill leaves none half written)."""
+    if proc is not None:
         proc.kill()
         proc.wait()
 
