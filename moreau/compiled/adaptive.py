@@ -82,6 +82,7 @@ from moreau.compiled.layout import (
     STEP_MIDPOINT,
     USER_FAILED,
     Snapshot,
+    chunk_arguments,
 )
 from moreau.compiled.layout import part as _part
 from moreau.compiled.loop import _record, _run_chunk
@@ -312,12 +313,7 @@ def run_adaptive(model: tuple, user: np.ndarray, settings, state, records, tally
     (see the module docstring); the arguments of :func:`moreau.compiled.loop.run_chunk`,
     the controller's state ``control`` (``layout.K_*``) and its snapshot arrays
     (:func:`snapshot`). Returns a status."""
-    st, rec = state, records
-    own, ws, lw, fr, eqw, ec = work
-    steps = (model, user, settings.iset, settings.fset, settings.Minv, settings.eligible, st.q, st.v, k_end,
-             st.in_contact, st.P_acc, st.act_acc, rec.T, rec.Q, rec.V, rec.PS, rec.ACT, rec.GP, rec.KE, rec.PE,
-             rec.IMP, st.pen, tally.cnt, tally.acc, tally.fail, st.last_imp, st.gmax, settings.fgap, st.rs,
-             (own, ws, lw), rec.PTS, fr, eqw, ec)  # _run_chunk's arguments
+    steps = chunk_arguments(model, user, settings, state, records, tally, work, k_end)  # _run_chunk's
     args = (*steps, control, snap, address(_run_chunk, steps))
     known = len(_run_adaptive.overloads)
     if known >= 2:
@@ -325,7 +321,7 @@ def run_adaptive(model: tuple, user: np.ndarray, settings, state, records, tally
     # until both variants are loaded: a new one is loaded (or compiled) one process at a
     # time, others wait and load it; a damaged cache file is compiled again
     t0 = time.perf_counter()
-    with compile_lock(".adaptive." + ("plain" if fr is None else "full")):
+    with compile_lock(".adaptive." + ("plain" if work[3] is None else "full")):
         status = call_recovering(_run_adaptive, *args)
     if len(_run_adaptive.overloads) > known and time.perf_counter() - t0 > 2.0:  # compiled, not loaded
         log.info("moreau: step-size control's driver compiled in %.0f s, once for this machine",

@@ -173,3 +173,16 @@ Snapshot = namedtuple("Snapshot", "q v in_contact P_acc act_acc last_imp gmax rs
 #: effects' kinds and offsets, the barriers' kinds, offsets, first rows and row counts, the
 #: parameter pool, each row's restitution and activation tolerance
 ModelArrays = namedtuple("ModelArrays", "ints ekind eoff bkind boff brow bnrows pool e atol")
+
+
+def chunk_arguments(model: tuple, user, settings: Settings, state: RunState, records: Records, tally: Tally,
+                    work: tuple, k_end: int) -> tuple:
+    """The arguments of the compiled ``loop._run_chunk``: the fields of ``loop.run_chunk``'s
+    named tuples (the kernel is faster on separate arrays), the features' work arrays apart
+    (numba prunes on their being None)."""
+    st, rec = state, records
+    own, ws, lw, fr, eqw, ec = work
+    return (model, user, settings.iset, settings.fset, settings.Minv, settings.eligible, st.q, st.v, k_end,
+            st.in_contact, st.P_acc, st.act_acc, rec.T, rec.Q, rec.V, rec.PS, rec.ACT, rec.GP, rec.KE, rec.PE,
+            rec.IMP, st.pen, tally.cnt, tally.acc, tally.fail, st.last_imp, st.gmax, settings.fgap, st.rs,
+            (own, ws, lw), rec.PTS, fr, eqw, ec)

@@ -74,6 +74,7 @@ from moreau.compiled.layout import (  # the loop's layout
     Settings,
     StepWork,
     Tally,
+    chunk_arguments,
 )
 from moreau.compiled.layout import part as _part
 from moreau.compiled.records import _contact_records
@@ -276,12 +277,7 @@ def run_chunk(model: tuple, user: np.ndarray, settings: Settings, state: RunStat
     stops changing), the contact records, the end position, the gaps and drift control
     there, and a record every ``stride`` steps.
     """
-    st, rec = state, records  # the fields as separate arrays: the kernel is faster on them than on the tuples
-    own, ws, lw, fr, eqw, ec = work  # the features' arrays apart: numba prunes on their being None
-    return _run_chunk(model, user, settings.iset, settings.fset, settings.Minv, settings.eligible, st.q, st.v, k_end,
-                      st.in_contact, st.P_acc, st.act_acc, rec.T, rec.Q, rec.V, rec.PS, rec.ACT, rec.GP, rec.KE,
-                      rec.PE, rec.IMP, st.pen, tally.cnt, tally.acc, tally.fail, st.last_imp, st.gmax, settings.fgap,
-                      st.rs, (own, ws, lw), rec.PTS, fr, eqw, ec)
+    return _run_chunk(*chunk_arguments(model, user, settings, state, records, tally, work, k_end))
 
 
 # Compiled without reference counting (numba's internal ``_nrt`` flag): every array it touches is owned by the
