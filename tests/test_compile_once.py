@@ -286,6 +286,76 @@ def test_the_loops_contact_solves_are_the_ones_their_python_entries_compile(solv
     assert len(overloads) == 1, [str(key[0]) for key in overloads]
 
 
+def _cached_signatures(stem: str) -> list[str]:
+    """The signatures numba's cache holds for the function whose index file starts with ``stem``."""
+    import pickle
+
+    from moreau.core import jitcache
+
+    index = [p for p in jitcache._cached_files() if os.path.basename(p).startswith(stem) and p.endswith(".nbi")]
+    assert len(index) == 1, index
+    with open(index[0], "rb") as f:
+        pickle.load(f)  # numba's version
+        _, overloads = pickle.loads(f.read())
+    return sorted(str(key[0]) for key in overloads)
+
+
+def test_the_side_compile_types_the_loops_other_calls_as_the_loop_does():
+    """Typing ``side_compile._calls_of_the_loop`` compiles the drift projection and the
+    energy check for the loop's argument types: after the loop of each variant, it adds
+    no compiled copy of them (a new one would be a compile the loop's waits for)."""
+    from moreau.compiled.side_compile import type_calls_of_the_loop
+
+    mo.ensure_compiled()
+    stems = ("drift._project_rows", "energy._energy_check")
+    before = {s: _cached_signatures(s) for s in stems}
+    assert len(before["drift._project_rows"]) == 2  # eqw None in the plain variant
+    for full in (False, True):
+        type_calls_of_the_loop(full)
+    assert {s: _cached_signatures(s) for s in stems} == before
+
+
+def test_the_loops_compile_waits_for_what_the_second_process_is_compiling(monkeypatch):
+    """A function the second process said it is compiling gets a compile of its own that
+    waits for its save (then loads it), except for a signature this process has; once
+    saved, or once the process ends, the dispatcher's own compile is back."""
+    import threading
+
+    from numba import types
+
+    from moreau.compiled import side_compile
+
+    @numba.njit
+    def twice(x):
+        return 2 * x
+
+    name = "moreau.somewhere:twice"
+    monkeypatch.setattr(side_compile, "_dispatcher", lambda n: twice if n == name else None)
+    twice.compile((types.int64,))
+    fake = (f"import sys; print('start {name}', flush=True); sys.stdin.readline(); "
+            f"print('saved {name}', flush=True); sys.stdin.readline()")
+    proc = subprocess.Popen([sys.executable, "-c", fake], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    helper = side_compile.Helper(proc)
+    try:
+        deadline = time.monotonic() + 60
+        while "compile" not in vars(twice) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert "compile" in vars(twice)
+        twice.compile((types.int64,))  # a copy this process has: no wait
+        done = threading.Event()
+        waiter = threading.Thread(target=lambda: (twice.compile((types.float64,)), done.set()))
+        waiter.start()
+        assert not done.wait(0.3)  # waiting for the save
+        proc.stdin.write("\n")
+        proc.stdin.flush()
+        waiter.join(60)
+        assert done.is_set() and "compile" not in vars(twice)
+        assert (types.float64,) in twice.overloads
+    finally:
+        side_compile.stop(helper)
+    assert "compile" not in vars(twice)
+
+
 def test_the_side_compile_needs_two_cores_and_can_be_turned_off(monkeypatch):
     from moreau.compiled import side_compile
 
@@ -303,7 +373,7 @@ def test_the_side_compile_ends_with_the_process_that_started_it(tmp_path):
 
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), PYTHONPATH=os.getcwd())
     parent = ("import os, sys; from moreau.compiled import side_compile; p = side_compile.start(True); "
-              "print(p.pid, flush=True); sys.stdin.read()")
+              "print(p.proc.pid, flush=True); sys.stdin.read()")
     proc = subprocess.Popen([sys.executable, "-c", parent], env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                             text=True)
     child = int(proc.stdout.readline())

@@ -104,22 +104,13 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
                                              drift_control, energy_growth, iteration, control is not None)
     n_rec = n_steps // stride + 1 + (1 if n_steps % stride else 0)
     me, mf = scene.nconstraints, int(cs.ints[lay.SC_MF])
-    recs = _records(min(n_rec, 4096) if control else n_rec, n, m, me, mf, q0, v0, t0)
-    box = [recs]  # the buffers, grown in place of the first when they fill (kept on Ctrl-C too)
-    q, v = q0.copy(), v0.copy()
-    in_contact = np.zeros(m, dtype=np.bool_)
-    P_acc, act_acc = np.zeros(m), np.zeros(m, dtype=np.bool_)
-    last_imp = np.full(m, -(1 << 62), dtype=np.int64)
-    gmax = np.full(m, -np.inf)
-    fgap = np.ascontiguousarray(flight_gap, dtype=float)
-    rs = np.zeros((m, 6))  # CombinedProjection's per-row state (gap at q_k, flags, impact instants)
-    pen = np.zeros((2, m))  # per row: the deepest penetration, the count of steps at its end
-    cnt = np.zeros(lay.N_COUNTERS, dtype=np.int64)
-    cnt[lay.C_REC] = 1
-    acc, fail = np.zeros(lay.N_ACCUMULATORS), np.zeros((2, 6))
-    model, user = cs.arrays(), cs.user.addresses
     full = lp.variant(cs.ints, step, iteration[0]) if full is None else full
-    work = lp.loop_workspace(n, m, mf, cs.friction, cs.tangent_row, me, full)
+    settings, state, recs, tally, work = _allocate(cs, q0, v0, t0, min(n_rec, 4096) if control else n_rec, iset,
+                                                   fset, eligible, flight_gap, me, full)
+    box = [recs]  # the buffers, grown in place of the first when they fill (kept on Ctrl-C too)
+    q, v, in_contact, P_acc, act_acc, _, gmax, rs, pen = state
+    cnt, acc, fail = tally
+    model, user = cs.arrays(), cs.user.addresses
     fr, eqw = work[3], work[4]  # friction's and the bilateral rows' arrays, None without them
     ctl, snap = None, None
     if control is not None:
@@ -144,11 +135,8 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
         if energy:
             recs.KE[0] = acc[lay.A_KE0]
             recs.PE[0] = scene.potential_energy(q0)
-        # the inverse of a constant M, as the reference path uses it for free steps
-        Minv = np.linalg.inv(scene.system.mass_matrix(q0)) if scene.system.constant_mass else np.zeros((n, n))
-        settings = lay.Settings(iset, fset, Minv, eligible, fgap)
-        state = lay.RunState(q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, pen)
-        tally = lay.Tally(cnt, acc, fail)
+        if scene.system.constant_mass:  # the inverse of a constant M, as the reference path uses it for free steps
+            settings.Minv[:] = np.linalg.inv(scene.system.mass_matrix(q0))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", category=_experimental_warning())
             if energy:
@@ -185,6 +173,44 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
         attach_trajectory(error, traj)
         raise error
     return traj
+
+
+def _allocate(cs: CompiledScene, q0: np.ndarray, v0: np.ndarray, t0: float, n_rec: int, iset: np.ndarray,
+              fset: np.ndarray, eligible: np.ndarray, flight_gap: np.ndarray, me: int,
+              full: bool) -> tuple[lay.Settings, lay.RunState, lay.Records, lay.Tally, tuple]:
+    """A run's arrays, as :func:`moreau.compiled.loop.run_chunk` takes them: ``(settings,
+    state, records, tally, work)`` (``layout``'s named tuples; ``work`` from
+    :func:`~moreau.compiled.loop.loop_workspace`), the state at ``q0, v0``, ``n_rec`` records."""
+    n, m, mf = int(cs.ints[lay.SC_N]), int(cs.ints[lay.SC_M]), int(cs.ints[lay.SC_MF])
+    fgap = np.ascontiguousarray(flight_gap, dtype=float)
+    settings = lay.Settings(iset, fset, np.zeros((n, n)), eligible, fgap)
+    # per row: in contact, impulse and activity since the last record, the step of its last impulse, its largest gap
+    # since then; CombinedProjection's per-row state (gap at q_k, flags, impact instants); the deepest penetration
+    # and the count of steps at its end
+    state = lay.RunState(q0.copy(), v0.copy(), np.zeros(m, dtype=np.bool_), np.zeros(m), np.zeros(m, dtype=np.bool_),
+                         np.full(m, -(1 << 62), dtype=np.int64), np.full(m, -np.inf), np.zeros((m, 6)),
+                         np.zeros((2, m)))
+    tally = lay.Tally(np.zeros(lay.N_COUNTERS, dtype=np.int64), np.zeros(lay.N_ACCUMULATORS), np.zeros((2, 6)))
+    tally.cnt[lay.C_REC] = 1
+    work = lp.loop_workspace(n, m, mf, cs.friction, cs.tangent_row, me, full)
+    return settings, state, _records(n_rec, n, m, me, mf, q0, v0, t0), tally, work
+
+
+def chunk_example(full: bool) -> tuple:
+    """:func:`moreau.compiled.loop.run_chunk`'s arguments for a one-row scene on the
+    ``full`` variant or the plain one, nothing run: their types are every run's
+    (:mod:`moreau.compiled.side_compile` compiles with them)."""
+    from moreau.model.barriers import LinearBarrier
+    from moreau.model.forces import ConstantForce
+    from moreau.model.scene import Contact, Scene
+    from moreau.model.system import FunctionSystem
+
+    scene = Scene(FunctionSystem(np.eye(1)), [ConstantForce([-1.0])], [Contact(LinearBarrier([[1.0]], [0.0]), 0.5)])
+    cs = lower(scene)
+    iset, fset, eligible, _ = _settings(scene, 0.0, 1e-3, 1, lay.STEP_MIDPOINT, "exact", None, 1, True, 1e-8, None,
+                                        None)
+    arrays = _allocate(cs, np.zeros(1), np.zeros(1), 0.0, 2, iset, fset, eligible, np.zeros(1), 0, full)
+    return (cs.arrays(), cs.user.addresses, *arrays, 1)
 
 
 def _records(n_rec: int, n: int, m: int, me: int, mf: int, q0, v0, t0: float) -> lay.Records:
