@@ -300,19 +300,37 @@ def _cached_signatures(stem: str) -> list[str]:
     return sorted(str(key[0]) for key in overloads)
 
 
-def test_the_side_compile_types_the_loops_other_calls_as_the_loop_does():
-    """Typing ``side_compile._calls_of_the_loop`` compiles the drift projection and the
-    energy check for the loop's argument types: after the loop of each variant, it adds
-    no compiled copy of them (a new one would be a compile the loop's waits for)."""
+def test_the_side_compile_uses_the_loops_argument_types():
+    """The second process compiles the plain variant's drift projection (through
+    ``drift.projection_address``, as a run does) and types the loop's other calls
+    (``side_compile._calls_of_the_loop``): after the loop of each variant, it adds no
+    compiled copy of them (a new one would be a compile the loop waits for, or a run
+    compiles)."""
+    from moreau.compiled.drift import projection_address
+    from moreau.compiled.runner import chunk_example
     from moreau.compiled.side_compile import type_calls_of_the_loop
 
     mo.ensure_compiled()
-    stems = ("drift._project_rows", "energy._energy_check")
+    stems = ("drift.project_rows", "drift._project_rows", "energy._energy_check")
     before = {s: _cached_signatures(s) for s in stems}
     assert len(before["drift._project_rows"]) == 2  # eqw None in the plain variant
+    projection_address(*chunk_example(False)[:7])  # the plain variant's, through its address
     for full in (False, True):
         type_calls_of_the_loop(full)
     assert {s: _cached_signatures(s) for s in stems} == before
+
+
+def test_a_projection_address_for_other_types_is_never_called(monkeypatch):
+    """The loop calls the drift projection through its address only when the key of the
+    address's argument types is its own call's; else the run fails, naming the bug."""
+    from moreau.compiled import runner
+    from tests.test_drift_theta import bead_in_circle
+
+    monkeypatch.setattr(runner, "projection_address", lambda *arrays: (0, 12345))  # address 0: a crash if called
+    with pytest.raises(mo.SimulationError, match="internal error") as caught:
+        mo.simulate(bead_in_circle(), (0.0, 2.0), [0.0, -1.0], [3.0, 0.0], 1e-2, solver="enum",
+                    drift_control=mo.PositionProjection())
+    assert caught.value.trajectory.status == "failed"
 
 
 def test_the_loops_compile_waits_for_what_the_second_process_is_compiling(monkeypatch):

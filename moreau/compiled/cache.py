@@ -141,6 +141,16 @@ def _signals_deferred() -> Iterator[None]:
                 os.kill(os.getpid(), num)
 
 
+def _compile_loop(full: bool) -> None:
+    """The loop of the ``full`` variant or the plain one, loaded or compiled (for a run's types)."""
+    from moreau.compiled.layout import chunk_arguments
+    from moreau.compiled.loop import _run_chunk
+    from moreau.compiled.runner import chunk_example
+
+    args = chunk_arguments(*chunk_example(full))
+    _run_chunk.compile(tuple(_run_chunk.typeof_pyval(a) for a in args))
+
+
 def _warm_up(full: bool, adaptive: bool = False) -> None:
     """Two steps of a one-row scene on the ``full`` variant or the plain one: loads (or
     compiles) every compiled function a run of that variant calls; ``adaptive``: with
@@ -152,6 +162,7 @@ def _warm_up(full: bool, adaptive: bool = False) -> None:
 
     scene = Scene(FunctionSystem(np.eye(1)), [ConstantForce([-1.0])],
                   [Contact(LinearBarrier([[1.0]], [0.0]), 0.5)])
+    _compile_loop(full)  # before the run's own calls: the drift projection is the second process's meanwhile
     run_compiled(scene, None, 0.0, np.array([1e-3]), np.array([-1.0]), 1e-3, 2, step=STEP_MIDPOINT, solver="exact",
                  fallback=None, stride=1, bar=None, energy=True, tol=1e-8, drift_control=None,
                  flight_gap=np.zeros(1), gmax0=np.full(1, np.inf), full=full,

@@ -15,6 +15,7 @@ from moreau.compiled.layout import (  # the loop's layout
     C_PROJ,
     DRIFT_COMBINED,
     F_DRIFT_TOL,
+    NATIVE_MISMATCH,
     NOT_SPD,
     PROJECTION_FAILED,
     R_BOUNCED,
@@ -23,6 +24,8 @@ from moreau.compiled.layout import (  # the loop's layout
     S_DRIFT,
     S_DRIFT_ITER,
     S_DRIFT_VELOCITY,
+    S_PROJECT,
+    S_PROJECT_KEY,
     SC_M,
     SC_MASS_OFF,
     SC_ME,
@@ -32,6 +35,7 @@ from moreau.compiled.layout import (  # the loop's layout
 )
 from moreau.compiled.layout import call as _call
 from moreau.compiled.layout import part as _part
+from moreau.compiled.native import address_and_key, call_checked
 from moreau.compiled.records import _log_if_impact
 from moreau.compiled.step import _contact_solve, _user_failed
 from moreau.core import kernels as _k
@@ -68,8 +72,40 @@ def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fai
             need = True
     if not need:
         return True
+    if eqw is None:  # the plain variant: through its address (S_PROJECT), so that the loop's compile
+        # neither compiles the projection nor waits for it (the second process of a cold compile does it)
+        done = call_checked(iset[S_PROJECT], iset[S_PROJECT_KEY], (model, user, iset, fset, q, cq, sq, active, gq,
+                            M, L, cnt, acc, fail, eligible, ws, lw, in_contact, eqw, rs, combined, dtol, v, P_acc,
+                            act_acc, last_imp, gmax, onset))
+        if done < 0:
+            cnt[C_FAILKIND] = NATIVE_MISMATCH
+        return done == 1
+    # the full variant calls it: through its address the energy-consistent step of a 3-link chain
+    # took 5-8 % longer (docs/performance.md), the cause not found
     return _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw,
                          in_contact, eqw, rs, combined, dtol, v, P_acc, act_acc, last_imp, gmax, onset)
+
+
+def projection_address(model: tuple, user, settings, state, records, tally, work: tuple) -> tuple[int, int]:
+    """The address of :func:`project_rows`'s machine code for a run's arrays (those of
+    :func:`moreau.compiled.loop.run_chunk`, the plain variant's) and the key of its argument
+    types, as :func:`_project` calls it (the ``S_PROJECT`` settings): loaded or compiled here."""
+    own, ws, lw, fr, eqw, ec = work
+    st = state
+    return address_and_key(project_rows, (
+        model, user, settings.iset, settings.fset, own.q_new, own.cq, own.sq, own.active, own.gq, own.M, own.L,
+        tally.cnt, tally.acc, tally.fail, settings.eligible, ws, lw, st.in_contact, eqw, st.rs, True, 0.0, own.v_new,
+        st.P_acc, st.act_acc, st.last_imp, st.gmax, (0.0, 0.0, own.f, settings.fgap, records.IMP)))
+
+
+@_call
+def project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw, in_contact,
+                 eqw, rs, combined, dtol, v, P_acc, act_acc, last_imp, gmax, onset):
+    """:func:`_project_rows` as the loop calls it, through its address: 1 when it held the
+    rows, 0 when it failed."""
+    held = _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw,
+                         in_contact, eqw, rs, combined, dtol, v, P_acc, act_acc, last_imp, gmax, onset)
+    return np.int64(1) if held else np.int64(0)
 
 
 @_call
@@ -77,7 +113,8 @@ def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc
                   eqw, rs, combined, dtol, v, P_acc, act_acc, last_imp, gmax, onset):
     """The projection itself, when a selected row penetrates beyond the tolerance: a call
     from the loop, not inlined into it (it runs in few steps; compiled once, apart, it
-    keeps its contact solve and model evaluations out of the loop's own compile).
+    keeps its contact solve and model evaluations out of the loop's own compile; in the
+    plain variant through the address of :func:`project_rows`, out of its module too).
 
     With ``S_DRIFT_VELOCITY`` a last pass makes the velocity ``v`` of the rows the
     projection held (``lw.held``: a positive multiplier) admissible at the projected q:

@@ -21,6 +21,8 @@ NOT_CONVERGED = 10
 PROJECTION_FAILED = 11
 # (step-size control: the record buffers are full; the runner grows them and calls again)
 RECORDS_FULL = 12
+# (a function called through its address was made for other argument types: moreau's own bug)
+NATIVE_MISMATCH = 13
 # settings (int array)
 S_STEP, S_DRIFT, S_DRIFT_ITER, S_STRIDE, S_NSTEPS, S_METHOD, S_FALLBACK, S_ENERGY, S_MEMORY, S_LOCATE = range(10)
 # (S_ECHECK: the energy check's interval in steps, 0 = off; see moreau.run.energy)
@@ -40,7 +42,10 @@ S_MASS_READY = 15
 # (S_DRIFT_VELOCITY: 1 when drift control also makes the velocity of the rows it held
 # admissible at q⁺, G(q⁺) v⁺ >= 0: PositionProjection(velocity=True))
 S_DRIFT_VELOCITY = 16
-N_SETTINGS = 17
+# (S_PROJECT, S_PROJECT_KEY: the address of the drift projection's machine code for the run's
+# argument types, and the key of those types: compiled.drift.projection_address)
+S_PROJECT, S_PROJECT_KEY = 17, 18
+N_SETTINGS = 19
 # the LCP methods (S_METHOD, S_FALLBACK): dual active set, enumeration, called back; -1 none
 METHOD_EXACT, METHOD_ENUM, METHOD_EXTERNAL = 0, 1, 2
 # the step (S_STEP): midpoint, predictor-corrector, energy-consistent

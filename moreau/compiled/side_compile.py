@@ -2,14 +2,17 @@
 
 A variant's first compile types the loop function and, as it meets them, compiles the
 functions it calls: the contact solve (:func:`moreau.contact.lcp.solve_one_step`, about 6 s
-here), the drift projection (``drift._project_rows``, 7 s), the KKT check, the energy check
-and, in the full variant, the friction solve
-(:func:`moreau.contact.friction.solve_friction_step`, about 13 s) and the bilateral rows'
-parts. A second process compiles them with the loop's argument types and saves them into
-numba's cache: the solves through their Python entries (:class:`moreau.ExactSolver`,
-:func:`moreau.contact.friction.friction_one_step`), the rest by typing
-:func:`_calls_of_the_loop`, which calls them as the loop does, on the arguments of a run
-(:func:`moreau.compiled.runner.chunk_example`).
+here), the KKT check, the energy check, the drift projection (7 s) and, in the full
+variant, the friction solve (:func:`moreau.contact.friction.solve_friction_step`, about
+13 s) and the bilateral rows' parts; the plain variant calls its drift projection
+(:func:`moreau.compiled.drift.project_rows`) through its address, which a run looks up
+after the loop's compile. A second
+process compiles them with the loop's argument types and saves them into numba's cache:
+the solves through their Python entries (:class:`moreau.ExactSolver`,
+:func:`moreau.contact.friction.friction_one_step`), the projection through
+:func:`~moreau.compiled.drift.projection_address`, the rest by typing
+:func:`_calls_of_the_loop`, which calls them as the loop does; all on the arguments of a
+run (:func:`moreau.compiled.runner.chunk_example`).
 
 It writes a line as it starts each compile and as it saves one. When the loop's compile
 meets a function the second process is compiling, it waits for that save and loads it
@@ -141,9 +144,9 @@ def stop(helper: Helper | None) -> None:
 def _calls_of_the_loop(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
                        T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work, PTS,
                        fr, eqw, ec):
-    """The loop's calls of its drift projection (and in it the contact solve's check) and
-    of its energy check, on ``_run_chunk``'s arguments: typing it compiles them as the
-    loop's compile would (never run)."""
+    """The loop's calls at the end of a step (in the full variant its drift projection and
+    the bilateral rows' hold) and of its energy check, on ``_run_chunk``'s arguments:
+    typing it compiles them as the loop's compile would (never run)."""
     own, ws, lw = work
     M, L, cm, sm, cq, sq, qm, f, v_new, vbar, q_new, gm, gq, P, active, G, vfree, fb = own
     h, k = fset[F_H], cnt[C_K]
@@ -233,4 +236,9 @@ if __name__ == "__main__":
     threading.Thread(target=_watch_parent, args=(int(sys.argv[2]),), daemon=True).start()
     _report()
     _compile(sys.argv[1] == "full")
+    from moreau.compiled.drift import projection_address
+    from moreau.compiled.runner import chunk_example
+
+    if sys.argv[1] == "plain":
+        projection_address(*chunk_example(False)[:7])
     type_calls_of_the_loop(sys.argv[1] == "full")
