@@ -28,7 +28,7 @@ log = logging.getLogger(__name__)
 
 #: what the first compile of each variant of the loop takes on a 2-core machine, s, as the
 #: message says it (benchmarks/compile_cost.py; docs/performance.md has the figures)
-COMPILE_SECONDS = {False: 40, True: 70}
+COMPILE_SECONDS = {False: 30, True: 70}
 _NAMES = {False: "the plain midpoint step", True: "friction, bilateral rows and later passes"}
 _ready = {False: threading.Event(), True: threading.Event()}
 _drivers: set[bool] = set()  # the variants whose step-control driver this process has
