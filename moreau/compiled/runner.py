@@ -189,7 +189,7 @@ def _allocate(cs: CompiledScene, q0: np.ndarray, v0: np.ndarray, t0: float, n_re
     records = _records(n_rec, n, m, me, mf, q0, v0, t0)
     # per row: in contact, impulse and activity since the last record, the step of its last impulse, its largest gap
     # since then; CombinedProjection's per-row state (gap at q_k, flags, impact instants); the deepest penetration
-    # and the count of steps at its end (allocated in this order: the steps' speed depends on it by a few percent)
+    # and the count of steps at its end
     q, v, in_contact = q0.copy(), v0.copy(), np.zeros(m, dtype=np.bool_)
     P_acc, act_acc = np.zeros(m), np.zeros(m, dtype=np.bool_)
     last_imp, gmax = np.full(m, -(1 << 62), dtype=np.int64), np.full(m, -np.inf)
