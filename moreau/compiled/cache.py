@@ -17,7 +17,7 @@ import numpy as np
 
 from moreau.compiled import side_compile
 from moreau.compiled.layout import STEP_MIDPOINT
-from moreau.compiled.runner import run_compiled
+from moreau.compiled.runner import one_row_scene, run_compiled
 from moreau.core.compiling import compile_call
 from moreau.core.jitcache import cache_dir, call_recovering, clear, compile_lock
 
@@ -155,13 +155,7 @@ def _warm_up(full: bool, adaptive: bool = False) -> None:
     """Two steps of a one-row scene on the ``full`` variant or the plain one: loads (or
     compiles) every compiled function a run of that variant calls; ``adaptive``: with
     step-size control (its driver)."""
-    from moreau.model.barriers import LinearBarrier
-    from moreau.model.forces import ConstantForce
-    from moreau.model.scene import Contact, Scene
-    from moreau.model.system import FunctionSystem
-
-    scene = Scene(FunctionSystem(np.eye(1)), [ConstantForce([-1.0])],
-                  [Contact(LinearBarrier([[1.0]], [0.0]), 0.5)])
+    scene = one_row_scene()
     _compile_loop(full)  # before the run's own calls: the drift projection is the second process's meanwhile
     run_compiled(scene, None, 0.0, np.array([1e-3]), np.array([-1.0]), 1e-3, 2, step=STEP_MIDPOINT, solver="exact",
                  fallback=None, stride=1, bar=None, energy=True, tol=1e-8, drift_control=None,

@@ -201,16 +201,22 @@ def _allocate(cs: CompiledScene, q0: np.ndarray, v0: np.ndarray, t0: float, n_re
     return lay.Settings(iset, fset, np.zeros((n, n)), eligible, fgap), state, records, tally, work
 
 
-def chunk_example(full: bool) -> tuple:
-    """:func:`moreau.compiled.loop.run_chunk`'s arguments for a one-row scene on the
-    ``full`` variant or the plain one, nothing run: their types are every run's
-    (:mod:`moreau.compiled.side_compile` compiles with them)."""
+def one_row_scene():
+    """A unit mass falling onto a floor (one coordinate, one contact row): what warms the
+    loop up (:func:`moreau.compiled.cache.ensure_compiled`) and types it (:func:`chunk_example`)."""
     from moreau.model.barriers import LinearBarrier
     from moreau.model.forces import ConstantForce
     from moreau.model.scene import Contact, Scene
     from moreau.model.system import FunctionSystem
 
-    scene = Scene(FunctionSystem(np.eye(1)), [ConstantForce([-1.0])], [Contact(LinearBarrier([[1.0]], [0.0]), 0.5)])
+    return Scene(FunctionSystem(np.eye(1)), [ConstantForce([-1.0])], [Contact(LinearBarrier([[1.0]], [0.0]), 0.5)])
+
+
+def chunk_example(full: bool) -> tuple:
+    """:func:`moreau.compiled.loop.run_chunk`'s arguments for :func:`one_row_scene` on the
+    ``full`` variant or the plain one, nothing run: their types are every run's
+    (:mod:`moreau.compiled.side_compile` compiles with them)."""
+    scene = one_row_scene()
     cs = lower(scene)
     iset, fset, eligible, _ = _settings(scene, 0.0, 1e-3, 1, lay.STEP_MIDPOINT, "exact", None, 1, True, 1e-8, None,
                                         None)
