@@ -22,10 +22,15 @@ and the seconds from ``simulate()`` to its end (0.1 s of stepping) of two scenes
 ``@numba.njit`` callables (their own compile) in rows 1 and 4.
 
     python benchmarks/compile_cost.py
+    python benchmarks/compile_cost.py --against REV --rounds 4 [--full]   # one variant, this build and REV
+
+With ``--against``, one variant only, compiled by this build and by ``REV`` alternately
+(this shared machine's speed drifts by 10-20 % over minutes: compare the rounds' pairs).
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import subprocess
@@ -130,18 +135,19 @@ _PROBE = textwrap.dedent('''
         ensure_compiled(full, step_control=True)
         drivers.append(time.perf_counter() - t)
     cpu = resource.getrusage(resource.RUSAGE_SELF)
+    side = resource.getrusage(resource.RUSAGE_CHILDREN)  # the second process of the compile
     print(json.dumps({"import": t_import, "loop": t_loop, "user": users, "drivers": drivers,
-                      "wall": time.perf_counter() - t0,
+                      "wall": time.perf_counter() - t0, "cpu_side": side.ru_utime + side.ru_stime,
                       "cpu": cpu.ru_utime + cpu.ru_stime, "rss_mb": cpu.ru_maxrss / 1024, "own": own,
                       "again": again, "passes": passes, "llvm": llvm}))
 ''')
 
 
-def probe(cache: str, variants: list[bool], drivers: bool = False) -> dict:
+def probe(cache: str, variants: list[bool], drivers: bool = False, tree: str | None = None) -> dict:
     """Run the probe in a new process with ``NUMBA_CACHE_DIR=cache``, loading (or compiling)
     the loop's ``variants`` (``full`` flags); ``drivers``: then step-size control's driver
-    of each."""
-    env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+    of each; ``tree``: moreau imported from that checkout."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=cache, **({"PYTHONPATH": tree} if tree else {}))
     out = subprocess.run([sys.executable, "-c", _PROBE, json.dumps(variants)] + (["drivers"] if drivers else []),
                          capture_output=True, text=True, env=env)
     if out.returncode != 0:
@@ -149,7 +155,36 @@ def probe(cache: str, variants: list[bool], drivers: bool = False) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+def against(rev: str, rounds: int, full: bool) -> None:
+    """One variant compiled into empty caches by this build and by ``rev`` (a temporary git
+    worktree), alternating, ``rounds`` times each: per round the loop's seconds, the CPU
+    seconds of the process and of its second process, and its peak memory."""
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    with tempfile.TemporaryDirectory() as tmp:
+        tree = os.path.join(tmp, "rev")
+        subprocess.run(["git", "-C", here, "worktree", "add", "--detach", tree, rev], check=True, capture_output=True)
+        try:
+            print(f"the {'full' if full else 'plain'} variant into an empty cache, alternating "
+                  f"(MOREAU_SIDE_COMPILE={os.environ.get('MOREAU_SIDE_COMPILE', '1')})")
+            print(f"{'round':>5s} {'build':>12s} {'loop (s)':>9s} {'CPU (s)':>9s} {'2nd CPU (s)':>12s} {'peak MB':>8s}")
+            for k in range(rounds):
+                for name, src in (("this", here), (rev, tree)):
+                    with tempfile.TemporaryDirectory() as cache:
+                        r = probe(cache, [full], tree=src)
+                    print(f"{k + 1:5d} {name[:12]:>12s} {r['loop']:9.2f} {r['cpu']:9.2f} {r['cpu_side']:12.2f} "
+                          f"{r['rss_mb']:8.0f}", flush=True)
+        finally:
+            subprocess.run(["git", "-C", here, "worktree", "remove", "--force", tree], capture_output=True)
+
+
 def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--against", metavar="REV", help="compile one variant here and at REV, alternating")
+    parser.add_argument("--rounds", type=int, default=3, help="with --against: rounds (default 3)")
+    parser.add_argument("--full", action="store_true", help="with --against: the full variant, not the plain one")
+    args = parser.parse_args()
+    if args.against:
+        return against(args.against, args.rounds, args.full)
     t_start = time.perf_counter()
     with tempfile.TemporaryDirectory() as cache, tempfile.TemporaryDirectory() as alone:
         runs = [("plain midpoint step, empty cache", probe(cache, [False])),

@@ -1,16 +1,19 @@
 """The one set of numba options every physics kernel is compiled with.
 
 Importing this module first checks the compile cache (:func:`moreau.core.jitcache.ensure_fresh`),
-so no stale machine code of moreau is loaded.
+so no stale machine code of moreau is loaded, and makes numba's inlining skip two copies
+it does not need (:mod:`moreau.core.inlining`).
 """
 
 from numba import njit
 
+from moreau.core import inlining
 from moreau.core.jitcache import ensure_fresh
 
 __all__ = ["jit"]
 
 ensure_fresh()  # before any cached machine code of moreau is loaded
+inlining.install()  # numba's inlining of the loop's parts without its copies of a fresh IR
 
 # Each kernel is compiled once and inlined where it is called by LLVM (forceinline): as
 # calls, the piston step costs a quarter more; inlined by numba (inline="always") at
