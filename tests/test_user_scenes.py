@@ -48,6 +48,16 @@ def test_the_readme_example_compiles_its_lambdas_and_equals_the_njit_scene():
     np.testing.assert_array_equal(plain.impacts.t, jit.impacts.t)
 
 
+def test_lambdas_binding_values_as_default_arguments_are_compiled_too():
+    slope = np.array([-0.2, 1.0])  # bound as `n=slope`, the idiom for a value fixed in a loop
+    scene = inclined(lambda q, n=slope: np.array([n @ q]), lambda q, n=slope: n.reshape(1, 2).copy())
+    assert lower(scene).user.callbacks == ()  # not a callback: numba takes the default as a constant
+    bound = run(scene)
+    jit = run(inclined(numba.njit(plain_gap), numba.njit(plain_jac)))
+    assert bound.completed and len(bound.impacts) == len(jit.impacts) >= 3
+    np.testing.assert_allclose(bound.q, jit.q, rtol=0, atol=1e-12)
+
+
 def test_a_gap_numba_cannot_compile_is_called_back_logged_by_name_with_the_same_answers(caplog):
     offsets = {"floor": 0.0}
 

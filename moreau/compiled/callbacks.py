@@ -103,10 +103,23 @@ def compile_or_reason(fun: Any, argtypes: tuple) -> tuple[Any, str]:
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", category=NumbaWarning)
-            jit.compile(argtypes)
+            jit.compile(tuple(argtypes) + _defaults(jit.py_func, len(argtypes)))
     except Exception as exc:  # noqa: BLE001 - any failure means: call it back
         return None, first_reason(exc)
     return jit, ""
+
+
+def _defaults(fun: Any, given: int) -> tuple:
+    """numba's types of the defaults of ``fun``'s parameters after the first ``given``
+    (``lambda q, n=n: ...``: the loop calls it with q alone, numba takes n as a constant,
+    as it takes a closure variable); () when there are none to fill."""
+    from numba import types
+
+    defaults = fun.__defaults__ or ()
+    missing = fun.__code__.co_argcount - given
+    if missing <= 0 or missing > len(defaults):
+        return ()
+    return tuple(types.Omitted(d) for d in defaults[len(defaults) - missing:])
 
 
 def first_reason(exc: BaseException) -> str:
