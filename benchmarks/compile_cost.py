@@ -166,13 +166,17 @@ def against(rev: str, rounds: int, full: bool) -> None:
         try:
             print(f"the {'full' if full else 'plain'} variant into an empty cache, alternating "
                   f"(MOREAU_SIDE_COMPILE={os.environ.get('MOREAU_SIDE_COMPILE', '1')})")
-            print(f"{'round':>5s} {'build':>12s} {'loop (s)':>9s} {'CPU (s)':>9s} {'2nd CPU (s)':>12s} {'peak MB':>8s}")
+            print(f"{'round':>5s} {'build':>12s} {'loop (s)':>9s} {'CPU (s)':>9s} {'2nd CPU (s)':>12s} {'peak MB':>8s}"
+                  f" {'LLVM: own, linked, machine code (s)':>36s}")
             for k in range(rounds):
                 for name, src in (("this", here), (rev, tree)):
                     with tempfile.TemporaryDirectory() as cache:
                         r = probe(cache, [full], tree=src)
+                    ll = r["llvm"]
                     print(f"{k + 1:5d} {name[:12]:>12s} {r['loop']:9.2f} {r['cpu']:9.2f} {r['cpu_side']:12.2f} "
-                          f"{r['rss_mb']:8.0f}", flush=True)
+                          f"{r['rss_mb']:8.0f} {ll.get('_optimize_functions', 0):12.1f}"
+                          f"{ll.get('_optimize_final_module', 0):8.1f}{ll.get('_finalize_final_module', 0):8.1f}",
+                          flush=True)
         finally:
             subprocess.run(["git", "-C", here, "worktree", "remove", "--force", tree], capture_output=True)
 

@@ -72,18 +72,14 @@ def _project(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fai
             need = True
     if not need:
         return True
-    if eqw is None:  # the plain variant: through its address (S_PROJECT), so that the loop's compile
-        # neither compiles the projection nor waits for it (the second process of a cold compile does it)
-        done = call_checked(iset[S_PROJECT], iset[S_PROJECT_KEY], (model, user, iset, fset, q, cq, sq, active, gq,
-                            M, L, cnt, acc, fail, eligible, ws, lw, in_contact, eqw, rs, combined, dtol, v, P_acc,
-                            act_acc, last_imp, gmax, onset))
-        if done < 0:
-            cnt[C_FAILKIND] = NATIVE_MISMATCH
-        return done == 1
-    # the full variant calls it: through its address the energy-consistent step of a 3-link chain
-    # took 5-8 % longer (docs/performance.md), the cause not found
-    return _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw,
-                         in_contact, eqw, rs, combined, dtol, v, P_acc, act_acc, last_imp, gmax, onset)
+    # through its address (S_PROJECT), so that the loop's compile neither compiles the projection
+    # nor waits for it (the second process of a cold compile does it)
+    done = call_checked(iset[S_PROJECT], iset[S_PROJECT_KEY], (model, user, iset, fset, q, cq, sq, active, gq,
+                        M, L, cnt, acc, fail, eligible, ws, lw, in_contact, eqw, rs, combined, dtol, v, P_acc,
+                        act_acc, last_imp, gmax, onset))
+    if done < 0:
+        cnt[C_FAILKIND] = NATIVE_MISMATCH
+    return done == 1
 
 
 def projection_address(model: tuple, user, settings, state, records, tally, work: tuple) -> tuple[int, int]:
@@ -113,8 +109,8 @@ def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc
                   eqw, rs, combined, dtol, v, P_acc, act_acc, last_imp, gmax, onset):
     """The projection itself, when a selected row penetrates beyond the tolerance: a call
     from the loop, not inlined into it (it runs in few steps; compiled once, apart, it
-    keeps its contact solve and model evaluations out of the loop's own compile; in the
-    plain variant through the address of :func:`project_rows`, out of its module too).
+    keeps its contact solve and model evaluations out of the loop's own compile; through
+    the address of :func:`project_rows`, out of its module too).
 
     With ``S_DRIFT_VELOCITY`` a last pass makes the velocity ``v`` of the rows the
     projection held (``lw.held``: a positive multiplier) admissible at the projected q:

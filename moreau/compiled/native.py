@@ -5,9 +5,9 @@ caller's, and LLVM optimizes and generates it again there. Step-size control's d
 (:mod:`moreau.compiled.adaptive`) steps with the loop's ``_run_chunk``: called directly,
 the whole loop would be compiled a second time into the driver. It calls the address of
 the loop's machine code instead (:func:`address`, passed in as an int64): the driver's
-module holds only the call (its compile time: ``benchmarks/compile_cost.py``). The plain
-loop calls its drift projection so (``call_checked``, with a key of the argument types
-checked first), and its compile neither compiles nor waits for it.
+module holds only the call (its compile time: ``benchmarks/compile_cost.py``). The loop
+calls its drift projection so (``call_checked``, with a key of the argument types checked
+first), and its compile neither compiles nor waits for it.
 """
 
 from __future__ import annotations

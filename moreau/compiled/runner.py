@@ -112,7 +112,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     q, v, in_contact, P_acc, act_acc, _, gmax, rs, pen = state
     cnt, acc, fail = tally
     model, user = cs.arrays(), cs.user.addresses
-    if work[4] is None:  # the plain variant's drift projection, for these arrays (loaded once a process, or compiled)
+    if iset[lay.S_DRIFT] != lay.DRIFT_NONE:  # the drift projection, for these arrays (loaded once a process)
         iset[lay.S_PROJECT], iset[lay.S_PROJECT_KEY] = projection_address(model, user, settings, state, recs, tally,
                                                                           work)
     fr, eqw = work[3], work[4]  # friction's and the bilateral rows' arrays, None without them

@@ -4,7 +4,7 @@ A variant's first compile types the loop function and, as it meets them, compile
 functions it calls: the contact solve (:func:`moreau.contact.lcp.solve_one_step`, about 6 s
 here), the KKT check, the energy check, the drift projection (7 s) and, in the full
 variant, the friction solve (:func:`moreau.contact.friction.solve_friction_step`, about
-13 s) and the bilateral rows' parts; the plain variant calls its drift projection
+13 s) and the bilateral rows' parts; the loop calls its drift projection
 (:func:`moreau.compiled.drift.project_rows`) through its address, which a run looks up
 after the loop's compile. A second
 process compiles them with the loop's argument types and saves them into numba's cache:
@@ -239,6 +239,5 @@ if __name__ == "__main__":
     from moreau.compiled.drift import projection_address
     from moreau.compiled.runner import chunk_example
 
-    if sys.argv[1] == "plain":
-        projection_address(*chunk_example(False)[:7])
+    projection_address(*chunk_example(sys.argv[1] == "full")[:7])
     type_calls_of_the_loop(sys.argv[1] == "full")
