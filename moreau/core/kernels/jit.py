@@ -1,19 +1,19 @@
 """The one set of numba options every physics kernel is compiled with.
 
 Importing this module first checks the compile cache (:func:`moreau.core.jitcache.ensure_fresh`),
-so no stale machine code of moreau is loaded, and makes numba's inlining skip two copies
-it does not need (:mod:`moreau.core.inlining`).
+so no stale machine code of moreau is loaded, and makes two of numba's compile steps
+cheaper on the loop's large function, with the same results (:mod:`moreau.core.numba_patches`).
 """
 
 from numba import njit
 
-from moreau.core import inlining
+from moreau.core import numba_patches
 from moreau.core.jitcache import ensure_fresh
 
 __all__ = ["jit"]
 
 ensure_fresh()  # before any cached machine code of moreau is loaded
-inlining.install()  # numba's inlining of the loop's parts without its copies of a fresh IR
+numba_patches.install()  # numba's inlining and liveness, cheaper on the loop's large function
 
 # Each kernel is compiled once and inlined where it is called by LLVM (forceinline): as
 # calls, the piston step costs a quarter more; inlined by numba (inline="always") at
