@@ -301,7 +301,7 @@ def _cached_signatures(stem: str) -> list[str]:
 
 
 def test_the_side_compile_uses_the_loops_argument_types():
-    """The second process compiles the plain variant's drift projection (through
+    """The second process compiles each variant's drift projection (through
     ``drift.projection_address``, as a run does) and types the loop's other calls
     (``side_compile._calls_of_the_loop``): after the loop of each variant, it adds no
     compiled copy of them (a new one would be a compile the loop waits for, or a run
@@ -313,9 +313,9 @@ def test_the_side_compile_uses_the_loops_argument_types():
     mo.ensure_compiled()
     stems = ("drift.project_rows", "drift._project_rows", "energy._energy_check")
     before = {s: _cached_signatures(s) for s in stems}
-    assert len(before["drift._project_rows"]) == 2  # eqw None in the plain variant
-    projection_address(*chunk_example(False)[:7])  # the plain variant's, through its address
+    assert len(before["drift._project_rows"]) == len(before["drift.project_rows"]) == 2  # eqw None in the plain one
     for full in (False, True):
+        projection_address(*chunk_example(full)[:7])  # each variant's, through its address
         type_calls_of_the_loop(full)
     assert {s: _cached_signatures(s) for s in stems} == before
 

@@ -112,9 +112,9 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     q, v, in_contact, P_acc, act_acc, _, gmax, rs, pen = state
     cnt, acc, fail = tally
     model, user = cs.arrays(), cs.user.addresses
-    if iset[lay.S_DRIFT] != lay.DRIFT_NONE:  # the drift projection, for these arrays (loaded once a process)
-        iset[lay.S_PROJECT], iset[lay.S_PROJECT_KEY] = projection_address(model, user, settings, state, recs, tally,
-                                                                          work)
+    # the drift projection for these arrays (loaded once a process, or compiled); also without drift
+    # control, so that a warm-up (cache._warm_up) loads or compiles it with its variant
+    iset[lay.S_PROJECT], iset[lay.S_PROJECT_KEY] = projection_address(model, user, settings, state, recs, tally, work)
     fr, eqw = work[3], work[4]  # friction's and the bilateral rows' arrays, None without them
     ctl, snap = None, None
     if control is not None:
