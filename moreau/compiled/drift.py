@@ -97,20 +97,21 @@ def projection_address(model: tuple, user, settings, state, records, tally, work
 @_call
 def project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw, in_contact,
                  eqw, rs, combined, dtol, v, P_acc, act_acc, last_imp, gmax, onset):
-    """:func:`_project_rows` as the loop calls it, through its address: 1 when it held the
-    rows, 0 when it failed."""
+    """:func:`_project_rows` as the loop calls it, through its address (compiled once per
+    variant, apart from the loop, its body inlined here): 1 when it held the rows, 0 when
+    it failed."""
     held = _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw,
                          in_contact, eqw, rs, combined, dtol, v, P_acc, act_acc, last_imp, gmax, onset)
     return np.int64(1) if held else np.int64(0)
 
 
-@_call
+@_part
 def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw, in_contact,
                   eqw, rs, combined, dtol, v, P_acc, act_acc, last_imp, gmax, onset):
-    """The projection itself, when a selected row penetrates beyond the tolerance: a call
-    from the loop, not inlined into it (it runs in few steps; compiled once, apart, it
-    keeps its contact solve and model evaluations out of the loop's own compile; through
-    the address of :func:`project_rows`, out of its module too).
+    """The projection itself, when a selected row penetrates beyond the tolerance: the body
+    of :func:`project_rows`, which the loop calls through its address (it runs in few
+    steps; its contact solve and model evaluations stay out of the loop's compile and
+    module).
 
     With ``S_DRIFT_VELOCITY`` a last pass makes the velocity ``v`` of the rows the
     projection held (``lw.held``: a positive multiplier) admissible at the projected q:
