@@ -25,7 +25,8 @@ and the seconds from ``simulate()`` to its end (0.1 s of stepping) of two scenes
     python benchmarks/compile_cost.py --against REV --rounds 4 [--full]   # one variant, this build and REV
 
 With ``--against``, one variant only, compiled by this build and by ``REV`` alternately
-(this shared machine's speed drifts by 10-20 % over minutes: compare the rounds' pairs).
+(this shared machine's speed drifted by up to a half between runs of one day: compare the
+rounds' pairs).
 """
 
 from __future__ import annotations
@@ -159,26 +160,22 @@ def against(rev: str, rounds: int, full: bool) -> None:
     """One variant compiled into empty caches by this build and by ``rev`` (a temporary git
     worktree), alternating, ``rounds`` times each: per round the loop's seconds, the CPU
     seconds of the process and of its second process, and its peak memory."""
-    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    with tempfile.TemporaryDirectory() as tmp:
-        tree = os.path.join(tmp, "rev")
-        subprocess.run(["git", "-C", here, "worktree", "add", "--detach", tree, rev], check=True, capture_output=True)
-        try:
-            print(f"the {'full' if full else 'plain'} variant into an empty cache, alternating "
-                  f"(MOREAU_SIDE_COMPILE={os.environ.get('MOREAU_SIDE_COMPILE', '1')})")
-            print(f"{'round':>5s} {'build':>12s} {'loop (s)':>9s} {'CPU (s)':>9s} {'2nd CPU (s)':>12s} {'peak MB':>8s}"
-                  f" {'LLVM: own, linked, machine code (s)':>36s}")
-            for k in range(rounds):
-                for name, src in (("this", here), (rev, tree)):
-                    with tempfile.TemporaryDirectory() as cache:
-                        r = probe(cache, [full], tree=src)
-                    ll = r["llvm"]
-                    print(f"{k + 1:5d} {name[:12]:>12s} {r['loop']:9.2f} {r['cpu']:9.2f} {r['cpu_side']:12.2f} "
-                          f"{r['rss_mb']:8.0f} {ll.get('_optimize_functions', 0):12.1f}"
-                          f"{ll.get('_optimize_final_module', 0):8.1f}{ll.get('_finalize_final_module', 0):8.1f}",
-                          flush=True)
-        finally:
-            subprocess.run(["git", "-C", here, "worktree", "remove", "--force", tree], capture_output=True)
+    from interleaved import worktree  # (benchmarks/, this script's folder)
+
+    with worktree(rev) as (here, tree):
+        print(f"the {'full' if full else 'plain'} variant into an empty cache, alternating "
+              f"(MOREAU_SIDE_COMPILE={os.environ.get('MOREAU_SIDE_COMPILE', '1')})")
+        print(f"{'round':>5s} {'build':>12s} {'loop (s)':>9s} {'CPU (s)':>9s} {'2nd CPU (s)':>12s} {'peak MB':>8s}"
+              f" {'LLVM: own, linked, machine code (s)':>36s}")
+        for k in range(rounds):
+            for name, src in (("this", here), (rev, tree)):
+                with tempfile.TemporaryDirectory() as cache:
+                    r = probe(cache, [full], tree=src)
+                ll = r["llvm"]
+                print(f"{k + 1:5d} {name[:12]:>12s} {r['loop']:9.2f} {r['cpu']:9.2f} {r['cpu_side']:12.2f} "
+                      f"{r['rss_mb']:8.0f} {ll.get('_optimize_functions', 0):12.1f}"
+                      f"{ll.get('_optimize_final_module', 0):8.1f}{ll.get('_finalize_final_module', 0):8.1f}",
+                      flush=True)
 
 
 def main() -> None:

@@ -13,10 +13,12 @@ over both builds; compare the ranges, not one pair.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import subprocess
 import sys
 import tempfile
+from collections.abc import Iterator
 
 _PROBE = """
 import numpy as np
@@ -42,24 +44,31 @@ def probe(tree: str) -> list[float]:
     return [float(x) for x in out.stdout.split()[-len(CASES):]]
 
 
+@contextlib.contextmanager
+def worktree(rev: str) -> Iterator[tuple[str, str]]:
+    """``(this checkout, a temporary git worktree of rev)``, the worktree removed after."""
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    with tempfile.TemporaryDirectory() as tmp:
+        other = os.path.join(tmp, "other")
+        subprocess.run(["git", "-C", here, "worktree", "add", "--detach", "-q", other, rev], check=True)
+        try:
+            yield here, other
+        finally:
+            subprocess.run(["git", "-C", here, "worktree", "remove", "--force", other], check=False)
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("rev", help="the other build: a git revision of this repository")
     ap.add_argument("--rounds", type=int, default=3, help="alternations (default 3)")
     args = ap.parse_args(argv)
-    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    with tempfile.TemporaryDirectory() as tmp:
-        other = os.path.join(tmp, "other")
-        subprocess.run(["git", "-C", here, "worktree", "add", "--detach", "-q", other, args.rev], check=True)
-        try:
-            probe(other)  # its compile, outside the measurement
-            probe(here)
-            runs: dict[str, list[list[float]]] = {args.rev: [], "this tree": []}
-            for _ in range(args.rounds):
-                runs[args.rev].append(probe(other))
-                runs["this tree"].append(probe(here))
-        finally:
-            subprocess.run(["git", "-C", here, "worktree", "remove", "--force", other], check=False)
+    with worktree(args.rev) as (here, other):
+        probe(other)  # its compile, outside the measurement
+        probe(here)
+        runs: dict[str, list[list[float]]] = {args.rev: [], "this tree": []}
+        for _ in range(args.rounds):
+            runs[args.rev].append(probe(other))
+            runs["this tree"].append(probe(here))
     print(f"\nµs per step, piston over one cycle at h = 1e-4 (best of 3 per process, {args.rounds} processes "
           "per build, alternating)")
     print(f"{'case':28s} " + " ".join(f"{name:>22s}" for name in runs))
