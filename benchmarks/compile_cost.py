@@ -1,32 +1,35 @@
 """What the compiled loop costs before its first step: compile time and memory, per
-feature set (the loop's two variants, ``moreau.compiled.loop.variant``).
+feature set (the loop's variants, ``moreau.compiled.variants.VARIANTS``).
 
 Runs a probe in new processes (absolute times on a shared 2-core machine are noisy; run
 the script alone):
 
 1. **plain**: an empty ``NUMBA_CACHE_DIR``; the variant without friction, bilateral rows
    and later passes (the frictionless piston's, the README's main job) is compiled;
-2. **full, after plain**: the same cache; the variant with them (a scene with friction,
-   joints, or the predictor–corrector / energy-consistent step) is compiled beside it;
-3. **full alone**: a new empty cache, the full variant only;
-4. **warm**: the first cache again, both variants loaded;
-5. **drivers**: the first cache again, step-size control's driver of each variant compiled
+2. **friction, after plain**: the same cache; the variant with friction (the piston with
+   ``--mu``, the woodpecker) is compiled beside it;
+3. **full, after them**: the same cache; the variant with friction, bilateral rows and
+   later passes (joints, the predictor–corrector / energy-consistent step);
+4. **full alone**: a new empty cache, the full variant only;
+5. **warm**: the first cache again, every variant loaded;
+6. **drivers**: the first cache again, step-size control's driver of each variant compiled
    beside its loaded loop (:mod:`moreau.compiled.native`).
 
 Each row: the seconds of ``moreau.ensure_compiled`` for that variant, the process's wall
 and CPU time and peak resident memory; then the compile time per kernel family of rows 1
-and 2 (the module of the compiled function: its own share, callees excluded; and the
+to 3 (the module of the compiled function: its own share, callees excluded; and the
 functions compiled a second time because a call passed a literal constant, and where the
 loop function's own compile goes: numba's passes over it and LLVM's phases on its module),
 and the seconds from ``simulate()`` to its end (0.1 s of stepping) of two scenes of user
 ``@numba.njit`` callables (their own compile) in rows 1 and 4.
 
     python benchmarks/compile_cost.py
-    python benchmarks/compile_cost.py --against REV --rounds 4 [--full]   # one variant, this build and REV
+    python benchmarks/compile_cost.py --against REV --rounds 4 [--variant friction]   # this build and REV
 
-With ``--against``, one variant only, compiled by this build and by ``REV`` alternately
-(this shared machine's speed drifted by up to a half between runs of one day: compare the
-rounds' pairs).
+With ``--against``, one variant only (default plain), compiled by this build and by
+``REV`` alternately (this shared machine's speed drifted by up to a half between runs of
+one day: compare the rounds' pairs); a build of two variants (before 2026-12-02) compiles
+its full one for ``friction``.
 """
 
 from __future__ import annotations
@@ -97,8 +100,14 @@ _PROBE = textwrap.dedent('''
     t_import = time.perf_counter() - t0
     t = time.perf_counter()
     from moreau.compiled.cache import ensure_compiled
-    for full in json.loads(sys.argv[1]):
-        ensure_compiled(full)
+    try:
+        from moreau.compiled.variants import VARIANTS
+    except ImportError:  # a build of two variants: ensure_compiled(full)
+        VARIANTS = None
+    names = json.loads(sys.argv[1])
+    asked = names if VARIANTS else [v != "plain" for v in names]
+    for v in asked:
+        ensure_compiled(v)
     t_loop = time.perf_counter() - t
     from moreau.compiled.loop import _run_chunk
     passes = defaultdict(float)  # numba's passes over the loop function (compiled here)
@@ -124,16 +133,16 @@ _PROBE = textwrap.dedent('''
                         [mo.Contact(mo.FunctionBarrier(gap, jac), 0.5)])
 
     users = []
-    for k in ((1, 2) if False in json.loads(sys.argv[1]) else ()):  # they run the plain variant
+    for k in ((1, 2) if "plain" in names else ()):  # they run the plain variant
         scene = user_scene(k)
         t = time.perf_counter()
         traj = mo.simulate(scene, (0.0, 0.1), [0.0, 1.0], [1.0, 0.0], 1e-3)
         assert traj.completed
         users.append(time.perf_counter() - t)
     drivers = []
-    for full in (json.loads(sys.argv[1]) if sys.argv[2:] == ["drivers"] else ()):
+    for v in (asked if sys.argv[2:] == ["drivers"] else ()):
         t = time.perf_counter()
-        ensure_compiled(full, step_control=True)
+        ensure_compiled(v, step_control=True)
         drivers.append(time.perf_counter() - t)
     cpu = resource.getrusage(resource.RUSAGE_SELF)
     side = resource.getrusage(resource.RUSAGE_CHILDREN)  # the second process of the compile
@@ -144,9 +153,9 @@ _PROBE = textwrap.dedent('''
 ''')
 
 
-def probe(cache: str, variants: list[bool], drivers: bool = False, tree: str | None = None) -> dict:
+def probe(cache: str, variants: list[str], drivers: bool = False, tree: str | None = None) -> dict:
     """Run the probe in a new process with ``NUMBA_CACHE_DIR=cache``, loading (or compiling)
-    the loop's ``variants`` (``full`` flags); ``drivers``: then step-size control's driver
+    the loop's ``variants`` (names); ``drivers``: then step-size control's driver
     of each; ``tree``: moreau imported from that checkout."""
     env = dict(os.environ, NUMBA_CACHE_DIR=cache, **({"PYTHONPATH": tree} if tree else {}))
     out = subprocess.run([sys.executable, "-c", _PROBE, json.dumps(variants)] + (["drivers"] if drivers else []),
@@ -156,21 +165,21 @@ def probe(cache: str, variants: list[bool], drivers: bool = False, tree: str | N
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def against(rev: str, rounds: int, full: bool) -> None:
+def against(rev: str, rounds: int, variant: str) -> None:
     """One variant compiled into empty caches by this build and by ``rev`` (a temporary git
     worktree), alternating, ``rounds`` times each: per round the loop's seconds, the CPU
     seconds of the process and of its second process, and its peak memory."""
     from interleaved import worktree  # (benchmarks/, this script's folder)
 
     with worktree(rev) as (here, tree):
-        print(f"the {'full' if full else 'plain'} variant into an empty cache, alternating "
+        print(f"the {variant} variant into an empty cache, alternating "
               f"(MOREAU_SIDE_COMPILE={os.environ.get('MOREAU_SIDE_COMPILE', '1')})")
         print(f"{'round':>5s} {'build':>12s} {'loop (s)':>9s} {'CPU (s)':>9s} {'2nd CPU (s)':>12s} {'peak MB':>8s}"
               f" {'LLVM: own, linked, machine code (s)':>36s}")
         for k in range(rounds):
             for name, src in (("this", here), (rev, tree)):
                 with tempfile.TemporaryDirectory() as cache:
-                    r = probe(cache, [full], tree=src)
+                    r = probe(cache, [variant], tree=src)
                 ll = r["llvm"]
                 print(f"{k + 1:5d} {name[:12]:>12s} {r['loop']:9.2f} {r['cpu']:9.2f} {r['cpu_side']:12.2f} "
                       f"{r['rss_mb']:8.0f} {ll.get('_optimize_functions', 0):12.1f}"
@@ -182,27 +191,31 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--against", metavar="REV", help="compile one variant here and at REV, alternating")
     parser.add_argument("--rounds", type=int, default=3, help="with --against: rounds (default 3)")
-    parser.add_argument("--full", action="store_true", help="with --against: the full variant, not the plain one")
+    parser.add_argument("--variant", choices=("plain", "friction", "full"), default="plain",
+                        help="with --against: the variant compiled (default plain)")
     args = parser.parse_args()
     if args.against:
-        return against(args.against, args.rounds, args.full)
+        return against(args.against, args.rounds, args.variant)
     t_start = time.perf_counter()
     with tempfile.TemporaryDirectory() as cache, tempfile.TemporaryDirectory() as alone:
-        runs = [("plain midpoint step, empty cache", probe(cache, [False])),
-                ("full (friction, joints, passes), beside it", probe(cache, [True])),
-                ("full, empty cache", probe(alone, [True])),
-                ("both, warm cache", probe(cache, [False, True]))]
-        drivers = probe(cache, [False, True], drivers=True)["drivers"]
+        every = ["plain", "friction", "full"]
+        runs = [("plain midpoint step, empty cache", probe(cache, ["plain"])),
+                ("friction, beside it", probe(cache, ["friction"])),
+                ("full (friction, joints, passes), beside them", probe(cache, ["full"])),
+                ("full, empty cache", probe(alone, ["full"])),
+                ("all three, warm cache", probe(cache, every))]
+        drivers = probe(cache, every, drivers=True)["drivers"]
     print("\nthe compiled loop before its first step, per variant (new processes; NUMBA_CACHE_DIR as said)")
     print(f"{'':44s} {'loop (s)':>9s} {'wall (s)':>9s} {'CPU (s)':>9s} {'peak MB':>9s}")
     for label, r in runs:
         print(f"{label:44s} {r['loop']:9.2f} {r['wall']:9.2f} {r['cpu']:9.2f} {r['rss_mb']:9.0f}")
     print(f"{'import moreau (s)':44s} {runs[0][1]['import']:9.2f}")
-    print(f"{'step-size control drivers, loops cached (s)':44s} plain {drivers[0]:5.2f}   full {drivers[1]:5.2f}")
+    print(f"{'step-size control drivers, loops cached (s)':44s} plain {drivers[0]:5.2f}   friction "
+          f"{drivers[1]:5.2f}   full {drivers[2]:5.2f}")
     for i in range(2):
         label = f"user scene {i + 1}: simulate() to its end (s)"
-        print(f"{label:44s} cold {runs[0][1]['user'][i]:6.2f}   warm {runs[3][1]['user'][i]:6.2f}")
-    for label, r in runs[:2]:
+        print(f"{label:44s} cold {runs[0][1]['user'][i]:6.2f}   warm {runs[4][1]['user'][i]:6.2f}")
+    for label, r in runs[:3]:
         print(f"\ncompile per kernel family, {label} (s, each function's own share, callees excluded)")
         for fam, sec in sorted(r["own"].items(), key=lambda x: -x[1]):
             if sec >= 0.05:

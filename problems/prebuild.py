@@ -27,14 +27,15 @@ log = logging.getLogger(__name__)
 
 
 _FULL = "import sys; sys.path.insert(0, sys.argv[1]); from moreau.compiled.cache import ensure_compiled; " \
-        "ensure_compiled(True)"
+        "ensure_compiled('full')"
 
 
 def warm_up() -> None:
-    """Compile both variants of the time loop and the piston's kernels into numba's cache
+    """Compile every variant of the time loop and the piston's kernels into numba's cache
     (the editable install's build step calls this alone: its runs load them from there).
-    The full variant compiles in a second process, beside the plain one and the piston's
-    cycle (each under its own lock: :func:`moreau.compiled.cache.ensure_compiled`)."""
+    The full variant compiles in a second process, beside the plain one, the piston's
+    cycle and the friction variant (each under its own lock:
+    :func:`moreau.compiled.cache.ensure_compiled`)."""
     import moreau
     from moreau.compiled.cache import ensure_compiled
     from moreau.problems.piston.job import Case, run_cases
@@ -42,12 +43,13 @@ def warm_up() -> None:
     root = os.path.dirname(os.path.dirname(os.path.abspath(moreau.__file__)))
     full = subprocess.Popen([sys.executable, "-c", _FULL, root])
     try:
-        ensure_compiled(False)
+        ensure_compiled("plain")
         with tempfile.TemporaryDirectory(prefix="moreau-prebuild-") as tmp:
             rows = run_cases([Case(e=0.9, D=0.08004, h=1e-3, cycles=1, transient=0)], tmp, progress=False,
                              workers=1)
         if rows[0]["status"] != "completed":
             log.warning("moreau prebuild: the piston's warm-up run ended %r", rows[0]["status"])
+        ensure_compiled("friction")
         if full.wait() != 0:
             log.warning("moreau prebuild: compiling the loop's full variant failed (exit %d); its first run "
                         "compiles it", full.returncode)

@@ -35,16 +35,19 @@ def chaotic_pendulum():
 
 @pytest.fixture(scope="session", autouse=True)
 def loop_variants_side_by_side(request):
-    """Under pytest-xdist, the first two workers load the compiled loop's two variants
-    before their first test, one each (:func:`moreau.compiled.loop.variant`): on an empty
-    cache they compile them side by side (each under its own lock), instead of one worker
-    waiting for the other's compile in its first test that needs the other variant."""
+    """Under pytest-xdist, the first two workers load the compiled loop's variants before
+    their first test (:data:`moreau.compiled.variants.VARIANTS`): on an empty cache gw1
+    compiles the full one while gw0 compiles the others (each under its own lock), instead
+    of one worker waiting for another's compile in its first test that needs it."""
     worker = getattr(request.config, "workerinput", {}).get("workerid")
     if worker in ("gw0", "gw1"):
         from moreau.compiled.cache import ensure_compiled
 
-        # gw0 also step-size control's driver of the plain variant, while gw1 still compiles
-        ensure_compiled(worker == "gw1", step_control=worker == "gw0")
+        if worker == "gw1":
+            ensure_compiled("full")
+        else:  # with step-size control's driver of the plain variant, while gw1 still compiles
+            ensure_compiled("plain", step_control=True)
+            ensure_compiled("friction")
 
 
 # modules with tests that run the loop's full variant (friction, bilateral rows, the later

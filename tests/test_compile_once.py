@@ -14,11 +14,12 @@ import pytest
 import moreau as mo
 from moreau.compiled import loop
 from moreau.compiled.lowering import lower
+from moreau.compiled.variants import VARIANTS
 
 _PROBE = textwrap.dedent("""
     from moreau.compiled import loop
     from moreau.compiled.cache import ensure_compiled
-    ensure_compiled(False)  # the plain variant
+    ensure_compiled("plain")
     st = loop._run_chunk.stats
     print(sum(st.cache_misses.values()), sum(st.cache_hits.values()))
 """)
@@ -177,21 +178,22 @@ def test_no_writable_cache_directory_runs_with_one_warning_in_a_temporary_one():
     assert "Traceback" not in out.stderr
 
 
-def test_a_scene_runs_the_plain_loop_unless_it_has_friction_bilateral_rows_or_later_passes():
+def test_a_scene_runs_the_loop_compiled_for_its_features():
     from moreau.compiled.layout import STEP_ENERGY, STEP_MIDPOINT, STEP_THETA
-    from moreau.compiled.loop import variant
+    from moreau.compiled.variants import variant
     from moreau.problems.bouncing_ball import bouncing_ball
     from moreau.problems.four_bar import four_bar
     from moreau.problems.piston import piston_model
 
     piston, rough = lower(piston_model(e=0.9).scene), lower(piston_model(e=0.9, mu=0.05).scene)
     ball = lower(bouncing_ball(0.5))
-    assert not variant(piston.ints, STEP_MIDPOINT) and not variant(ball.ints, STEP_MIDPOINT)
-    assert variant(rough.ints, STEP_MIDPOINT)  # tangent rows
-    assert variant(lower(four_bar().scene).ints, STEP_MIDPOINT)  # bilateral rows
-    assert variant(piston.ints, STEP_ENERGY, 8)  # M(q): the energy-consistent step iterates
-    assert not variant(ball.ints, STEP_ENERGY, 8)  # constant M, no damping: one pass, as the midpoint step
-    assert not variant(ball.ints, STEP_THETA)  # no velocity-dependent force: one pass
+    assert variant(piston.ints, STEP_MIDPOINT) == variant(ball.ints, STEP_MIDPOINT) == "plain"
+    assert variant(rough.ints, STEP_MIDPOINT) == "friction"  # tangent rows
+    assert variant(rough.ints, STEP_ENERGY, 8) == "full"  # and later passes
+    assert variant(lower(four_bar().scene).ints, STEP_MIDPOINT) == "full"  # bilateral rows
+    assert variant(piston.ints, STEP_ENERGY, 8) == "full"  # M(q): the energy-consistent step iterates
+    assert variant(ball.ints, STEP_ENERGY, 8) == "plain"  # constant M, no damping: one pass, as the midpoint step
+    assert variant(ball.ints, STEP_THETA) == "plain"  # no velocity-dependent force: one pass
 
 
 _PLAIN_ONLY = textwrap.dedent("""
@@ -209,7 +211,7 @@ def test_a_scene_without_friction_or_bilateral_rows_compiles_none_of_their_code(
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), PYTHONPATH=os.getcwd())
     out = subprocess.run([sys.executable, "-c", _PLAIN_ONLY], env=env, capture_output=True, text=True, timeout=900)
     assert out.returncode == 0, out.stderr[-2000:]
-    assert out.stdout.split() == ["[False]"]  # the plain variant only
+    assert out.stdout.split() == ["['plain']"]  # the plain variant only
     names = {p.name.split("-")[0] for p in tmp_path.glob("*/*.nbi")}
     assert "loop._run_chunk" in names and "one_step.solve_one_step" in names
     assert not {n for n in names if n.startswith(("friction.", "lemke.", "friction_states.", "equality.",
@@ -227,7 +229,7 @@ def test_ensure_compiled_with_step_control_loads_that_variants_driver():
         from moreau.problems.bouncing_ball import bouncing_ball
         assert len(adaptive._run_adaptive.overloads) == 0
         mo.ensure_compiled(bouncing_ball(0.8), step_control=True)
-        print(sorted(isinstance(sig[31], types.NoneType) for sig in adaptive._run_adaptive.overloads))
+        print([isinstance(sig[31], types.NoneType) for sig in adaptive._run_adaptive.overloads])
     """)
     out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=600,
                          env=dict(os.environ, PYTHONPATH=os.getcwd()))
@@ -246,7 +248,7 @@ def test_no_cached_function_is_compiled_again_for_a_literal_argument():
 
     from moreau.core import jitcache
 
-    mo.ensure_compiled()  # both variants: loaded (the suite's first workers compiled them) or compiled
+    mo.ensure_compiled()  # every variant: loaded (the suite's first workers compiled them) or compiled
     twice = []
     index = [p for p in jitcache._cached_files() if p.endswith(".nbi")]
     assert any(os.path.basename(p).startswith("one_step.solve_one_step") for p in index)
@@ -277,7 +279,7 @@ def test_the_loops_contact_solves_are_the_ones_their_python_entries_compile(solv
     from moreau.core import jitcache
 
     mo.ensure_compiled()  # the loop's copies: compiled (or loaded) with each variant
-    _compile(True)  # the entries, as the second process calls them
+    _compile("full")  # the entries, as the second process calls them
     index = [p for p in jitcache._cached_files() if os.path.basename(p).startswith(solve) and p.endswith(".nbi")]
     assert len(index) == 1
     with open(index[0], "rb") as f:
@@ -313,10 +315,10 @@ def test_the_side_compile_uses_the_loops_argument_types():
     mo.ensure_compiled()
     stems = ("drift.project_rows", "energy._energy_check")
     before = {s: _cached_signatures(s) for s in stems}
-    assert len(before["drift.project_rows"]) == 2  # eqw None in the plain variant
-    for full in (False, True):
-        projection_address(*chunk_example(full)[:7])  # each variant's, through its address
-        type_calls_of_the_loop(full)
+    assert len(before["drift.project_rows"]) == 2  # eqw None in the plain and friction variants
+    for v in VARIANTS:
+        projection_address(*chunk_example(v)[:7])  # each variant's, through its address
+        type_calls_of_the_loop(v)
     assert {s: _cached_signatures(s) for s in stems} == before
 
 
@@ -331,6 +333,21 @@ def test_a_projection_address_for_other_types_is_never_called(monkeypatch):
         mo.simulate(bead_in_circle(), (0.0, 2.0), [0.0, -1.0], [3.0, 0.0], 1e-2, solver="enum",
                     drift_control=mo.PositionProjection())
     assert caught.value.trajectory.status == "failed"
+
+
+def test_a_friction_solve_address_for_other_types_is_never_called(monkeypatch):
+    """The same for the friction solve: a block sliding on a rough floor, its solve's
+    address given a wrong key, fails at its first contact step, naming the bug."""
+    from moreau.compiled import runner
+
+    scene = mo.Scene(mo.FunctionSystem(np.eye(2)), [mo.ConstantForce([0.0, -9.81])],
+                     [mo.Contact(mo.LinearBarrier([[0.0, 1.0]], [0.0], tangent=[[1.0, 0.0]]),
+                                 mo.NewtonImpactFriction(0.0, 0.5))])
+    monkeypatch.setattr(runner, "friction_address", lambda *arrays: (0, 12345))  # address 0: a crash if called
+    with pytest.raises(mo.SimulationError, match="internal error") as caught:
+        mo.simulate(scene, (0.0, 0.1), [0.0, 0.0], [1.0, 0.0], 1e-3)
+    assert caught.value.trajectory.status == "failed"
+    assert caught.value.step == 0
 
 
 def test_the_loops_compile_waits_for_what_the_second_process_is_compiling(monkeypatch):
@@ -378,10 +395,10 @@ def test_the_side_compile_needs_two_cores_and_can_be_turned_off(monkeypatch):
     from moreau.compiled import side_compile
 
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0})
-    assert side_compile.start(False) is None
+    assert side_compile.start("plain") is None
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1})
     monkeypatch.setenv("MOREAU_SIDE_COMPILE", "0")
-    assert side_compile.start(False) is None
+    assert side_compile.start("plain") is None
 
 
 def test_the_side_compile_ends_with_the_process_that_started_it(tmp_path):
@@ -390,7 +407,7 @@ def test_the_side_compile_ends_with_the_process_that_started_it(tmp_path):
     from test_trust_stops import alive  # a zombie counts as ended
 
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), PYTHONPATH=os.getcwd())
-    parent = ("import os, sys; from moreau.compiled import side_compile; p = side_compile.start(True); "
+    parent = ("import os, sys; from moreau.compiled import side_compile; p = side_compile.start('full'); "
               "print(p.proc.pid, flush=True); sys.stdin.read()")
     proc = subprocess.Popen([sys.executable, "-c", parent], env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                             text=True)

@@ -19,7 +19,7 @@ j.PREBUILT = sys.argv[1]
 print("seeded", j.seed())
 from moreau.compiled.cache import ensure_compiled
 from moreau.compiled.loop import _run_chunk as run_chunk
-ensure_compiled(False)
+ensure_compiled("plain")
 print("hits", sum(run_chunk.stats.cache_hits.values()), "misses", sum(run_chunk.stats.cache_misses.values()))
 """
 

@@ -87,6 +87,7 @@ from moreau.compiled.layout import (
 from moreau.compiled.layout import part as _part
 from moreau.compiled.loop import _record, _run_chunk
 from moreau.compiled.native import address, call_native
+from moreau.compiled.variants import VARIANTS, variant_of
 from moreau.core import kernels as _k
 from moreau.core.jitcache import call_recovering, compile_lock
 
@@ -316,12 +317,12 @@ def run_adaptive(model: tuple, user: np.ndarray, settings, state, records, tally
     steps = chunk_arguments(model, user, settings, state, records, tally, work, k_end)  # _run_chunk's
     args = (*steps, control, snap, address(_run_chunk, steps))
     known = len(_run_adaptive.overloads)
-    if known >= 2:
+    if known >= len(VARIANTS):
         return _run_adaptive(*args)
-    # until both variants are loaded: a new one is loaded (or compiled) one process at a
+    # until every variant is loaded: a new one is loaded (or compiled) one process at a
     # time, others wait and load it; a damaged cache file is compiled again
     t0 = time.perf_counter()
-    with compile_lock(".adaptive." + ("plain" if work[3] is None else "full")):
+    with compile_lock(".adaptive." + variant_of(work)):
         status = call_recovering(_run_adaptive, *args)
     if len(_run_adaptive.overloads) > known and time.perf_counter() - t0 > 2.0:  # compiled, not loaded
         log.info("moreau: step-size control's driver compiled in %.0f s, once for this machine",

@@ -18,6 +18,7 @@ import numpy as np
 from moreau.compiled import side_compile
 from moreau.compiled.layout import STEP_MIDPOINT
 from moreau.compiled.runner import one_row_scene, run_compiled
+from moreau.compiled.variants import VARIANTS
 from moreau.core.compiling import compile_call
 from moreau.core.jitcache import cache_dir, call_recovering, clear, compile_lock
 
@@ -28,63 +29,66 @@ log = logging.getLogger(__name__)
 
 #: what the first compile of each variant of the loop takes on a 2-core machine, s, as the
 #: message says it (benchmarks/compile_cost.py; docs/performance.md has the figures)
-COMPILE_SECONDS = {False: 30, True: 70}
-_NAMES = {False: "the plain midpoint step", True: "friction, bilateral rows and later passes"}
-_ready = {False: threading.Event(), True: threading.Event()}
-_drivers: set[bool] = set()  # the variants whose step-control driver this process has
+COMPILE_SECONDS = {"plain": 30, "friction": 30, "full": 70}
+_NAMES = {"plain": "the plain midpoint step", "friction": "friction",
+          "full": "friction, bilateral rows and later passes"}
+_ready = {v: threading.Event() for v in VARIANTS}
+_drivers: set[str] = set()  # the variants whose step-control driver this process has
 _ready_lock = threading.Lock()
 
 
-def ensure_compiled(full: bool | None = None, step_control: bool = False) -> float:
+def ensure_compiled(variant: str | None = None, step_control: bool = False) -> float:
     """Load a variant of the compiled time loop from numba's cache, or compile it (once per
     machine and version, saying so in one logged line) when it is not there; returns the
     seconds it took (0 when this process has it already).
 
-    ``full``: the variant with friction, bilateral rows and the step's later passes (True)
-    or the one without them (False; :func:`moreau.compiled.loop.variant` says which a scene
-    runs); None: both. Processes started together on an empty cache compile once: the
-    first holds a lock in the cache directory (:func:`moreau.core.jitcache.compile_lock`),
-    the others wait and then load what it saved. Call it before starting worker
+    ``variant``: one of :data:`moreau.compiled.variants.VARIANTS` (the plain midpoint step,
+    with friction, or with friction, bilateral rows and the step's later passes;
+    :func:`moreau.compiled.variants.variant` says which a scene runs); None: all. Processes
+    started together on an empty cache compile once: the first holds a lock in the cache
+    directory (:func:`moreau.core.jitcache.compile_lock`), the others wait and then load
+    what it saved. Call it before starting worker
     processes, or to warm a cache (``moreau compile`` does). ``step_control``: also step-size
     control's driver for that variant (:mod:`moreau.compiled.adaptive`; otherwise compiled or loaded
     on first use).
     """
-    if full is None:
-        return ensure_compiled(False, step_control) + ensure_compiled(True, step_control)
-    full = bool(full)
+    if variant is None:
+        return sum(ensure_compiled(v, step_control) for v in VARIANTS)
+    if variant not in VARIANTS:
+        raise ValueError(f"variant={variant!r}: expected one of {VARIANTS} or None")
     if step_control:
-        spent = ensure_compiled(full)
+        spent = ensure_compiled(variant)
         with _ready_lock:
-            if full in _drivers:
+            if variant in _drivers:
                 return spent
             t = time.perf_counter()
-            compile_call(_warm_up, full, True)  # (the driver takes its own lock, and loads or compiles)
-            _drivers.add(full)
+            compile_call(_warm_up, variant, True)  # (the driver takes its own lock, and loads or compiles)
+            _drivers.add(variant)
             return spent + time.perf_counter() - t
-    if _ready[full].is_set():
+    if _ready[variant].is_set():
         return 0.0
     with _ready_lock:
-        if _ready[full].is_set():
+        if _ready[variant].is_set():
             return 0.0
         t = time.perf_counter()
-        with compile_lock(".full" if full else ".plain"):  # the two variants may compile side by side
+        with compile_lock("." + variant):  # the variants may compile side by side
             d = cache_dir()
-            cold = d is None or full not in cached_variants()
+            cold = d is None or variant not in cached_variants()
             if cold:
                 log.warning("moreau: compiling the time loop for %s once for this machine (about %d s; later runs "
-                            "load it from %s)", _NAMES[full], COMPILE_SECONDS[full],
+                            "load it from %s)", _NAMES[variant], COMPILE_SECONDS[variant],
                             d or "nowhere: the cache is not writable")
             # the contact solves compiled beside the loop, in a second process
-            helper = side_compile.start(full) if cold and d is not None else None
+            helper = side_compile.start(variant) if cold and d is not None else None
             try:
-                _load_or_compile(full, cold, d)
+                _load_or_compile(variant, cold, d)
             finally:
                 side_compile.stop(helper)
-            _ready[full].set()
+            _ready[variant].set()
         return time.perf_counter() - t
 
 
-def _load_or_compile(full: bool, cold: bool, d: str | None) -> None:
+def _load_or_compile(variant: str, cold: bool, d: str | None) -> None:
     """The variant loaded from numba's cache, or compiled (``cold``) into ``d``."""
     try:
         # loading machine code runs through LLVM callbacks: a Ctrl-C or SIGTERM raised
@@ -92,20 +96,21 @@ def _load_or_compile(full: bool, cold: bool, d: str | None) -> None:
         # wait and are acted on right after it
         with (contextlib.nullcontext() if cold else _signals_deferred()):
             # (moreau.core.compiling: a fresh stack, fewer collections); a damaged file: compiled again
-            call_recovering(lambda: compile_call(_warm_up, full))
+            call_recovering(lambda: compile_call(_warm_up, variant))
     except (pickle.UnpicklingError, EOFError, ValueError, TypeError, AttributeError,
             ImportError, OSError) as exc:  # an unreadable cache file not found in the traceback
         removed = clear()
         log.warning("moreau: numba's cache in %s could not be read (%s: %s); removed %d files of it "
                     "and compiling the time loop again (about %d s)", d, type(exc).__name__, exc,
-                    removed, COMPILE_SECONDS[full])
-        compile_call(_warm_up, full)
+                    removed, COMPILE_SECONDS[variant])
+        compile_call(_warm_up, variant)
 
 
-def cached_variants() -> set[bool]:
-    """The variants of the loop (``full``, see :func:`ensure_compiled`) in numba's cache for
-    this source (read from numba's index of ``moreau.compiled.loop._run_chunk``: its
-    argument ``fr`` is None in the plain variant)."""
+def cached_variants() -> set[str]:
+    """The variants of the loop (:data:`moreau.compiled.variants.VARIANTS`) in numba's cache for
+    this source (read from numba's index of ``moreau.compiled.loop._run_chunk``: which of its
+    last three arguments, friction's, the bilateral rows' and the later passes' arrays, are
+    None)."""
     from numba.core import types
 
     from moreau.compiled.loop import _run_chunk
@@ -114,7 +119,8 @@ def cached_variants() -> set[bool]:
         index = _run_chunk._cache._cache_file._load_index()  # numba's own (stamp-checked) index
     except Exception:  # noqa: BLE001 - unreadable or another numba: treated as absent, compiled
         return set()
-    return {not isinstance(key[0][-3], types.NoneType) for key in index}
+    none = [tuple(isinstance(t, types.NoneType) for t in key[0][-3:]) for key in index]
+    return {"plain" if fr else "friction" if eqw and ec else "full" for fr, eqw, ec in none}
 
 
 @contextlib.contextmanager
@@ -141,23 +147,23 @@ def _signals_deferred() -> Iterator[None]:
                 os.kill(os.getpid(), num)
 
 
-def _compile_loop(full: bool) -> None:
-    """The loop of the ``full`` variant or the plain one, loaded or compiled (for a run's types)."""
+def _compile_loop(variant: str) -> None:
+    """The loop of a variant (:data:`moreau.compiled.variants.VARIANTS`), loaded or compiled (for a run's types)."""
     from moreau.compiled.layout import chunk_arguments
     from moreau.compiled.loop import _run_chunk
     from moreau.compiled.runner import chunk_example
 
-    args = chunk_arguments(*chunk_example(full))
+    args = chunk_arguments(*chunk_example(variant))
     _run_chunk.compile(tuple(_run_chunk.typeof_pyval(a) for a in args))
 
 
-def _warm_up(full: bool, adaptive: bool = False) -> None:
-    """Two steps of a one-row scene on the ``full`` variant or the plain one: loads (or
+def _warm_up(variant: str, adaptive: bool = False) -> None:
+    """Two steps of a one-row scene on a variant of the loop: loads (or
     compiles) every compiled function a run of that variant calls; ``adaptive``: with
     step-size control (its driver)."""
     scene = one_row_scene()
-    _compile_loop(full)  # before the run's own calls: the drift projection is the second process's meanwhile
+    _compile_loop(variant)  # before the run's own calls: the drift projection is the second process's meanwhile
     run_compiled(scene, None, 0.0, np.array([1e-3]), np.array([-1.0]), 1e-3, 2, step=STEP_MIDPOINT, solver="exact",
                  fallback=None, stride=1, bar=None, energy=True, tol=1e-8, drift_control=None,
-                 flight_gap=np.zeros(1), gmax0=np.full(1, np.inf), full=full,
+                 flight_gap=np.zeros(1), gmax0=np.full(1, np.inf), variant=variant,
                  control=(2e-3, 1e-3, 0.0, 1e-12) if adaptive else None)

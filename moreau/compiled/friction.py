@@ -1,9 +1,12 @@
 """Coulomb friction in the compiled step: the tangent rows of the active contacts join
 the step's problem, solved by Lemke's method with the law check
-(:func:`moreau.contact.friction.solve_friction_step`). Compiled into the loop only as a
-branch taken by scenes with friction (``ints[SC_MF] > 0``); the solve itself is a call (its
-code is compiled once, not into the loop; the two parts here are inlined: as calls of
-their own, passing the friction arrays' tuple, they compiled 5 s slower)."""
+(:func:`moreau.contact.friction.solve_friction_step`). Compiled only into the loop's
+variants with friction (``moreau.compiled.variants.VARIANTS``). The solve is called through
+the address of its machine code (:func:`friction_address`, looked up by the run, as the
+drift projection is): the loop's compile neither compiles it nor waits for the second
+process that does, and LLVM does not optimize its 21 000 instructions again in the
+loop's module. The two parts here are inlined: as calls of their own, passing the
+friction arrays' tuple, they compiled 5 s slower."""
 
 from __future__ import annotations
 
@@ -21,13 +24,16 @@ from moreau.compiled.layout import (
     F_H,
     F_T0,
     F_TOL,
+    S_FRICTION,
+    S_FRICTION_KEY,
     FrictionWork,
 )
 from moreau.compiled.layout import part as _part
+from moreau.compiled.native import address_and_key, call_checked
 from moreau.contact.friction import FRICTION_AUTO, friction_workspace, solve_friction_step
 from moreau.contact.painleve import PAINLEVE_MARGIN
 
-__all__ = ["friction_work", "friction_parts"]
+__all__ = ["friction_address", "friction_work", "friction_parts"]
 
 
 def friction_work(n: int, m: int, mf: int, mu: np.ndarray, tangent_row: np.ndarray) -> tuple:
@@ -41,13 +47,25 @@ def friction_work(n: int, m: int, mf: int, mu: np.ndarray, tangent_row: np.ndarr
                         np.ascontiguousarray(tangent_row, dtype=np.int64))
 
 
+def friction_address(settings, work: tuple) -> tuple[int, int]:
+    """The address of :func:`~moreau.contact.friction.solve_friction_step`'s machine code
+    for a run's arrays (``settings``, ``work`` of :func:`moreau.compiled.loop.run_chunk`),
+    as :func:`_friction_solve` calls it, and the key of its argument types (the
+    ``S_FRICTION`` settings): loaded or compiled here."""
+    own, ws, lw, fr = work[:4]
+    return address_and_key(solve_friction_step, (
+        own.M, own.L, lw.b, lw.GA, lw.cA, fr.muA, fr.fidx, np.int64(0), np.int64(0), lw.PA, own.v_new,
+        float(settings.fset[F_TOL]), fr.res, fr.lemke, np.int64(FRICTION_AUTO)))
+
+
 @_part
-def _friction_solve(n, m, M, L, b, G, GA, cA, active, na, v_new, PA, fset, acc, fail, fr, cnt, Lo, eqw, rank):
+def _friction_solve(n, m, M, L, b, G, GA, cA, active, na, v_new, PA, iset, fset, acc, fail, fr, cnt, Lo, eqw, rank):
     """The step's contact problem with friction: the tangent rows of the active rows with
     mu > 0 stacked under the normal rows ``GA`` (na rows), solved and checked. Returns 1
     (solved; ``PA`` = [P_N; P_T], ``fr``'s PT per row), 0 (no active row has friction: the
-    caller solves the frictionless problem) or −1 (no answer passed the law check; the
-    residuals in ``fail[0]``). A sliding contact in Painlevé's region (as
+    caller solves the frictionless problem), −1 (no answer passed the law check; the
+    residuals in ``fail[0]``) or −2 (the solve's address was made for other argument types:
+    never called). A sliding contact in Painlevé's region (as
     :func:`moreau.contact.painleve.painleve_rows` finds them) is counted in ``cnt``.
 
     With bilateral rows (``rank`` >= 0: M, L, b are the reduced problem's, ``Lo`` the
@@ -73,9 +91,12 @@ def _friction_solve(n, m, M, L, b, G, GA, cA, active, na, v_new, PA, fset, acc, 
         return 0
     if eqw is not None and rank >= 0:
         _eq_reduce(Lo, eqw.Q, eqw.y, eqw.x, rank, GA, na, na + kf, cA)
-    # ``method`` given, as friction_one_step gives it: one compiled signature serves both
-    st = solve_friction_step(M, L, b, GA, cA, muA, fidx, np.int64(na), np.int64(kf), PA, v_new, fset[F_TOL], res,
-                             fws, np.int64(FRICTION_AUTO))
+    # through its address (S_FRICTION); ``method`` given, as friction_one_step gives it: one
+    # compiled signature serves both
+    st = call_checked(iset[S_FRICTION], iset[S_FRICTION_KEY], (M, L, b, GA, cA, muA, fidx, np.int64(na),
+                      np.int64(kf), PA, v_new, fset[F_TOL], res, fws, np.int64(FRICTION_AUTO)))
+    if st < 0:  # never called: the caller says NATIVE_MISMATCH
+        return -2
     if st != 0:
         for i in range(6):
             fail[0, i] = res[i]

@@ -45,7 +45,9 @@ S_DRIFT_VELOCITY = 16
 # (S_PROJECT, S_PROJECT_KEY: the address of the drift projection's machine code for the run's
 # argument types, and the key of those types: compiled.drift.projection_address)
 S_PROJECT, S_PROJECT_KEY = 17, 18
-N_SETTINGS = 19
+# (S_FRICTION, S_FRICTION_KEY: the same for the friction solve, compiled.friction.friction_address)
+S_FRICTION, S_FRICTION_KEY = 19, 20
+N_SETTINGS = 21
 # the LCP methods (S_METHOD, S_FALLBACK): dual active set, enumeration, called back; -1 none
 METHOD_EXACT, METHOD_ENUM, METHOD_EXTERNAL = 0, 1, 2
 # the step (S_STEP): midpoint, predictor-corrector, energy-consistent
@@ -155,7 +157,7 @@ FrictionWork = namedtuple("FrictionWork", "fidx muA PT PT_acc res lemke mu tange
 #: the reduced problem's vectors (x, y, by), impulses PE and F, the identity, yv, the impulses
 #: summed since the last record, cE, the rank (1,), and the velocity projection's rows S
 EqualityWork = namedtuple("EqualityWork", "Q R piv x y by PE F eye yv PE_acc cE rank S")
-#: the step's own work arrays (compiled.loop.loop_workspace): M(q_m) and its factor, cos/sin
+#: the step's own work arrays (compiled.variants.loop_workspace): M(q_m) and its factor, cos/sin
 #: of q_m and of q⁺, q_m, the forces, v⁺, a spare vector, q⁺, the gaps at q_m and at q⁺,
 #: the impulses and closed rows, the Jacobian (all rows), the free velocity, the bias forces
 StepWork = namedtuple("StepWork", "M L cm sm cq sq qm f v_new vbar q_new gm gq P active G vfree fb")

@@ -18,10 +18,9 @@ import numpy as np
 from numba import njit
 
 from moreau.compiled import evaluate as ev
-from moreau.compiled.bilateral import _eq_hold, _eq_project_velocity, _eq_records, equality_work
+from moreau.compiled.bilateral import _eq_hold, _eq_project_velocity, _eq_records
 from moreau.compiled.drift import _project
 from moreau.compiled.energy import _energy_check, _kinetic_energy
-from moreau.compiled.friction import friction_work
 from moreau.compiled.implicit import end_of_pass, energy_start, pass_forces, velocity_passes
 from moreau.compiled.layout import (  # the loop's layout
     A_WORK_B,
@@ -41,7 +40,6 @@ from moreau.compiled.layout import (  # the loop's layout
     F_PE0,
     F_T0,
     IMPACTS_FULL,
-    N_SETTINGS,
     NONFINITE,
     NONFINITE_GAP,
     NOT_CONVERGED,
@@ -52,11 +50,9 @@ from moreau.compiled.layout import (  # the loop's layout
     S_DRIFT,
     S_ECHECK,
     S_ENERGY,
-    S_ITER,
     S_LOCATE,
     S_MASS_READY,
     S_NSTEPS,
-    S_STEP,
     S_STRIDE,
     SC_HAS_BIAS,
     SC_M,
@@ -67,64 +63,16 @@ from moreau.compiled.layout import (  # the loop's layout
     SC_N,
     SC_TRIG,
     USER_FAILED,
-    LoopWork,
-    PassWork,
     Records,
     RunState,
     Settings,
-    StepWork,
     Tally,
     chunk_arguments,
 )
 from moreau.compiled.layout import part as _part
 from moreau.compiled.records import _contact_records
 from moreau.compiled.step import _user_failed, _velocity_update
-from moreau.contact.lcp import workspace
 from moreau.core import kernels as _k
-
-
-def loop_workspace(n: int, m: int, mf: int, mu: np.ndarray, tangent_row: np.ndarray, me: int = 0,
-                   full: bool = True) -> tuple:
-    """The work arrays of :func:`run_chunk` for n coordinates, m rows, mf tangent rows
-    (friction; mu (m,) and tangent_row (m,) from the lowered scene) and me bilateral rows,
-    allocated once per run, outside the loop: the loop itself allocates nothing.
-
-    ``(own, ws, lw, fr, eqw, ec)``: the arrays of friction (``fr``), of the bilateral
-    rows (``eqw``) and of the step's later passes (``ec``) are None unless ``full``, and
-    the loop run on them is the variant compiled without any of their code (numba prunes
-    the branches on ``is None``; :func:`variant` says which a scene takes). Plain numpy:
-    allocating compiles nothing."""
-    mm = max(m, 1)
-    mt = m + mf + me  # the rows of the gaps and the Jacobian: contacts, tangents, bilateral
-    ma = max(mt, 1)
-    own = StepWork(np.empty((n, n)), np.empty((n, n)), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n),
-           np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.zeros(mt), np.zeros(mt),
-           np.zeros(m), np.zeros(m, dtype=np.bool_), np.empty((mt, n)), np.empty(n), np.empty(n))
-    lw = LoopWork(np.empty((ma, n)), np.empty(ma), np.empty(n), np.empty(n), np.empty(ma),
-                  np.empty((ma, n)), np.empty(n), np.zeros(n), np.zeros(mm, dtype=np.bool_), np.empty((4, n)),
-                  np.zeros(n), np.zeros(n), np.zeros(mm, dtype=np.bool_))
-    ec = PassWork(np.empty((n, n)), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.zeros(n),
-                  np.zeros(n), np.empty(n), np.zeros(n))
-    if not full:
-        return own, workspace(n, m), lw, None, None, None
-    return own, workspace(n, m), lw, friction_work(n, m, mf, mu, tangent_row), equality_work(n, me, m + mf), ec
-
-
-def variant(ints: np.ndarray, step: int, iterations: int = 1) -> bool:
-    """Whether a lowered scene (its ``ints``, ``lowering.CompiledScene.ints``) stepped with
-    ``step`` (``layout.STEP_*``; ``iterations``: the energy-consistent step's iterates)
-    runs the loop compiled with friction, bilateral rows and the step's later passes (the
-    full variant: it has tangent rows, bilateral rows or a step of more than one velocity
-    update, ``moreau.compiled.implicit.velocity_passes``), or the one compiled
-    without them (the plain midpoint step).
-
-    Two variants, not one per feature set: each compiles the loop function anew (27-46 s
-    here, benchmarks/compile_cost.py), and the test suite, which runs every feature,
-    would compile up to eight."""
-    iset = np.zeros(N_SETTINGS, dtype=np.int64)
-    iset[S_STEP], iset[S_ITER] = step, iterations
-    passes = velocity_passes.py_func(iset, ints)[0]  # the compiled rule, run here
-    return bool(ints[SC_MF] > 0 or ints[SC_ME] > 0 or passes > 1)
 
 
 @_part

@@ -91,9 +91,10 @@ def run_error(code, scene, k, t, q, v, h, fail, cs, user_status, acc, tol=float(
             msg = (f"the bilateral constraints could not be held {where}: row {row!r} stayed off g = 0 after the "
                    "projection steps (a singular configuration, or a step too large for the motion)")
         return SolverError(msg, step=k, t=t, rows=[row], residuals={})
-    if code == lay.NATIVE_MISMATCH:  # never seen: a test runs every variant's projection
-        return SimulationError(f"internal error {where}: the drift projection's machine code was made for other "
-                               "argument types than the loop's call (please report this moreau bug)", None, k)
+    if code == lay.NATIVE_MISMATCH:  # never seen: tests run every variant's projection and friction solve
+        return SimulationError(f"internal error {where}: the machine code of a call through its address (the drift "
+                               "projection or the friction solve) was made for other argument types than the loop's "
+                               "call (please report this moreau bug)", None, k)
     if code == lay.NOT_SPD:
         msg = (f"the mass matrix stopped being symmetric positive definite {where}: "
                f"M = {scene.system.mass_matrix(q + 0.5 * h * v).tolist()}")

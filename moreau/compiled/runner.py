@@ -19,9 +19,11 @@ import numpy as np
 from moreau.compiled import adaptive as ad
 from moreau.compiled import layout as lay
 from moreau.compiled import loop as lp
+from moreau.compiled import variants as vs
 from moreau.compiled.at_records import slips
 from moreau.compiled.callbacks import SolverCallback
 from moreau.compiled.drift import projection_address
+from moreau.compiled.friction import friction_address
 from moreau.compiled.lowering import CompiledScene, lower
 from moreau.compiled.run_errors import _name, run_error, run_warnings
 from moreau.contact.exact import EnumerationSolver, ExactSolver
@@ -80,7 +82,8 @@ def _settings(scene, t0: float, h: float, n_steps: int, step: int, solver, fallb
     steps = (1 << 62, -1) if adaptive else (stride, n_steps)
     iset = np.array([step, drift_mode, drift_iter, *steps, method, fb, int(energy), memory, locate,
                      echeck, iteration[0], main.address if main else 0, back.address if back else 0, stride,
-                     0, velocity, 0, 0], dtype=np.int64)  # (S_MASS_READY: not yet; S_PROJECT: run_compiled's)
+                     0, velocity, 0, 0, 0, 0], dtype=np.int64)  # (S_MASS_READY: not yet; S_PROJECT,
+    # S_FRICTION: run_compiled's)
     assert iset.shape[0] == lay.N_SETTINGS
     warn, stop = energy_growth if energy_growth is not None else (math.inf, math.inf)
     return iset, np.array([h, t0, tol, drift_tol, 0.0, warn, stop, iteration[1]]), eligible, (main, back)
@@ -90,13 +93,14 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
                  h: float, n_steps: int, *, step: int, solver, fallback, stride: int,
                  bar, energy: bool, tol: float, drift_control, flight_gap: np.ndarray,
                  gmax0: np.ndarray, energy_growth: tuple[float, float] | None = None,
-                 iteration: tuple[int, float] = (1, 0.0), full: bool | None = None,
+                 iteration: tuple[int, float] = (1, 0.0), variant: str | None = None,
                  control: tuple[float, float, float, float] | None = None) -> Trajectory:
     """Run ``n_steps`` steps compiled from a validated initial state (see :func:`moreau.simulate`,
     which calls this after :func:`~moreau.compiled.cache.ensure_compiled`); ``gmax0`` is each
     row's initial flight gap (``moreau.run.flights.initial_flight``); ``energy_growth`` the energy
     check's ``(warn, stop)`` (None: no check); ``step``, ``iteration``: see ``_settings``;
-    ``full``: the loop's variant (:func:`moreau.compiled.loop.variant`; None: the scene's);
+    ``variant``: the loop's variant (:data:`moreau.compiled.variants.VARIANTS`; None: the scene's,
+    :func:`moreau.compiled.variants.variant`; one without a feature the scene has is refused);
     ``control``: step-size control's ``(t_end, atol, rtol, h_min)`` (:mod:`moreau.compiled.adaptive`;
     ``h`` the largest step, ``stride`` in accepted steps), None for fixed steps."""
     cs = lower(scene) if cs is None else cs
@@ -105,9 +109,13 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
                                              drift_control, energy_growth, iteration, control is not None)
     n_rec = n_steps // stride + 1 + (1 if n_steps % stride else 0)
     me, mf = scene.nconstraints, int(cs.ints[lay.SC_MF])
-    full = lp.variant(cs.ints, step, iteration[0]) if full is None else full
+    needed = vs.variant(cs.ints, step, iteration[0])
+    variant = needed if variant is None else variant
+    if variant not in vs.VARIANTS or vs.VARIANTS.index(variant) < vs.VARIANTS.index(needed):
+        raise ValueError(f"variant={variant!r}: this scene needs the loop's {needed!r} variant or a larger one "
+                         f"of {vs.VARIANTS}")
     settings, state, recs, tally, work = _allocate(cs, q0, v0, t0, min(n_rec, 4096) if control else n_rec, iset,
-                                                   fset, eligible, flight_gap, me, full)
+                                                   fset, eligible, flight_gap, me, variant)
     box = [recs]  # the buffers, grown in place of the first when they fill (kept on Ctrl-C too)
     q, v, in_contact, P_acc, act_acc, _, gmax, rs, pen = state
     cnt, acc, fail = tally
@@ -116,6 +124,8 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     # control, so that a warm-up (cache._warm_up) loads or compiles it with its variant
     iset[lay.S_PROJECT], iset[lay.S_PROJECT_KEY] = projection_address(model, user, settings, state, recs, tally, work)
     fr, eqw = work[3], work[4]  # friction's and the bilateral rows' arrays, None without them
+    if fr is not None:  # the friction solve likewise (every run of a variant with friction: its warm-up too)
+        iset[lay.S_FRICTION], iset[lay.S_FRICTION_KEY] = friction_address(settings, work)
     ctl, snap = None, None
     if control is not None:
         t_end, atol, rtol, h_min = control
@@ -181,10 +191,10 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
 
 def _allocate(cs: CompiledScene, q0: np.ndarray, v0: np.ndarray, t0: float, n_rec: int, iset: np.ndarray,
               fset: np.ndarray, eligible: np.ndarray, flight_gap: np.ndarray, me: int,
-              full: bool) -> tuple[lay.Settings, lay.RunState, lay.Records, lay.Tally, tuple]:
+              variant: str) -> tuple[lay.Settings, lay.RunState, lay.Records, lay.Tally, tuple]:
     """A run's arrays, as :func:`moreau.compiled.loop.run_chunk` takes them: ``(settings,
     state, records, tally, work)`` (``layout``'s named tuples; ``work`` from
-    :func:`~moreau.compiled.loop.loop_workspace`), the state at ``q0, v0``, ``n_rec`` records."""
+    :func:`~moreau.compiled.variants.loop_workspace`), the state at ``q0, v0``, ``n_rec`` records."""
     n, m, mf = int(cs.ints[lay.SC_N]), int(cs.ints[lay.SC_M]), int(cs.ints[lay.SC_MF])
     records = _records(n_rec, n, m, me, mf, q0, v0, t0)
     # per row: in contact, impulse and activity since the last record, the step of its last impulse, its largest gap
@@ -197,7 +207,7 @@ def _allocate(cs: CompiledScene, q0: np.ndarray, v0: np.ndarray, t0: float, n_re
     state = lay.RunState(q, v, in_contact, P_acc, act_acc, last_imp, gmax, np.zeros((m, 6)), np.zeros((2, m)))
     tally = lay.Tally(np.zeros(lay.N_COUNTERS, dtype=np.int64), np.zeros(lay.N_ACCUMULATORS), np.zeros((2, 6)))
     tally.cnt[lay.C_REC] = 1
-    work = lp.loop_workspace(n, m, mf, cs.friction, cs.tangent_row, me, full)
+    work = vs.loop_workspace(n, m, mf, cs.friction, cs.tangent_row, me, variant)
     return lay.Settings(iset, fset, np.zeros((n, n)), eligible, fgap), state, records, tally, work
 
 
@@ -212,15 +222,15 @@ def one_row_scene():
     return Scene(FunctionSystem(np.eye(1)), [ConstantForce([-1.0])], [Contact(LinearBarrier([[1.0]], [0.0]), 0.5)])
 
 
-def chunk_example(full: bool) -> tuple:
-    """:func:`moreau.compiled.loop.run_chunk`'s arguments for :func:`one_row_scene` on the
-    ``full`` variant or the plain one, nothing run: their types are every run's
+def chunk_example(variant: str) -> tuple:
+    """:func:`moreau.compiled.loop.run_chunk`'s arguments for :func:`one_row_scene` on a
+    variant of the loop (:data:`moreau.compiled.variants.VARIANTS`), nothing run: their types are every run's
     (:mod:`moreau.compiled.side_compile` compiles with them)."""
     scene = one_row_scene()
     cs = lower(scene)
     iset, fset, eligible, _ = _settings(scene, 0.0, 1e-3, 1, lay.STEP_MIDPOINT, "exact", None, 1, True, 1e-8, None,
                                         None)
-    arrays = _allocate(cs, np.zeros(1), np.zeros(1), 0.0, 2, iset, fset, eligible, np.zeros(1), 0, full)
+    arrays = _allocate(cs, np.zeros(1), np.zeros(1), 0.0, 2, iset, fset, eligible, np.zeros(1), 0, variant)
     return (cs.arrays(), cs.user.addresses, *arrays, 1)
 
 

@@ -2,9 +2,9 @@
 
 A variant's first compile types the loop function and, as it meets them, compiles the
 functions it calls: the contact solve (:func:`moreau.contact.lcp.solve_one_step`, about 6 s
-here), the KKT check, the energy check, the drift projection (7 s) and, in the full
-variant, the friction solve (:func:`moreau.contact.friction.solve_friction_step`, about
-13 s) and the bilateral rows' parts; the loop calls its drift projection
+here), the KKT check, the energy check, the drift projection (7 s) and, in the friction
+and full variants, the friction solve (:func:`moreau.contact.friction.solve_friction_step`, about
+13 s) and (full) the bilateral rows' parts; the loop calls its drift projection
 (:func:`moreau.compiled.drift.project_rows`) through its address, which a run looks up
 after the loop's compile. A second
 process compiles them with the loop's argument types and saves them into numba's cache:
@@ -22,7 +22,7 @@ wait was lost. It runs only on a machine with two cores or more and a cache shar
 ends when its compiles do or when the process that started it ends, and
 ``MOREAU_SIDE_COMPILE=0`` turns it off.
 
-    python -m moreau.compiled.side_compile {plain,full} PARENT_PID   # as start() runs it
+    python -m moreau.compiled.side_compile {plain,friction,full} PARENT_PID   # as start() runs it
 """
 
 from __future__ import annotations
@@ -116,14 +116,15 @@ def _dispatcher(name: str) -> Any:
     return obj if cache is not None and type(cache).__name__ != "NullCache" else None
 
 
-def start(full: bool) -> Helper | None:
-    """The second process for a compile of the ``full`` variant or the plain one, or None
+def start(variant: str) -> Helper | None:
+    """The second process for a compile of a variant of the loop
+    (:data:`moreau.compiled.variants.VARIANTS`), or None
     (one core, or turned off by ``MOREAU_SIDE_COMPILE=0``)."""
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     if cores < 2 or os.environ.get("MOREAU_SIDE_COMPILE", "1") == "0":
         return None
     try:
-        proc = subprocess.Popen([sys.executable, "-m", __name__, "full" if full else "plain", str(os.getpid())],
+        proc = subprocess.Popen([sys.executable, "-m", __name__, variant, str(os.getpid())],
                                 stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
                                 text=True)
     except OSError:  # no process to be had: the loop compiles everything itself
@@ -144,8 +145,8 @@ def stop(helper: Helper | None) -> None:
 def _calls_of_the_loop(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
                        T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work, PTS,
                        fr, eqw, ec):
-    """The loop's calls at the end of a step (in the full variant its drift projection and
-    the bilateral rows' hold) and of its energy check, on ``_run_chunk``'s arguments:
+    """The loop's calls at the end of a step (in the full variant the bilateral rows'
+    hold) and of its energy check, on ``_run_chunk``'s arguments:
     typing it compiles them as the loop's compile would (never run)."""
     own, ws, lw = work
     M, L, cm, sm, cq, sq, qm, f, v_new, vbar, q_new, gm, gq, P, active, G, vfree, fb = own
@@ -161,8 +162,8 @@ class _Typed(Exception):
     itself is never run."""
 
 
-def type_calls_of_the_loop(full: bool) -> None:
-    """Type :func:`_calls_of_the_loop` for a run of the ``full`` variant or the plain one:
+def type_calls_of_the_loop(variant: str) -> None:
+    """Type :func:`_calls_of_the_loop` for a run of a variant of the loop:
     the functions it calls are compiled (or loaded), and it is not."""
     from numba.core import event
 
@@ -178,7 +179,7 @@ def type_calls_of_the_loop(full: bool) -> None:
                     "nopython_type_inference"):
                 raise _Typed
 
-    args = chunk_arguments(*chunk_example(full))
+    args = chunk_arguments(*chunk_example(variant))
     with event.install_listener("numba:run_pass", Typed()):
         try:
             _calls_of_the_loop.compile(tuple(_calls_of_the_loop.typeof_pyval(a) for a in args))
@@ -186,7 +187,7 @@ def type_calls_of_the_loop(full: bool) -> None:
             return
 
 
-def _compile(full: bool) -> None:
+def _compile(variant: str) -> None:
     """Call the solves' Python entries on one contact row: they compile (or load) the
     loop's copies."""
     import numpy as np
@@ -195,7 +196,7 @@ def _compile(full: bool) -> None:
     from moreau.contact.friction import friction_one_step
 
     M, b, G = np.eye(2), np.array([0.0, -1.0]), np.array([[0.0, 1.0]])
-    if full:  # first: the full variant's loop meets it before the contact solve is ready
+    if variant != "plain":  # first: the loop with friction meets it before the contact solve is ready
         friction_one_step(M, b, G, np.zeros(1), np.array([[1.0, 0.0]]), np.array([0.5]))
     ExactSolver().solve(M, b, G, np.zeros(1), np.array([0]))
 
@@ -235,9 +236,9 @@ def _watch_parent(parent: int) -> None:
 if __name__ == "__main__":
     threading.Thread(target=_watch_parent, args=(int(sys.argv[2]),), daemon=True).start()
     _report()
-    _compile(sys.argv[1] == "full")
+    _compile(sys.argv[1])
     from moreau.compiled.drift import projection_address
     from moreau.compiled.runner import chunk_example
 
-    projection_address(*chunk_example(sys.argv[1] == "full")[:7])
-    type_calls_of_the_loop(sys.argv[1] == "full")
+    projection_address(*chunk_example(sys.argv[1])[:7])
+    type_calls_of_the_loop(sys.argv[1])

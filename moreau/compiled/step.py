@@ -23,6 +23,7 @@ from moreau.compiled.layout import (  # the loop's layout
     F_TOL,
     METHOD_EXACT,
     METHOD_EXTERNAL,
+    NATIVE_MISMATCH,
     R_BOUNCED,
     R_DELAY,
     R_GAP,
@@ -348,15 +349,15 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
         _eq_reduce(L, eqw.Q, eqw.y, eqw.x, rank, GA, np.int64(0), na, cA)  # not the literal 0 (compiled apart)
         Ms, Ls, bs = eqw.eye, eqw.eye, eqw.by
     if fr is not None and mf > 0:  # friction: the tangent rows join (Lemke's method)
-        solved = _friction_solve(n, m, Ms, Ls, bs, GA_all, GA, cA, active, na, v_new, PA, fset, acc, fail, fr, cnt,
-                                 L, eqw, rank)
+        solved = _friction_solve(n, m, Ms, Ls, bs, GA_all, GA, cA, active, na, v_new, PA, iset, fset, acc, fail, fr,
+                                 cnt, L, eqw, rank)
     fresh = not again or locate or me > 0 or mf > 0  # else the last Delassus matrix stands
     warm = check and not again and iset[S_METHOD] == METHOD_EXACT and same_rows(ws.ids, active, m, na)
     chain = _chain_prepare(ints, pool, cm, sm, lw.gen, b, ws, fresh)
     mass = (pool, ints[SC_MASS_OFF], cm, sm, lw.gen)
     if solved < 0 or (solved == 0 and not _contact_solve(Ms, Ls, bs, GA, cA, na, v_new, PA, iset, fset, cnt, acc,
                                                           fail, ws, mass, fresh, check, chain, warm and chain, mass)):
-        cnt[C_FAILKIND] = SOLVER_FAILED
+        cnt[C_FAILKIND] = NATIVE_MISMATCH if solved == -2 else SOLVER_FAILED  # (-2: friction's address, other types)
         return -1
     keep_rows(ws.ids, active, m, na, chain)  # the rows of the factor the dual method left
     j = 0

@@ -13,9 +13,9 @@ from numpy.typing import ArrayLike
 
 from moreau.compiled import cache
 from moreau.compiled.layout import STEP_ENERGY, STEP_MIDPOINT, STEP_THETA
-from moreau.compiled.loop import variant
 from moreau.compiled.lowering import lower
 from moreau.compiled.runner import run_compiled
+from moreau.compiled.variants import variant
 from moreau.contact.solvers import ContactSolver
 from moreau.core.errors import attach_trajectory
 from moreau.core.validation import as_positive, as_record_every, as_time_span, checked_start
@@ -227,11 +227,11 @@ def ensure_compiled(*scenes: Scene, integrator: type[OneStepIntegrator] = Moreau
     """Load the compiled time loop from numba's cache, or compile it there (once per machine
     and version, said in one logged line); returns the seconds it took.
 
-    The loop has two variants (:func:`moreau.compiled.loop.variant`): the plain midpoint
-    step's, and one with friction, bilateral rows and the later passes of
+    The loop has three variants (:func:`moreau.compiled.variants.variant`): the plain midpoint
+    step's, one with friction, and one with friction, bilateral rows and the later passes of
     :class:`~moreau.MoreauJeanPredictorCorrector` and :class:`~moreau.MoreauJeanEnergyConsistent`;
     a run compiles only the one its scene and ``integrator`` use. With ``scenes``: the
-    variants they run; without: both (to warm a cache: ``moreau compile``). Call it before
+    variants they run; without: all (to warm a cache: ``moreau compile``). Call it before
     starting worker processes: they then load it, never two compiling. ``step_control``:
     also the driver of :class:`~moreau.StepControl` for those variants (else compiled at
     the first run that asks for it).
@@ -239,8 +239,8 @@ def ensure_compiled(*scenes: Scene, integrator: type[OneStepIntegrator] = Moreau
     if not scenes:
         return cache.ensure_compiled(None, step_control)
     step, iterations = _compiled_step(integrator), _iteration(integrator)[0]
-    return sum(cache.ensure_compiled(full, step_control)
-               for full in sorted({variant(lower(s).ints, step, iterations) for s in scenes}))
+    return sum(cache.ensure_compiled(v, step_control)
+               for v in sorted({variant(lower(s).ints, step, iterations) for s in scenes}))
 
 
 def _compiled_step(integrator: type[OneStepIntegrator]) -> int:
