@@ -217,7 +217,7 @@ def run_chunk(model: tuple, user: np.ndarray, settings: Settings, state: RunStat
     updated in place, so a chunk resumes where the previous one stopped; ``settings``,
     ``records`` and ``tally`` are the layout's named tuples of the same names. ``user`` (5,)
     holds the addresses of the scene's user slots (:mod:`moreau.compiled.usercalls`; zeros
-    for a built-in scene); ``work`` comes from :func:`loop_workspace`: its None entries
+    for a built-in scene); ``work`` comes from :func:`~moreau.compiled.variants.loop_workspace`: its None entries
     choose the loop compiled without friction, bilateral rows or later passes.
 
     One step: the model at the midpoint, the velocity update (twice with θ: a predictor

@@ -35,7 +35,7 @@ VARIANTS = ("plain", "friction", "full")
 
 def loop_workspace(n: int, m: int, mf: int, mu: np.ndarray, tangent_row: np.ndarray, me: int = 0,
                    variant: str = "full") -> tuple:
-    """The work arrays of :func:`run_chunk` for n coordinates, m rows, mf tangent rows
+    """The work arrays of :func:`~moreau.compiled.loop.run_chunk` for n coordinates, m rows, mf tangent rows
     (friction; mu (m,) and tangent_row (m,) from the lowered scene) and me bilateral rows,
     allocated once per run, outside the loop: the loop itself allocates nothing.
 
