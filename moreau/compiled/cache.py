@@ -18,7 +18,7 @@ import numpy as np
 from moreau.compiled import side_compile
 from moreau.compiled.layout import STEP_MIDPOINT
 from moreau.compiled.runner import one_row_scene, run_compiled
-from moreau.compiled.variants import VARIANTS
+from moreau.compiled.variants import VARIANTS, named
 from moreau.core.compiling import compile_call
 from moreau.core.jitcache import cache_dir, call_recovering, clear, compile_lock
 
@@ -29,7 +29,7 @@ log = logging.getLogger(__name__)
 
 #: what the first compile of each variant of the loop takes on a 2-core machine, s, as the
 #: message says it (benchmarks/compile_cost.py; docs/performance.md has the figures)
-COMPILE_SECONDS = {"plain": 30, "friction": 30, "full": 70}
+COMPILE_SECONDS = {"plain": 30, "friction": 20, "full": 45}
 _NAMES = {"plain": "the plain midpoint step", "friction": "friction",
           "full": "friction, bilateral rows and later passes"}
 _ready = {v: threading.Event() for v in VARIANTS}
@@ -119,8 +119,7 @@ def cached_variants() -> set[str]:
         index = _run_chunk._cache._cache_file._load_index()  # numba's own (stamp-checked) index
     except Exception:  # noqa: BLE001 - unreadable or another numba: treated as absent, compiled
         return set()
-    none = [tuple(isinstance(t, types.NoneType) for t in key[0][-3:]) for key in index]
-    return {"plain" if fr else "friction" if eqw and ec else "full" for fr, eqw, ec in none}
+    return {named(*(isinstance(t, types.NoneType) for t in key[0][-3:])) for key in index}
 
 
 @contextlib.contextmanager

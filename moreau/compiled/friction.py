@@ -52,7 +52,7 @@ def friction_address(settings, work: tuple) -> tuple[int, int]:
     for a run's arrays (``settings``, ``work`` of :func:`moreau.compiled.loop.run_chunk`),
     as :func:`_friction_solve` calls it, and the key of its argument types (the
     ``S_FRICTION`` settings): loaded or compiled here."""
-    own, ws, lw, fr = work[:4]
+    own, _, lw, fr = work[:4]
     return address_and_key(solve_friction_step, (
         own.M, own.L, lw.b, lw.GA, lw.cA, fr.muA, fr.fidx, np.int64(0), np.int64(0), lw.PA, own.v_new,
         float(settings.fset[F_TOL]), fr.res, fr.lemke, np.int64(FRICTION_AUTO)))

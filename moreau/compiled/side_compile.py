@@ -5,8 +5,8 @@ functions it calls: the contact solve (:func:`moreau.contact.lcp.solve_one_step`
 here), the KKT check, the energy check, the drift projection (7 s) and, in the friction
 and full variants, the friction solve (:func:`moreau.contact.friction.solve_friction_step`, about
 13 s) and (full) the bilateral rows' parts; the loop calls its drift projection
-(:func:`moreau.compiled.drift.project_rows`) through its address, which a run looks up
-after the loop's compile. A second
+(:func:`moreau.compiled.drift.project_rows`) and its friction solve through their
+addresses, which a run looks up after the loop's compile. A second
 process compiles them with the loop's argument types and saves them into numba's cache:
 the solves through their Python entries (:class:`moreau.ExactSolver`,
 :func:`moreau.contact.friction.friction_one_step`), the projection through
@@ -196,9 +196,9 @@ def _compile(variant: str) -> None:
     from moreau.contact.friction import friction_one_step
 
     M, b, G = np.eye(2), np.array([0.0, -1.0]), np.array([[0.0, 1.0]])
-    if variant != "plain":  # first: the loop with friction meets it before the contact solve is ready
+    ExactSolver().solve(M, b, G, np.zeros(1), np.array([0]))  # first: the loop's compile meets it
+    if variant != "plain":  # only a run looks it up (through its address)
         friction_one_step(M, b, G, np.zeros(1), np.array([[1.0, 0.0]]), np.array([0.5]))
-    ExactSolver().solve(M, b, G, np.zeros(1), np.array([0]))
 
 
 def _report() -> None:

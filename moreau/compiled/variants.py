@@ -24,7 +24,7 @@ from moreau.compiled.layout import (
 )
 from moreau.contact.lcp import workspace
 
-__all__ = ["VARIANTS", "loop_workspace", "variant", "variant_of"]
+__all__ = ["VARIANTS", "loop_workspace", "named", "variant", "variant_of"]
 
 
 #: the loop's compiled variants (:func:`variant`), each with the code of the features named
@@ -87,7 +87,12 @@ def variant(ints: np.ndarray, step: int, iterations: int = 1) -> str:
     return "friction" if ints[SC_MF] > 0 else "plain"
 
 
+def named(no_fr: bool, no_eqw: bool, no_ec: bool) -> str:
+    """The variant (:data:`VARIANTS`) whose friction, bilateral and later-pass arrays are
+    None as flagged (the loop's last three arguments)."""
+    return "plain" if no_fr else "friction" if no_eqw and no_ec else "full"
+
+
 def variant_of(work: tuple) -> str:
     """The variant (:data:`VARIANTS`) a loop workspace (:func:`loop_workspace`) was made for."""
-    fr, eqw, ec = work[3:6]
-    return "plain" if fr is None else "friction" if eqw is None and ec is None else "full"
+    return named(*(a is None for a in work[3:6]))
