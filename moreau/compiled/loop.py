@@ -231,7 +231,8 @@ def run_chunk(model: tuple, user: np.ndarray, settings: Settings, state: RunStat
 # Compiled without reference counting (numba's internal ``_nrt`` flag): every array it touches is owned by the
 # caller and nothing is allocated, so the counts (an atomic increment and decrement per array per use, measured
 # at two thirds of a contact step's time) would be pure overhead. User callables run in their own wrappers.
-@njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]  # numba's internal flag
+# Called from Python and, by step-size control, through its address: no C entry point is built.
+@njit(cache=True, nogil=True, _nrt=False, no_cfunc_wrapper=True)  # type: ignore[call-overload]  # numba's flag
 def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
                T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work, PTS,
                fr, eqw, ec):

@@ -103,34 +103,38 @@ def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail
     # ``prepared`` as a bool variable (k >= 0): drift's literal False would type (and
     # compile) the check and the solver a second time
     by_chain = prepared or k < 0
-    if cd is not None and warm:  # the kept factor's answer, checked; else the main method on a fresh W
-        if warm_solve(cd[0], cd[1], cd[2], cd[3], cd[4], GA, cA, k, ws, v_out, P_out) and _checked(
-                M, L, b, GA, cA, k, v_out, P_out, ws, cd, tol, acc):
-            return True
-    for attempt in range(2):
-        method = iset[S_METHOD] if attempt == 0 else iset[S_FALLBACK]
-        if method < 0:
-            break
-        if cd is not None and prepared and fresh and attempt == 0:  # a chain's W, formed here once
-            _chain_delassus(cd[0], cd[1], cd[2], cd[3], cd[4], GA, k, ws)
-        if attempt == 1:
-            cnt[C_FALLBACKS] += 1
-        ws.ids[0] = -1
-        if method == METHOD_EXTERNAL:
-            st = call_solver(iset[S_EXTERNAL + attempt], M, b, GA, cA, v_out, P_out, M.shape[0], k)
-            if st == 2:  # interrupted (Ctrl-C): no fallback, the runner raises it
-                return False
+    first = 0  # attempt -1: the kept factor's answer (a chain's fresh pass); W is formed only when it fails
+    if cd is not None and warm:
+        first = -1
+    for attempt in range(first, 2):  # one call site of the check: its code is in the loop once
+        st = 1
+        if attempt < 0:
+            if cd is not None and warm_solve(cd[0], cd[1], cd[2], cd[3], cd[4], GA, cA, k, ws, v_out, P_out):
+                st = 0
         else:
-            st = solve_one_step(M, L, b, GA, cA, P_out, v_out, k, method, 1e-12, ws,
-                                (external or fresh and attempt == 0) and not prepared, by_chain)
-            if st == 0 and method == METHOD_EXACT:
-                ws.ids[0] = -2
-        if st == 0 and not check:
-            return True
+            method = iset[S_METHOD] if attempt == 0 else iset[S_FALLBACK]
+            if method < 0:
+                break
+            if cd is not None and prepared and fresh and attempt == 0:  # a chain's W, formed here once
+                _chain_delassus(cd[0], cd[1], cd[2], cd[3], cd[4], GA, k, ws)
+            if attempt == 1:
+                cnt[C_FALLBACKS] += 1
+            ws.ids[0] = -1
+            if method == METHOD_EXTERNAL:
+                st = call_solver(iset[S_EXTERNAL + attempt], M, b, GA, cA, v_out, P_out, M.shape[0], k)
+                if st == 2:  # interrupted (Ctrl-C): no fallback, the runner raises it
+                    return False
+            else:
+                st = solve_one_step(M, L, b, GA, cA, P_out, v_out, k, method, 1e-12, ws,
+                                    (external or fresh and attempt == 0) and not prepared, by_chain)
+                if st == 0 and method == METHOD_EXACT:
+                    ws.ids[0] = -2
+            if st == 0 and not check:
+                return True
         if st == 0:
             # a later pass checks against the same M: the check's round-off floor keeps its
             # √(M⁻¹)_jj (O(n³)); not the fallback of a fresh pass (the main may have failed
-            # before any check of this M), unless _chain_prepare formed them
+            # before any check of this M), unless _chain_prepare formed them (as for the kept answer)
             kkt_residuals_kernel(M, L, b, GA, cA, v_out, P_out, k, res, ws.Gv, ws.GtP, ws.rv, ws.d, ws.x,
                                  ws.X, ws.rd, not fresh or prepared, mass[0], mass[1], mass[2], mass[3], mass[4],
                                  by_chain)
@@ -139,26 +143,13 @@ def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail
                 if worst > acc[A_WORST]:
                     acc[A_WORST] = worst
                 return True
-            for i in range(4):
-                fail[attempt, i] = res[i]
-        else:
+            if attempt >= 0:
+                for i in range(4):
+                    fail[attempt, i] = res[i]
+        elif attempt >= 0:
             for i in range(4):
                 fail[attempt, i] = math.inf
     return False
-
-
-@_call  # once a step at most, and only a chain's persistent contact: its copy of the check is a call
-def _checked(M, L, b, GA, cA, k, v, P, ws, mass, tol, acc):
-    """The KKT check of the kept factor's answer (:func:`_contact_solve`): True when it
-    passes, the worst residual kept in ``acc``."""
-    res = ws.res
-    kkt_residuals_kernel(M, L, b, GA, cA, v, P, k, res, ws.Gv, ws.GtP, ws.rv, ws.d, ws.x, ws.X, ws.rd, k >= 0,
-                         mass[0], mass[1], mass[2], mass[3], mass[4], k >= 0)
-    worst = max(res[0], res[1], res[2], res[3])
-    if worst > tol:
-        return False
-    acc[A_WORST] = max(acc[A_WORST], worst)
-    return True
 
 
 @_part

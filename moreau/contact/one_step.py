@@ -76,13 +76,14 @@ def solve_one_step(M, L, b, G, c, P, v, k, method, tol, ws, fresh=True, vready=F
     if status == OK:
         # iterative refinement; repeated (twice at most) while the residual it corrected was
         # above the round-off of G v − c: nearly dependent active rows (cond(W_AA) ~ 1e12)
-        # take two or three steps, a well-conditioned set none more
-        applied, residual, scale = _refine(G, c, P, v, k, W, MinvGt, ws, method == 0, math.inf)
-        for _ in range(2):
+        # take two or three steps, a well-conditioned set none more; one call site, so its
+        # code is in the solve once
+        kept, last = method == 0, math.inf
+        for _ in range(3):
+            applied, residual, scale = _refine(G, c, P, v, k, W, MinvGt, ws, kept, last)
             if not applied or residual <= 64.0 * 2.220446049250313e-16 * scale:
                 break
-            # ``applied`` (True here) and not the literal True, which numba would compile apart
-            applied, residual, scale = _refine(G, c, P, v, k, W, MinvGt, ws, applied, residual / scale)
+            kept, last = applied, residual / scale  # (True: the rows refined keep their factor)
     return status
 
 
