@@ -304,8 +304,8 @@ def _cached_signatures(stem: str) -> list[str]:
 
 def test_the_side_compile_uses_the_loops_argument_types():
     """The second process compiles each variant's drift projection (through
-    ``drift.projection_address``, as a run does) and types the loop's other calls
-    (``side_compile._calls_of_the_loop``): after the loop of each variant, it adds no
+    ``drift.projection_address``, as a run does) and types the loop's other calls, the
+    contact check among them (``side_compile._calls_of_the_loop``): after the loop of each variant, it adds no
     compiled copy of them (a new one would be a compile the loop waits for, or a run
     compiles)."""
     from moreau.compiled.drift import projection_address
@@ -313,7 +313,7 @@ def test_the_side_compile_uses_the_loops_argument_types():
     from moreau.compiled.side_compile import type_calls_of_the_loop
 
     mo.ensure_compiled()
-    stems = ("drift.project_rows", "energy._energy_check")
+    stems = ("drift.project_rows", "energy._energy_check", "kkt.kkt_residuals_kernel")
     before = {s: _cached_signatures(s) for s in stems}
     assert len(before["drift.project_rows"]) == 2  # eqw None in the plain and friction variants
     for v in VARIANTS:
@@ -419,3 +419,32 @@ def test_the_side_compile_ends_with_the_process_that_started_it(tmp_path):
         time.sleep(0.1)
     assert not alive(child)
     assert not list(tmp_path.rglob("friction.solve_friction_step*.nbi"))  # ended, not done
+
+
+def test_a_second_process_started_ahead_is_taken_over_by_the_compile_or_ended(monkeypatch):
+    """``cache.compiling_ahead`` (around a run's checks) starts the second process of a cold
+    compile; ``ensure_compiled`` inside the block takes that one over (starting none of its
+    own), and one that no compile took over ends with the block. A variant this process has,
+    or one in the cache, starts nothing."""
+    from moreau.compiled import cache, side_compile
+
+    started, stopped = [], []
+    monkeypatch.setattr(side_compile, "start", lambda v: started.append(v) or f"helper {len(started)}")
+    monkeypatch.setattr(side_compile, "stop", stopped.append)
+    monkeypatch.setattr(cache, "cached_variants", lambda: set())
+    monkeypatch.setattr(cache, "_load_or_compile", lambda v, cold, d: None)
+    monkeypatch.setitem(cache._ready, "plain", type(cache._ready["plain"])())  # not yet in this process
+    with cache.compiling_ahead("plain"):
+        assert started == ["plain"] and cache._ahead == {"plain": "helper 1"}
+    assert stopped == ["helper 1"] and cache._ahead == {}  # not taken over: ended
+    with cache.compiling_ahead("plain"):
+        cache.ensure_compiled("plain")
+        assert started == ["plain", "plain"] and stopped == ["helper 1", "helper 2"]  # the compile's own
+    assert stopped == ["helper 1", "helper 2"] and cache._ahead == {}  # and not again at the block's end
+    with cache.compiling_ahead("plain"):  # compiled in this process now
+        pass
+    monkeypatch.setitem(cache._ready, "plain", type(cache._ready["plain"])())
+    monkeypatch.setattr(cache, "cached_variants", lambda: {"plain"})
+    with cache.compiling_ahead("plain"):  # in the cache
+        pass
+    assert len(started) == 2

@@ -22,7 +22,7 @@ from moreau.compiled.variants import VARIANTS, named
 from moreau.core.compiling import compile_call
 from moreau.core.jitcache import cache_dir, call_recovering, clear, compile_lock
 
-__all__ = ["COMPILE_SECONDS", "ensure_compiled"]
+__all__ = ["COMPILE_SECONDS", "compiling_ahead", "ensure_compiled"]
 
 log = logging.getLogger(__name__)
 
@@ -35,6 +35,9 @@ _NAMES = {"plain": "the plain midpoint step", "friction": "friction",
 _ready = {v: threading.Event() for v in VARIANTS}
 _drivers: set[str] = set()  # the variants whose step-control driver this process has
 _ready_lock = threading.Lock()
+#: second processes started ahead of their variant's compile (:func:`compiling_ahead`)
+_ahead: dict[str, side_compile.Helper] = {}
+_ahead_lock = threading.Lock()
 
 
 def ensure_compiled(variant: str | None = None, step_control: bool = False) -> float:
@@ -78,14 +81,46 @@ def ensure_compiled(variant: str | None = None, step_control: bool = False) -> f
                 log.warning("moreau: compiling the time loop for %s once for this machine (about %d s; later runs "
                             "load it from %s)", _NAMES[variant], COMPILE_SECONDS[variant],
                             d or "nowhere: the cache is not writable")
-            # the contact solves compiled beside the loop, in a second process
-            helper = side_compile.start(variant) if cold and d is not None else None
+            # the contact solves compiled beside the loop, in a second process (started ahead, or now)
+            helper = _take_ahead(variant)
+            if helper is None and cold and d is not None:
+                helper = side_compile.start(variant)
             try:
                 _load_or_compile(variant, cold, d)
             finally:
                 side_compile.stop(helper)
             _ready[variant].set()
         return time.perf_counter() - t
+
+
+@contextlib.contextmanager
+def compiling_ahead(variant: str) -> Iterator[None]:
+    """Within the block, the second process of a cold compile of ``variant`` already runs
+    (:mod:`moreau.compiled.side_compile`): a run's checks of its initial state, which
+    compile the scene's kernels, overlap it, and :func:`ensure_compiled` inside the block
+    takes it over. Nothing starts when the variant is loaded or in this process already;
+    a process not taken over is ended with the block."""
+    helper = None
+    with _ahead_lock:  # (not _ready_lock: a compile in another thread holds it throughout)
+        if (variant in VARIANTS and not _ready[variant].is_set() and variant not in _ahead
+                and cache_dir() is not None and variant not in cached_variants()):
+            helper = side_compile.start(variant)
+            if helper is not None:
+                _ahead[variant] = helper
+    try:
+        yield
+    finally:
+        if helper is not None and _take_ahead(variant, helper) is not None:
+            side_compile.stop(helper)
+
+
+def _take_ahead(variant: str, helper: side_compile.Helper | None = None) -> side_compile.Helper | None:
+    """The second process started ahead for ``variant`` (that one, when given), taken out
+    of the table; None when there is none."""
+    with _ahead_lock:
+        if variant in _ahead and (helper is None or _ahead[variant] is helper):
+            return _ahead.pop(variant)
+    return None
 
 
 def _load_or_compile(variant: str, cold: bool, d: str | None) -> None:

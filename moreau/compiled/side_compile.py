@@ -1,18 +1,21 @@
 """The functions the loop calls, compiled in a second process while the loop compiles.
 
 A variant's first compile types the loop function and, as it meets them, compiles the
-functions it calls: the contact solve (:func:`moreau.contact.lcp.solve_one_step`, about 6 s
-here), the KKT check, the energy check, the drift projection (7 s) and, in the friction
+functions it calls: the contact solve (:func:`moreau.contact.lcp.solve_one_step`, about 5 s
+here), its KKT check, the energy check, the drift projection (4 s) and, in the friction
 and full variants, the friction solve (:func:`moreau.contact.friction.solve_friction_step`, about
 13 s) and (full) the bilateral rows' parts; the loop calls its drift projection
 (:func:`moreau.compiled.drift.project_rows`) and its friction solve through their
 addresses, which a run looks up after the loop's compile. A second
-process compiles them with the loop's argument types and saves them into numba's cache:
-the solves through their Python entries (:class:`moreau.ExactSolver`,
-:func:`moreau.contact.friction.friction_one_step`), the projection through
-:func:`~moreau.compiled.drift.projection_address`, the rest by typing
-:func:`_calls_of_the_loop`, which calls them as the loop does; all on the arguments of a
-run (:func:`moreau.compiled.runner.chunk_example`).
+process compiles them with the loop's argument types and saves them into numba's cache,
+in the order the loop's compile meets them: the solves through their Python entries
+(:class:`moreau.ExactSolver`, :func:`moreau.contact.friction.friction_one_step`), then
+the KKT check and the calls at the end of a step by typing :func:`_calls_of_the_loop`,
+which calls them as the loop does, then the projection through
+:func:`~moreau.compiled.drift.projection_address`; all on the arguments of a run
+(:func:`moreau.compiled.runner.chunk_example`). A run starts it as its checks of the
+initial state begin (:func:`moreau.compiled.cache.compiling_ahead`), a direct
+:func:`~moreau.compiled.cache.ensure_compiled` as its compile does.
 
 It writes a line as it starts each compile and as it saves one. When the loop's compile
 meets a function the second process is compiling, it waits for that save and loads it
@@ -39,8 +42,9 @@ from typing import Any
 from numba import njit
 
 from moreau.compiled.energy import _energy_check
-from moreau.compiled.layout import C_K, F_H, F_T0, chunk_arguments
+from moreau.compiled.layout import C_K, F_H, F_T0, SC_MASS_OFF, chunk_arguments
 from moreau.compiled.loop import _end_gaps
+from moreau.contact.kkt import kkt_residuals_kernel
 
 __all__ = ["Helper", "start", "stop"]
 
@@ -145,12 +149,15 @@ def stop(helper: Helper | None) -> None:
 def _calls_of_the_loop(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
                        T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work, PTS,
                        fr, eqw, ec):
-    """The loop's calls at the end of a step (in the full variant the bilateral rows'
-    hold) and of its energy check, on ``_run_chunk``'s arguments:
+    """The loop's calls of the contact solve's KKT check, at the end of a step (in the full
+    variant the bilateral rows' hold) and of its energy check, on ``_run_chunk``'s arguments:
     typing it compiles them as the loop's compile would (never run)."""
     own, ws, lw = work
     M, L, cm, sm, cq, sq, qm, f, v_new, vbar, q_new, gm, gq, P, active, G, vfree, fb = own
     h, k = fset[F_H], cnt[C_K]
+    flag = k >= 0  # a bool variable, as the loop passes its flags (a literal would be typed apart)
+    kkt_residuals_kernel(M, L, f, lw.GA, lw.cA, v_new, lw.PA, k, ws.res, ws.Gv, ws.GtP, ws.rv, ws.d, ws.x, ws.X,
+                         ws.rd, flag, model.pool, model.ints[SC_MASS_OFF], cm, sm, lw.gen, flag)  # the contact check
     status = _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw,
                        rs, in_contact, pen, gmax, eqw, v_new, P_acc, act_acc, last_imp,
                        (fset[F_T0] + k * h, h, f, fgap, IMP))
@@ -237,8 +244,8 @@ if __name__ == "__main__":
     threading.Thread(target=_watch_parent, args=(int(sys.argv[2]),), daemon=True).start()
     _report()
     _compile(sys.argv[1])
+    type_calls_of_the_loop(sys.argv[1])  # what the loop's compile meets next; the projection only a run looks up
     from moreau.compiled.drift import projection_address
     from moreau.compiled.runner import chunk_example
 
     projection_address(*chunk_example(sys.argv[1])[:7])
-    type_calls_of_the_loop(sys.argv[1])

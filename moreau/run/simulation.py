@@ -160,8 +160,10 @@ def simulate(
     """
     plan = _plan(scene, t_span, h, tol, record_every, integrator, backend, solver, fallback, drift_control,
                  check_jacobian, penetration_limit, flight_gap, initial_penetration, energy_growth, step_control)
-    redundant = redundancy_warnings(scene, q0)
-    traj = _run(scene, plan, q0, v0, integrator, drift_control, check_jacobian, progress, energy)
+    # a cold compile's second process starts now: the checks of the initial state run beside it
+    with cache.compiling_ahead(variant(plan.cs.ints, _compiled_step(integrator), plan.iteration[0])):
+        redundant = redundancy_warnings(scene, q0)
+        traj = _run(scene, plan, q0, v0, integrator, drift_control, check_jacobian, progress, energy)
     traj.warnings = redundant + traj.warnings + penetration_warnings(scene, traj, plan.h, plan.penetration_limit,
                                                                          plan.initial_penetration, drift_control)
     return traj
