@@ -160,10 +160,8 @@ def simulate(
     """
     plan = _plan(scene, t_span, h, tol, record_every, integrator, backend, solver, fallback, drift_control,
                  check_jacobian, penetration_limit, flight_gap, initial_penetration, energy_growth, step_control)
-    # a cold compile's second process starts now: the checks of the initial state run beside it
-    with cache.compiling_ahead(variant(plan.cs.ints, _compiled_step(integrator), plan.iteration[0])):
-        redundant = redundancy_warnings(scene, q0)
-        traj = _run(scene, plan, q0, v0, integrator, drift_control, check_jacobian, progress, energy)
+    redundant = redundancy_warnings(scene, q0)
+    traj = _run(scene, plan, q0, v0, integrator, drift_control, check_jacobian, progress, energy)
     traj.warnings = redundant + traj.warnings + penetration_warnings(scene, traj, plan.h, plan.penetration_limit,
                                                                          plan.initial_penetration, drift_control)
     return traj
@@ -264,8 +262,16 @@ def _iteration(integrator: type[OneStepIntegrator]) -> tuple[int, float]:
 
 
 def _run(scene: Scene, plan: _Plan, q0: ArrayLike, v0: ArrayLike, integrator: type[OneStepIntegrator],
-                   drift_control: DriftControl | None, check_jacobian: bool,
-                   progress: bool | dict[str, Any] | None, energy: bool) -> Trajectory:
+         *rest: Any) -> Trajectory:
+    """:func:`_checked_run`, a cold compile's second process started as its checks begin
+    (they compile the scene's kernels beside it)."""
+    with cache.compiling_ahead(variant(plan.cs.ints, _compiled_step(integrator), plan.iteration[0])):
+        return _checked_run(scene, plan, q0, v0, integrator, *rest)
+
+
+def _checked_run(scene: Scene, plan: _Plan, q0: ArrayLike, v0: ArrayLike, integrator: type[OneStepIntegrator],
+                 drift_control: DriftControl | None, check_jacobian: bool,
+                 progress: bool | dict[str, Any] | None, energy: bool) -> Trajectory:
     """The run on the compiled loop, from a checked initial state."""
     t0, q, v = checked_start(lambda: check_initial_state(scene, plan.t0, q0, v0, plan.initial_penetration),
                              scene, plan.t0, q0, v0)
