@@ -39,6 +39,8 @@ log = logging.getLogger(__name__)
 #: kernels, the contact numerics and the compiled loop; an edit anywhere in them clears
 #: the cached machine code
 COMPILED_DIRS = ("core/kernels", "contact", "compiled")
+#: modules that change how moreau's code is compiled (hashed into the digest with the above)
+CODEGEN_FILES = ("core/llvm_prepass.py",)
 _STAMP = "moreau-jit.digest"
 _LOCK = "moreau-jit.lock"
 _PACKAGE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -55,11 +57,12 @@ def compiled_sources() -> list[str]:
 
 
 def source_digest() -> str:
-    """SHA-256 of the compiled modules' source (with their paths) and numba's version."""
+    """SHA-256 of the compiled modules' source and of the codegen's (:data:`CODEGEN_FILES`;
+    with their paths) and numba's version."""
     import numba
 
     h = hashlib.sha256(numba.__version__.encode())
-    for path in compiled_sources():
+    for path in compiled_sources() + [os.path.join(_PACKAGE, f) for f in CODEGEN_FILES]:
         h.update(os.path.relpath(path, _PACKAGE).encode())
         with open(path, "rb") as f:
             h.update(f.read())
