@@ -4,6 +4,7 @@ the problem's active set."""
 
 import numpy as np
 import oracle
+import pytest
 
 import moreau as mo
 from moreau.compiled.warm_start import warm_solve
@@ -93,3 +94,21 @@ def test_a_chain_lying_and_kicked_runs_as_the_reference_step():
     np.testing.assert_array_equal(c.active, p.active)
     scale = np.abs(p.q).max() + np.abs(p.v).max()
     assert np.abs(c.q - p.q).max() <= 1e-9 * scale and np.abs(c.v - p.v).max() <= 1e-9 * scale
+
+
+def test_a_warm_start_address_for_other_types_is_never_called(monkeypatch):
+    """The loop calls a chain's warm start and its Delassus matrix through their addresses
+    (``step.warm_start_addresses``) only when the key of each address's argument types is
+    its own call's; else the lying chain's run fails at its first contact step, naming the
+    bug, and with the right keys it runs."""
+    from moreau.compiled import runner
+
+    scene, _, _ = lying_chain()
+    q0, v0 = np.full(N, np.pi / 2), np.zeros(N)
+    right = runner.warm_start_addresses
+    monkeypatch.setattr(runner, "warm_start_addresses", lambda model, work: (0, 12345, 0, 12345))  # 0: a crash
+    with pytest.raises(mo.SimulationError, match="internal error") as caught:
+        mo.simulate(scene, (0.0, 0.05), q0, v0, 1e-3, solver="exact")
+    assert caught.value.trajectory.status == "failed"
+    monkeypatch.setattr(runner, "warm_start_addresses", right)
+    assert mo.simulate(scene, (0.0, 0.05), q0, v0, 1e-3, solver="exact").completed

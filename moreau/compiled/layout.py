@@ -47,7 +47,10 @@ S_DRIFT_VELOCITY = 16
 S_PROJECT, S_PROJECT_KEY = 17, 18
 # (S_FRICTION, S_FRICTION_KEY: the same for the friction solve, compiled.friction.friction_address)
 S_FRICTION, S_FRICTION_KEY = 19, 20
-N_SETTINGS = 21
+# (S_WARM, S_WARM_KEY, S_DELASSUS, S_DELASSUS_KEY: the same for a chain's warm start and its
+# Delassus matrix, compiled.step.warm_start_addresses)
+S_WARM, S_WARM_KEY, S_DELASSUS, S_DELASSUS_KEY = 21, 22, 23, 24
+N_SETTINGS = 25
 # the LCP methods (S_METHOD, S_FALLBACK): dual active set, enumeration, called back; -1 none
 METHOD_EXACT, METHOD_ENUM, METHOD_EXTERNAL = 0, 1, 2
 # the step (S_STEP): midpoint, predictor-corrector, energy-consistent

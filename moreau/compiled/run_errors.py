@@ -93,8 +93,8 @@ def run_error(code, scene, k, t, q, v, h, fail, cs, user_status, acc, tol=float(
         return SolverError(msg, step=k, t=t, rows=[row], residuals={})
     if code == lay.NATIVE_MISMATCH:  # never seen: tests run every variant's projection and friction solve
         return SimulationError(f"internal error {where}: the machine code of a call through its address (the drift "
-                               "projection or the friction solve) was made for other argument types than the loop's "
-                               "call (please report this moreau bug)", None, k)
+                               "projection, the friction solve or a chain's warm start) was made for other argument "
+                               "types than the loop's call (please report this moreau bug)", None, k)
     if code == lay.NOT_SPD:
         msg = (f"the mass matrix stopped being symmetric positive definite {where}: "
                f"M = {scene.system.mass_matrix(q + 0.5 * h * v).tolist()}")

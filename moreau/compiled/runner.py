@@ -26,6 +26,7 @@ from moreau.compiled.drift import projection_address
 from moreau.compiled.friction import friction_address
 from moreau.compiled.lowering import CompiledScene, lower
 from moreau.compiled.run_errors import _name, run_error, run_warnings
+from moreau.compiled.step import warm_start_addresses
 from moreau.contact.exact import EnumerationSolver, ExactSolver
 from moreau.contact.solvers import make_solver
 from moreau.core.errors import SimulationError, attach_trajectory
@@ -82,8 +83,8 @@ def _settings(scene, t0: float, h: float, n_steps: int, step: int, solver, fallb
     steps = (1 << 62, -1) if adaptive else (stride, n_steps)
     iset = np.array([step, drift_mode, drift_iter, *steps, method, fb, int(energy), memory, locate,
                      echeck, iteration[0], main.address if main else 0, back.address if back else 0, stride,
-                     0, velocity, 0, 0, 0, 0], dtype=np.int64)  # (S_MASS_READY: not yet; S_PROJECT,
-    # S_FRICTION: run_compiled's)
+                     0, velocity, 0, 0, 0, 0, 0, 0, 0, 0], dtype=np.int64)  # (S_MASS_READY: not yet;
+    # S_PROJECT, S_FRICTION, S_WARM, S_DELASSUS: run_compiled's)
     assert iset.shape[0] == lay.N_SETTINGS
     warn, stop = energy_growth if energy_growth is not None else (math.inf, math.inf)
     return iset, np.array([h, t0, tol, drift_tol, 0.0, warn, stop, iteration[1]]), eligible, (main, back)
@@ -123,6 +124,7 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     # the drift projection for these arrays (loaded once a process, or compiled); also without drift
     # control, so that a warm-up (cache._warm_up) loads or compiles it with its variant
     iset[lay.S_PROJECT], iset[lay.S_PROJECT_KEY] = projection_address(model, user, settings, state, recs, tally, work)
+    iset[[lay.S_WARM, lay.S_WARM_KEY, lay.S_DELASSUS, lay.S_DELASSUS_KEY]] = warm_start_addresses(model, work)
     fr, eqw = work[3], work[4]  # friction's and the bilateral rows' arrays, None without them
     if fr is not None:  # the friction solve likewise (every run of a variant with friction: its warm-up too)
         iset[lay.S_FRICTION], iset[lay.S_FRICTION_KEY] = friction_address(settings, work)

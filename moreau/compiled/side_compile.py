@@ -39,8 +39,10 @@ import threading
 import time
 from typing import Any
 
+import numpy as np
 from numba import njit
 
+from moreau.compiled import evaluate as ev
 from moreau.compiled.energy import _energy_check
 from moreau.compiled.layout import C_K, F_H, F_T0, SC_MASS_OFF, chunk_arguments
 from moreau.compiled.loop import _end_gaps
@@ -149,19 +151,22 @@ def stop(helper: Helper | None) -> None:
 def _calls_of_the_loop(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
                        T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work, PTS,
                        fr, eqw, ec):
-    """The loop's calls of the contact solve's KKT check, at the end of a step (in the full
-    variant the bilateral rows' hold) and of its energy check, on ``_run_chunk``'s arguments:
+    """The loop's calls at the end of a step (in the full variant the bilateral rows' hold),
+    of its energy check and record and of the contact solve's KKT check (which the loop's
+    compile meets first, and mostly compiles itself), on ``_run_chunk``'s arguments:
     typing it compiles them as the loop's compile would (never run)."""
     own, ws, lw = work
     M, L, cm, sm, cq, sq, qm, f, v_new, vbar, q_new, gm, gq, P, active, G, vfree, fb = own
     h, k = fset[F_H], cnt[C_K]
-    flag = k >= 0  # a bool variable, as the loop passes its flags (a literal would be typed apart)
-    kkt_residuals_kernel(M, L, f, lw.GA, lw.cA, v_new, lw.PA, k, ws.res, ws.Gv, ws.GtP, ws.rv, ws.d, ws.x, ws.X,
-                         ws.rd, flag, model.pool, model.ints[SC_MASS_OFF], cm, sm, lw.gen, flag)  # the contact check
     status = _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc, fail, eligible, ws, lw,
                        rs, in_contact, pen, gmax, eqw, v_new, P_acc, act_acc, last_imp,
                        (fset[F_T0] + k * h, h, f, fgap, IMP))
-    return status + _energy_check(model, user, iset, fset, k, q, v, cq, sq, M, cnt, acc, lw.q_warn, lw.v_warn)
+    status += _energy_check(model, user, iset, fset, k, q, v, cq, sq, M, cnt, acc, lw.q_warn, lw.v_warn)
+    pe = ev.potential(model.ints, model.ekind, model.eoff, model.pool, q, cq, sq)  # the record's
+    flag = k >= 0  # a bool variable, as the loop passes its flags (a literal would be typed apart)
+    kkt_residuals_kernel(M, L, f, lw.GA, lw.cA, v_new, lw.PA, k, ws.res, ws.Gv, ws.GtP, ws.rv, ws.d, ws.x, ws.X,
+                         ws.rd, flag, model.pool, model.ints[SC_MASS_OFF], cm, sm, lw.gen, flag)  # the contact check
+    return status + np.int64(pe)
 
 
 class _Typed(Exception):
@@ -244,8 +249,11 @@ if __name__ == "__main__":
     threading.Thread(target=_watch_parent, args=(int(sys.argv[2]),), daemon=True).start()
     _report()
     _compile(sys.argv[1])
-    type_calls_of_the_loop(sys.argv[1])  # what the loop's compile meets next; the projection only a run looks up
+    type_calls_of_the_loop(sys.argv[1])  # what the loop's compile meets next; the rest only a run looks up
     from moreau.compiled.drift import projection_address
     from moreau.compiled.runner import chunk_example
+    from moreau.compiled.step import warm_start_addresses
 
-    projection_address(*chunk_example(sys.argv[1])[:7])
+    example = chunk_example(sys.argv[1])
+    warm_start_addresses(example[0], example[6])
+    projection_address(*example[:7])

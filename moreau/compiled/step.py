@@ -5,6 +5,7 @@ contacts closed at the midpoint, and the contact solve with its check and fallba
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -29,6 +30,8 @@ from moreau.compiled.layout import (  # the loop's layout
     R_GAP,
     R_PINNED,
     R_SHIFT,
+    S_DELASSUS,
+    S_DELASSUS_KEY,
     S_DRIFT,
     S_EXTERNAL,
     S_FALLBACK,
@@ -36,6 +39,8 @@ from moreau.compiled.layout import (  # the loop's layout
     S_MEMORY,
     S_METHOD,
     S_STEP,
+    S_WARM,
+    S_WARM_KEY,
     SC_M,
     SC_MASS_KIND,
     SC_MASS_OFF,
@@ -48,6 +53,7 @@ from moreau.compiled.layout import (  # the loop's layout
 )
 from moreau.compiled.layout import call as _call
 from moreau.compiled.layout import part as _part
+from moreau.compiled.native import MISMATCH, address_and_key, call_checked
 from moreau.compiled.usercalls import call_solver
 from moreau.compiled.warm_start import keep_rows, same_rows, warm_solve
 from moreau.contact.lcp import kkt_residuals_kernel, solve_one_step
@@ -109,14 +115,22 @@ def _contact_solve(M, L, b, GA, cA, na, v_out, P_out, iset, fset, cnt, acc, fail
     for attempt in range(first, 2):  # one call site of the check: its code is in the loop once
         st = 1
         if attempt < 0:
-            if cd is not None and warm_solve(cd[0], cd[1], cd[2], cd[3], cd[4], GA, cA, k, ws, v_out, P_out):
-                st = 0
+            if cd is not None:  # through its address (warm_start_addresses): not in the loop's compile
+                got = call_checked(iset[S_WARM], iset[S_WARM_KEY], (cd[0], cd[1], cd[2], cd[3], cd[4], GA, cA, k, ws,
+                                                                    v_out, P_out))
+                if got == MISMATCH:
+                    cnt[C_FAILKIND] = NATIVE_MISMATCH
+                    return False
+                st = 0 if got == 1 else 1
         else:
             method = iset[S_METHOD] if attempt == 0 else iset[S_FALLBACK]
             if method < 0:
                 break
             if cd is not None and prepared and fresh and attempt == 0:  # a chain's W, formed here once
-                _chain_delassus(cd[0], cd[1], cd[2], cd[3], cd[4], GA, k, ws)
+                if call_checked(iset[S_DELASSUS], iset[S_DELASSUS_KEY], (cd[0], cd[1], cd[2], cd[3], cd[4], GA, k,
+                                                                          ws)) == MISMATCH:
+                    cnt[C_FAILKIND] = NATIVE_MISMATCH
+                    return False
             if attempt == 1:
                 cnt[C_FALLBACKS] += 1
             ws.ids[0] = -1
@@ -162,7 +176,7 @@ def _chain_prepare(ints, pool, cm, sm, gen, b, ws, fresh):
     fresh pass flags the check's kept √(M⁻¹)_jj stale (``implicit.checked`` keeps them), and
     so do chains under ``CHAIN_STRUCTURED_MIN`` (8) links: the dense solves cost as little there, and the dense floor,
     formed only when a check needs it, less (the 3-link chain's step on a floor was 5-7 %
-    slower with these). W itself is formed by :func:`_contact_solve` (:func:`_chain_delassus`),
+    slower with these). W itself is formed by :func:`_contact_solve` (:func:`chain_delassus`),
     unless the kept factor serves."""
     n = ints[SC_N]
     if ints[SC_MASS_KIND] != _k.MASS_CHAIN or ints[SC_MF] > 0 or ints[SC_ME] > 0 or n < _k.CHAIN_STRUCTURED_MIN:
@@ -177,8 +191,8 @@ def _chain_prepare(ints, pool, cm, sm, gen, b, ws, fresh):
     return True
 
 
-@_call  # once a step at most, and only a chain's: a call, its body not in the loop's compile
-def _chain_delassus(pool, off, cm, sm, gen, GA, k, ws):
+@_call  # once a step at most, and only a chain's: called through its address (warm_start_addresses)
+def chain_delassus(pool, off, cm, sm, gen, GA, k, ws):
     """A chain's M⁻¹ G_jᵀ (rows of ``ws.MinvGt``) and W = G M⁻¹ Gᵀ (``ws.W``) for the first
     k rows of ``GA``, by its O(n) solve from its mass at ``pool[off:]`` (:func:`_chain_prepare`)."""
     n = cm.shape[0]
@@ -191,6 +205,28 @@ def _chain_delassus(pool, off, cm, sm, gen, GA, k, ws):
         for i in range(n):
             MinvGt[j, i] = X[i, j]
     _k.delassus_product(GA, X, W, k, n)
+    return np.int64(0)
+
+
+@_call
+def warm_answer(p, o, c, s, gen, G, cA, k, ws, v, P):
+    """:func:`~moreau.compiled.warm_start.warm_solve` as the loop calls it, through its
+    address: 1 when the kept factor's answer is in ``v, P``, else 0."""
+    return np.int64(1) if warm_solve(p, o, c, s, gen, G, cA, k, ws, v, P) else np.int64(0)
+
+
+def warm_start_addresses(model: Any, work: tuple) -> tuple[int, int, int, int]:
+    """The addresses of :func:`warm_answer`'s and :func:`chain_delassus`'s machine code for a
+    run's arrays (``model``, ``work`` of :func:`moreau.compiled.loop.run_chunk`), as
+    :func:`_contact_solve` calls them, each with the key of its argument types (the
+    ``S_WARM`` and ``S_DELASSUS`` settings): loaded or compiled here. Only a chain's
+    persistent contact runs them, once a step at most; as calls through an address the
+    loop's compile neither compiles them nor links their code."""
+    own, ws, lw = work[:3]
+    p, o, k = model.pool, np.int64(model.ints[SC_MASS_OFF]), np.int64(0)
+    warm, warm_key = address_and_key(warm_answer, (p, o, own.cm, own.sm, lw.gen, lw.GA, lw.cA, k, ws, own.v_new, lw.PA))
+    rows, rows_key = address_and_key(chain_delassus, (p, o, own.cm, own.sm, lw.gen, lw.GA, k, ws))
+    return warm, warm_key, rows, rows_key
 
 
 @_part
@@ -344,11 +380,11 @@ def _velocity_update(model, user, iset, fset, qm, cm, sm, M, L, Minv, f, v, gm, 
                                  cnt, L, eqw, rank)
     fresh = not again or locate or me > 0 or mf > 0  # else the last Delassus matrix stands
     warm = check and not again and iset[S_METHOD] == METHOD_EXACT and same_rows(ws.ids, active, m, na)
-    chain = _chain_prepare(ints, pool, cm, sm, lw.gen, b, ws, fresh)
-    mass = (pool, ints[SC_MASS_OFF], cm, sm, lw.gen)
+    chain, mass = _chain_prepare(ints, pool, cm, sm, lw.gen, b, ws, fresh), (pool, ints[SC_MASS_OFF], cm, sm, lw.gen)
     if solved < 0 or (solved == 0 and not _contact_solve(Ms, Ls, bs, GA, cA, na, v_new, PA, iset, fset, cnt, acc,
                                                           fail, ws, mass, fresh, check, chain, warm and chain, mass)):
-        cnt[C_FAILKIND] = NATIVE_MISMATCH if solved == -2 else SOLVER_FAILED  # (-2: friction's address, other types)
+        if cnt[C_FAILKIND] != NATIVE_MISMATCH:  # (set by _contact_solve: a warm start's address, other types)
+            cnt[C_FAILKIND] = NATIVE_MISMATCH if solved == -2 else SOLVER_FAILED  # (-2: friction's address)
         return -1
     keep_rows(ws.ids, active, m, na, chain)  # the rows of the factor the dual method left
     j = 0
