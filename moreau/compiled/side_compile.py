@@ -10,9 +10,11 @@ addresses, which a run looks up after the loop's compile. A second
 process compiles them with the loop's argument types and saves them into numba's cache,
 in the order the loop's compile meets them: the solves through their Python entries
 (:class:`moreau.ExactSolver`, :func:`moreau.contact.friction.friction_one_step`), then
-the KKT check and the calls at the end of a step by typing :func:`_calls_of_the_loop`,
-which calls them as the loop does, then the projection through
-:func:`~moreau.compiled.drift.projection_address`; all on the arguments of a run
+the calls at the end of a step, the energy check and the KKT check by typing
+:func:`_calls_of_the_loop`, which calls them as the loop does, then what a run looks up
+after the loop's compile: a chain's warm start
+(:func:`~moreau.compiled.step.warm_start_addresses`) and the projection
+(:func:`~moreau.compiled.drift.projection_address`); all on the arguments of a run
 (:func:`moreau.compiled.runner.chunk_example`). A run starts it as its checks of the
 initial state begin (:func:`moreau.compiled.cache.compiling_ahead`), a direct
 :func:`~moreau.compiled.cache.ensure_compiled` as its compile does.
