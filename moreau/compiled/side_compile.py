@@ -8,7 +8,7 @@ and full variants, the friction solve (:func:`moreau.contact.friction.solve_fric
 (:func:`moreau.compiled.drift.project_rows`) and its friction solve through their
 addresses, which a run looks up after the loop's compile. A second
 process compiles them with the loop's argument types and saves them into numba's cache,
-in the order the loop's compile meets them: the solves through their Python entries
+ahead of the loop's compile where it can be: the solves through their Python entries
 (:class:`moreau.ExactSolver`, :func:`moreau.contact.friction.friction_one_step`), then
 the calls at the end of a step, the energy check and the KKT check by typing
 :func:`_calls_of_the_loop`, which calls them as the loop does, then what a run looks up

@@ -58,9 +58,10 @@ def _with_prepass(optimize_functions: Any) -> Any:
 
     def run(self: Any, ll_module: Any) -> None:
         tm, layout = getattr(self._codegen, "_tm", None), getattr(self._codegen, "_data_layout", None)
-        if tm is not None and layout is not None:
-            ll_module.data_layout = layout  # (numba's sets it first as well: InstCombine needs it)
-        for func in ll_module.functions if tm is not None and layout is not None else ():
+        if tm is None or layout is None:  # not numba's codegen as read here: its own passes only
+            return optimize_functions(self, ll_module)
+        ll_module.data_layout = layout  # (numba's sets it first as well: InstCombine needs it)
+        for func in ll_module.functions:
             if not func.is_declaration and is_moreaus(func.name) and _size(func) >= LARGE:
                 pb = llvm.create_pass_builder(tm, llvm.create_pipeline_tuning_options(0))
                 pm = llvm.create_new_function_pass_manager()
