@@ -10,10 +10,12 @@ one table, absolute times on a shared 2-core machine are noisy):
    DOP853 at rtol = atol = 1e-13, per tol; and the extrapolated step at fixed H (every
    step accepted, ``StepControl(1e6)``), with its observed order;
 3. the woodpecker (Glocker's state, 0.45 s): the error of the three returns' times, ydot
-   and phidot against fixed h = 1e-6 (``benchmarks/wp_friction.py``'s metrics);
+   and phidot against fixed h = 1e-6 (``benchmarks/wp_friction.py``'s metrics), and the
+   return-time error over tol for ten tolerances 1e-3 … 1e-6 (its scatter);
 4. with ``--piston``: the e = 0 piston over 2 cycles with ``PositionProjection(velocity=True)``,
    the side-change angles of the last cycle against fixed h = 1e-6 (``benchmarks/wp_problems.py``'s
-   metric), ``StepControl(tol)`` with the largest step 1e-2, and coarse tolerances with the largest step 0.1.
+   metric), ``StepControl(tol)`` with the largest step 1e-2, and coarse tolerances with the largest step 0.1;
+   and the error at tol = 1e-10 and 2e-11 for five largest steps 0.0094 … 0.0106 (its scatter).
 
     python benchmarks/step_control.py [--piston]
 """
@@ -111,6 +113,11 @@ def woodpecker():
         d = np.abs(_returns(traj) - ref).max(axis=0)
         _row(label, float(d[0]), traj, wall, base)
         print(f"  {'':<22} [{d[1]:.2e}, {d[2]:.2e}]")
+    ladder = (1e-3, 5e-4, 2e-4, 1e-4, 5e-5, 2e-5, 1e-5, 5e-6, 2e-6, 1e-6)
+    ratios = [float(np.abs(_returns(run(1e-3, step_control=mo.StepControl(tol))[0]) - ref)[:, 0].max()) / tol
+              for tol in ladder]
+    print("  return-time error / tol over tol = " + ", ".join(f"{t:g}" for t in ladder) + ":\n  "
+          + " ".join(f"{r:.2g}" for r in ratios))
 
 
 def piston():
@@ -140,6 +147,10 @@ def piston():
     rows += [(f"H = 0.1, tol = {tol:g}", *run(0.1, step_control=mo.StepControl(tol))[:2]) for tol in (1e-6, 1e-7)]
     for label, traj, wall in rows:
         _row(label, _angle_distance(angles(traj), ref), traj, wall, base)
+    for tol in (1e-10, 2e-11):  # the same tolerance, slightly different largest steps
+        errs = [_angle_distance(angles(run(hm, step_control=mo.StepControl(tol))[0]), ref)
+                for hm in (0.0094, 0.0097, 0.01, 0.0103, 0.0106)]
+        print(f"  tol = {tol:g}, largest step 0.0094 ... 0.0106: " + " ".join(f"{e:.2g}" for e in errs))
 
 
 def main() -> None:
