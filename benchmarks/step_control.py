@@ -11,7 +11,8 @@ one table, absolute times on a shared 2-core machine are noisy):
    step accepted, ``StepControl(1e6)``), with its observed order;
 3. the woodpecker (Glocker's state, 0.45 s): the error of the three returns' times, ydot
    and phidot against fixed h = 1e-6 (``benchmarks/wp_friction.py``'s metrics), and the
-   return-time error over tol for ten tolerances 1e-3 … 1e-6 (its scatter);
+   return-time error over tol for ten tolerances 1e-3 … 1e-6 (its scatter), and the
+   reference's own distance from an h = 1e-7 run;
 4. with ``--piston``: the e = 0 piston over 2 cycles with ``PositionProjection(velocity=True)``,
    the side-change angles of the last cycle against fixed h = 1e-6 (``benchmarks/wp_problems.py``'s
    metric), ``StepControl(tol)`` with the largest step 1e-2, and coarse tolerances with the largest step 0.1;
@@ -113,6 +114,8 @@ def woodpecker():
         d = np.abs(_returns(traj) - ref).max(axis=0)
         _row(label, float(d[0]), traj, wall, base)
         print(f"  {'':<22} [{d[1]:.2e}, {d[2]:.2e}]")
+    finer = _returns(mo.simulate(scene, (0.0, 0.45), q0, v0, 1e-7, energy=False, record_every=10))
+    print(f"  the reference itself against h = 1e-7: return times {np.abs(ref - finer)[:, 0].max():.2e} s")
     ladder = (1e-3, 5e-4, 2e-4, 1e-4, 5e-5, 2e-5, 1e-5, 5e-6, 2e-6, 1e-6)
     ratios = [float(np.abs(_returns(run(1e-3, step_control=mo.StepControl(tol))[0]) - ref)[:, 0].max()) / tol
               for tol in ladder]
