@@ -74,6 +74,71 @@ def test_smooth_error_falls_with_the_tolerance(smooth_pendulum):
     assert all(b < a for a, b in zip(errors, errors[1:])), errors
 
 
+def test_smooth_error_is_proportional_to_the_tolerance(smooth_pendulum):
+    """Error over tol within 0.1 … 2 and within a factor 5 of each other for tol = 1e-3 …
+    1e-8. Sized by its own error alone, the step grows where the error's leading term changes
+    sign, and the error over tol rose as log(1/tol), from 0.45 to 11.7."""
+    scene, y_end = smooth_pendulum
+    ratios = []
+    for tol in (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8):
+        traj = mo.simulate(scene, (0.0, 2.0), [1.0], [0.5], 0.1, energy=False, step_control=mo.StepControl(tol))
+        ratios.append(max(abs(traj.q[-1, 0] - y_end[0]), abs(traj.v[-1, 0] - y_end[1])) / tol)
+    assert 0.1 <= min(ratios) and max(ratios) <= 2.0 and max(ratios) / min(ratios) <= 5.0, ratios
+
+
+@pytest.fixture(scope="module")
+def woodpecker_scene():
+    from moreau.problems.woodpecker import GLOCKER_STATE, woodpecker
+
+    return woodpecker(), GLOCKER_STATE
+
+
+def test_a_contact_that_opens_late_in_a_step_is_resolved(woodpecker_scene):
+    """The woodpecker's sleeve, held on the rod by friction, leaves it at t = 0.06702 s. In a
+    step whose three midpoints all lie before, every answer holds the contact and they agree;
+    its force falling through zero in the step's last quarter is the error of the late
+    release. At tol = 1e-7, for nine largest steps 8e-4 … 1.2e-3, the sleeve's angular
+    velocity at 0.07 s within 1e-3 rad/s of an h = 1e-7 run (at most 1.8e-4; unseen, three
+    of the nine were 3.2e-3 … 4.4e-3 off)."""
+    scene, (q0, v0) = woodpecker_scene
+    ref = mo.simulate(scene, (0.0, 0.07), q0, v0, 1e-7, energy=False, record_every=100)
+    assert ref.active[np.searchsorted(ref.t, 0.06)].any() and not ref.active[-1].any()
+    for h in np.linspace(8e-4, 1.2e-3, 9):
+        traj = mo.simulate(scene, (0.0, 0.07), q0, v0, h, energy=False, step_control=mo.StepControl(1e-7))
+        assert abs(traj.v[-1, 1] - ref.v[-1, 1]) <= 1e-3, (h, traj.v[-1, 1] - ref.v[-1, 1])
+
+
+def test_a_contact_held_at_rest_is_extrapolated(woodpecker_scene):
+    """The sleeve sliding on the rod (0 … 0.02 s, its row closed and at rest): the fine and
+    coarse answers differ only along the rod, the step is as smooth as a free one and is
+    extrapolated. At tol = 1e-5 the sleeve's speed at 0.02 s within 1e-6 of an h = 1e-7 run
+    (2.6e-7; as a first-order contact step, not extrapolated: 8.7e-6)."""
+    scene, (q0, v0) = woodpecker_scene
+    ref = mo.simulate(scene, (0.0, 0.02), q0, v0, 1e-7, energy=False, record_every=100)
+    traj = mo.simulate(scene, (0.0, 0.02), q0, v0, 1e-3, energy=False, step_control=mo.StepControl(1e-5))
+    assert traj.active[1:, 1].all() and np.all(traj.v[1:, 0] < 0.0)  # in contact, sliding
+    assert abs(traj.v[-1, 0] - ref.v[-1, 0]) <= 1e-6, traj.v[-1, 0] - ref.v[-1, 0]
+
+
+def test_stick_to_slip_is_a_switching_point(monkeypatch):
+    """A closed row whose tangential impulse reaches mu times its normal one (it slips) in
+    the second fine step, having stuck at the start and in the other two steps, makes the
+    step switching (kind 2); the same row sticking throughout is persistent contact (1).
+    (The parts as Python: ``py_func``.)"""
+    from types import SimpleNamespace
+
+    from moreau.compiled import local_error
+
+    monkeypatch.setattr(local_error, "_slip_of", local_error._slip_of.py_func)
+    closed = np.array([True])
+    sn = SimpleNamespace(closed_c=closed, closed_f=closed, closed0=closed, in_contact=closed,
+                         slip0=np.zeros(1), slip_c=np.zeros(1), slip_f=np.zeros(1))
+    P = np.array([2.0])
+    for PT, kind in ((-0.6, 2), (-0.3, 1)):
+        fr = SimpleNamespace(PT=np.array([PT]), mu=np.array([0.3]))
+        assert local_error._kind.py_func(1, closed, sn, 0, 0, P, fr) == kind
+
+
 @pytest.mark.parametrize("control", [None, mo.StepControl(1e-6)], ids=["fixed", "adaptive"])
 def test_a_run_cut_into_chunks_equals_the_uncut_run(ball, monkeypatch, control):
     """The runner resumes the loop chunk after chunk (Ctrl-C is honoured between them): a run
@@ -120,6 +185,26 @@ def test_friction_and_impacts_follow_the_tolerance():
     assert got.shape == ref.shape
     assert np.abs(got[:, 0] - ref[:, 0]).max() <= 3e-5
     assert traj.stats.steps < 4500
+
+
+@pytest.mark.slow
+def test_woodpecker_return_times_follow_the_tolerance(woodpecker_scene):
+    """The returns to Glocker's state within 3x tol of an h = 1e-7 run for tol = 1e-4, 1e-5,
+    1e-6 (over 40 tolerances 1e-3 … 1e-6 the largest error is 1.5 tol): a barrier crossed
+    inside a step counts as the state error of its late impact, not as its depth alone, which
+    let the sleeve's impacts come 5e-6 s late at tol = 1e-5 (error 5x tol)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks"))
+    from wp_friction import _returns
+
+    scene, (q0, v0) = woodpecker_scene
+    ref = _returns(mo.simulate(scene, (0.0, 0.45), q0, v0, 1e-7, energy=False, record_every=10))
+    for tol in (1e-4, 1e-5, 1e-6):
+        got = _returns(mo.simulate(scene, (0.0, 0.45), q0, v0, 1e-3, energy=False, step_control=mo.StepControl(tol)))
+        assert got.shape == ref.shape
+        assert np.abs(got[:, 0] - ref[:, 0]).max() <= 3 * tol, tol
 
 
 @pytest.mark.slow

@@ -8,19 +8,23 @@ step of H) and x_f (two of H/2), x = (q, v), gives the local error of x_f, scale
 componentwise as ``err = max |x_f − x_c| / (c (atol + rtol |x_f|))``, where c depends on
 the kind of step:
 
-- *smooth*: no row closed in any of the three steps and none in contact at the start:
-  c = 2^p − 1 for a scheme of order p (2; 1 for the midpoint step with velocity-dependent
-  forces), and the step is extrapolated (Richardson): x = x_f + (x_f − x_c)/(2^p − 1),
-  one order higher (not with bilateral rows: the extrapolated q would leave them);
-- *persistent contact*: the same rows closed in all three and no impact: c = 1, order 1;
-- *switching*: a row closes or opens, or an impact is logged: c = 1, and
-  x_f − x_c ~ (jump of v) H, so the step shrinks until the switching time is resolved to
-  the tolerance; a row not in contact that ends the step inside its barrier (the contact
-  closes at the midpoint of the next step) counts its penetration as error too
-  (err >= −g / atol), so that the barrier is crossed at most ``atol`` deep.
+- *smooth*: no row closed in any of the three steps and none in contact at the start, or
+  the same rows closed in all three and held at rest (the two answers differ only
+  tangentially to them: ``local_error._tangential``): c = 2^p − 1 for a scheme of order p
+  (2; 1 for the midpoint step with velocity-dependent forces), and the step is extrapolated
+  (Richardson): x = x_f + (x_f − x_c)/(2^p − 1), one order higher (not with bilateral rows:
+  the extrapolated q would leave them);
+- *persistent contact*: the same rows closed in all three, otherwise: c = 1, order 1;
+- *switching*: a row closes or opens, a closed row with friction sticks, slips or reverses,
+  or an impact is logged: c = 1, and x_f − x_c ~ (jump of v) H, so the step shrinks until
+  the switching time is resolved to the tolerance. Two switches no midpoint of the three
+  steps sees count as error in the state's units: a barrier crossed inside the step (its
+  impact is a step late: ``local_error._crossing``) and a closed row's force falling through
+  zero, or its friction reaching the cone, in the step's last quarter (``local_error._pull``).
 
 An attempt with err <= 1 is accepted, and the next H is H · min(4, 0.9 err^(−1/(order+1)))
-(at most ``K_HMAX``); a rejected one is taken again with H · max(0.1, min(0.9,
+(a smooth step's err not below what the error constant of the last one to two largest steps
+predicts, ``local_error._remembered``; at most ``K_HMAX``); a rejected one is taken again with H · max(0.1, min(0.9,
 0.9 err^(−1/(order+1)))). Below ``K_HMIN`` an attempt is accepted anyway and counted
 (``C_FORCED``). An error that does not grow with H is a floor (the round-off of the step
 and its contact solve), not the step's: a step accepted within the tolerance at ``K_HMIN``,
@@ -35,7 +39,6 @@ updates.
 from __future__ import annotations
 
 import logging
-import math
 import time
 
 import numpy as np
@@ -85,6 +88,7 @@ from moreau.compiled.layout import (
     chunk_arguments,
 )
 from moreau.compiled.layout import part as _part
+from moreau.compiled.local_error import _at_floor, _error, _remembered, _slip, _step_kind
 from moreau.compiled.loop import _record, _run_chunk
 from moreau.compiled.native import address, call_native
 from moreau.compiled.variants import VARIANTS, variant_of
@@ -106,7 +110,9 @@ def snapshot(n: int, m: int, mf: int, me: int) -> Snapshot:
                     np.zeros(m, dtype=np.int64), np.zeros(m), np.zeros((m, 6)), np.zeros((2, m)),
                     np.zeros(N_COUNTERS, dtype=np.int64), np.zeros(N_ACCUMULATORS), np.zeros(m if mf else 0),
                     np.zeros(me), np.empty(n), np.empty(n), np.zeros(m + mf + me), np.zeros(m, dtype=np.bool_),
-                    np.zeros(m, dtype=np.bool_), np.zeros(m, dtype=np.bool_), np.full(m, np.nan))
+                    np.zeros(m, dtype=np.bool_), np.zeros(m, dtype=np.bool_), np.full(m, np.nan),
+                    np.zeros(m if mf else 0), np.zeros(m if mf else 0), np.zeros(m if mf else 0), np.zeros(m),
+                    np.zeros(m if mf else 0), np.zeros(n))
 
 
 @_part
@@ -145,55 +151,6 @@ def _swap(save, q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, pen, cnt, 
         _copy(save, fr.PT_acc, sn.PT_acc)
     if eqw is not None:
         _copy(save, eqw.PE_acc, sn.PE_acc)
-
-
-@_part
-def _error(q, v, sn, atol, rtol, c):
-    """The scaled local error max |x_f − x_c| / (c (atol + rtol |x_f|)) of the fine answer
-    (q, v) against the coarse one kept in ``sn``."""
-    err = 0.0
-    for a, b in ((q, sn.qc), (v, sn.vc)):
-        for i in range(a.shape[0]):
-            e = abs(a[i] - b[i]) / (c * (atol + rtol * abs(a[i])))
-            if e > err or e != e:
-                err = e if e == e else math.inf
-    return err
-
-
-@_part
-def _at_floor(H, err, hmin, hl, el):
-    """True when the error of a step of H accepted within the tolerance is a floor (the
-    round-off of the step and of its contact solve), not the step's: at the smallest step,
-    or not grown with H since the last accepted step (of hl, error el) as an error of
-    order >= 1 would (H^2). Such a step is grown, not shrunk towards h_min for good."""
-    return H <= hmin * (1.0 + 1e-9) or (hl > 0.0 and H > 1.5 * hl and err < el * math.sqrt(H / hl))
-
-
-@_part
-def _kind(m, active, sn, nimp0, nimp):
-    """0 smooth, 1 persistent contact, 2 switching (see the module docstring), from the
-    rows in contact at the start, the closed rows of the step before and of the three
-    steps, and the impacts logged."""
-    closed, changed = False, nimp > nimp0
-    for r in range(m):
-        a = active[r]
-        if a or sn.closed_c[r] or sn.closed_f[r] or sn.closed0[r] or sn.in_contact[r]:
-            closed = True
-        if a != sn.closed_c[r] or a != sn.closed_f[r] or a != sn.closed0[r]:
-            changed = True
-    return 2 if changed else (1 if closed else 0)
-
-
-@_part
-def _crossing(m, sn, gq):
-    """How much deeper than at the start (gap ``sn.rs[r, R_GAP]``) a row neither closed nor
-    in contact at the start ends the coarse or the fine steps inside its barrier: a barrier
-    crossed inside the step (0 if none)."""
-    d = 0.0
-    for r in range(m):
-        if not (sn.in_contact[r] or sn.closed0[r]):
-            d = max(d, min(-gq[r], -sn.gc[r]) - max(0.0, -sn.rs[r, R_GAP]))
-    return d
 
 
 @njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]  # numba's internal flag
@@ -243,6 +200,7 @@ def _run_adaptive(model, user, iset, fset, Minv, eligible, q, v, k_end, in_conta
             sn.gc[r] = gq[r]
         for r in range(m):
             sn.closed_c[r] = active[r]
+        _slip(m, active, work[0].P, fr, sn.slip_c)
         _swap(False, q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, pen, cnt, acc, fr, eqw, sn)
         # two steps of H/2
         fset[F_H] = 0.5 * H
@@ -256,13 +214,14 @@ def _run_adaptive(model, user, iset, fset, Minv, eligible, q, v, k_end, in_conta
             if j == 0:
                 for r in range(m):
                     sn.closed_f[r] = active[r]
-        kind = _kind(m, active, sn, nimp0, cnt[C_NIMP])
-        crossed = _crossing(m, sn, gq) / atol
-        if crossed > 0.0:
-            kind = 2
+                _slip(m, active, work[0].P, fr, sn.slip_f)
+                _copy(True, work[0].P, sn.p_f)
+                if fr is not None:
+                    _copy(True, fr.PT, sn.pt_f)
+        kind, unseen = _step_kind(model, Minv, work, m, n, H, q, v, gq, sn, fr, nimp0, cnt[C_NIMP], atol)
         c = (2.0 ** p - 1.0) if kind == 0 else 1.0
         order = p if kind == 0 else (1 if kind == 1 else 0)
-        err = max(_error(q, v, sn, atol, rtol, c), crossed)
+        err = max(_error(q, v, sn, atol, rtol, c), unseen)
         if err > 1.0 and 0.5 * H > hmin:  # rejected: back to the start, a smaller step
             cnt[C_REJECTED] += 1
             _swap(False, q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, pen, cnt, acc, fr, eqw, sn)
@@ -272,6 +231,7 @@ def _run_adaptive(model, user, iset, fset, Minv, eligible, q, v, k_end, in_conta
             continue
         if err > 1.0:
             cnt[C_FORCED] += 1
+        _slip(m, active, work[0].P, fr, sn.slip0)
         # Richardson: one order more (the gaps alike, to second order in the change); not
         # with bilateral rows, whose g_E(q) = 0 the extrapolated q would leave
         if kind == 0 and ints[SC_ME] == 0:
@@ -293,7 +253,8 @@ def _run_adaptive(model, user, iset, fset, Minv, eligible, q, v, k_end, in_conta
             ctl[K_TOK] = t
         cnt[C_ACCEPTED] += 1
         ctl[K_T] = t_end if last else t + H
-        grow = 4.0 if err == 0.0 else min(4.0, 0.9 * err ** (-1.0 / (order + 1)))
+        e = _remembered(ctl, kind, order, err, H, t)
+        grow = 4.0 if e == 0.0 else min(4.0, 0.9 * e ** (-1.0 / (order + 1)))
         same = kind != 2 and ctl[K_KACC] == kind  # (errors of one kind scale alike with H)
         if err <= 1.0 and _at_floor(H, err, hmin, ctl[K_HACC] if same else 0.0, ctl[K_EACC]):
             grow = max(grow, 2.0)

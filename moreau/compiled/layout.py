@@ -113,9 +113,12 @@ N_ACCUMULATORS = 16
 RUNAWAY_RATE = 0.4
 # step-size control's state (float array): the step to try next, the time reached, the end
 # time, the tolerances (absolute, relative), the largest and smallest step, the start of the
-# step of the last energy check that passed, the last accepted step, its scaled error and kind
-K_H, K_T, K_END, K_ATOL, K_RTOL, K_HMAX, K_HMIN, K_TOK, K_HACC, K_EACC, K_KACC = range(11)
-N_CONTROL = 11
+# step of the last energy check that passed, the last accepted step, its scaled error and kind,
+# and the largest error constant (scaled error / H^(order+1)) of the smooth steps in the time
+# window of the largest step that holds the current time and in the one before, and the start
+# of the current window
+K_H, K_T, K_END, K_ATOL, K_RTOL, K_HMAX, K_HMIN, K_TOK, K_HACC, K_EACC, K_KACC, K_C0, K_C1, K_CB = range(14)
+N_CONTROL = 14
 
 # The step's parts are inlined into the loop by numba (IR level), as are the evaluation
 # functions (moreau.compiled.evaluate); the kernels and LCP routines they call are inlined by LLVM
@@ -176,9 +179,12 @@ PassWork = namedtuple("PassWork", "Ms c2 s2 qp dq x ylast rlast mv fq")
 #: step-size control's snapshot of a step's start (restored when an attempt is rejected: the
 #: run state, counters, accumulators and friction's and the bilateral rows' sums since the last
 #: record), the coarse step's end (q, v, gaps), the closed rows of the step before, of the coarse
-#: and of the first fine step, and each row's time of its deepest penetration
+#: and of the first fine step, each row's time of its deepest penetration, and with friction
+#: each row's slip (0 sticking or open, ±1 the sign of its tangential impulse when it slides)
+#: at the end of the last accepted step, of the coarse and of the first fine step, the first
+#: fine step's normal and tangential impulses per row, and a spare vector (n)
 Snapshot = namedtuple("Snapshot", "q v in_contact P_acc act_acc last_imp gmax rs pen cnt acc PT_acc PE_acc "
-                      "qc vc gc closed0 closed_c closed_f pen_t")
+                      "qc vc gc closed0 closed_c closed_f pen_t slip0 slip_c slip_f p_f pt_f x")
 #: the lowered scene's arrays (compiled.lowering.CompiledScene.arrays): the int settings, the
 #: effects' kinds and offsets, the barriers' kinds, offsets, first rows and row counts, the
 #: parameter pool, each row's restitution and activation tolerance

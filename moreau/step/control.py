@@ -4,10 +4,11 @@ The compiled loop (:mod:`moreau.compiled.adaptive`) takes each step once with H 
 with H/2 from the same state, estimates the local error from the difference, and accepts
 the step or takes it again with a smaller H (Studer, Leine & Glocker, "Step size
 adjustment and extrapolation for time-stepping schemes in non-smooth dynamics", IJNME
-76(11), 2008). Smooth steps (no row closed) are extrapolated (Richardson) to one order
-more; steps in which a row closes or opens, or an impact happens, shrink until the
-switching time is resolved to the tolerance; then the step grows again, to at most the
-``h`` given to :func:`moreau.simulate`.
+76(11), 2008). Smooth steps (no row closed, or the closed rows held at rest) are
+extrapolated (Richardson) to one order more; steps in which a row closes or opens, a
+contact sticks or slips, or an impact happens, shrink until the switching time is
+resolved to the tolerance; then the step grows again, to at most the ``h`` given to
+:func:`moreau.simulate`.
 """
 
 from __future__ import annotations
@@ -27,7 +28,9 @@ class StepControl:
 
         |x_i(two steps of H/2) − x_i(one step of H)| / c  <=  tol + rtol · |x_i|
 
-    (c = 3 for a smooth step of the second-order midpoint step, 1 for a step with contact;
+    (c = 3 for a smooth step of the second-order midpoint step, or one whose closed rows are
+    held at rest, 1 for other steps with contact; a barrier crossed inside the step, or a
+    contact force falling through zero in it, counts as the state error its late switch makes;
     the units of ``tol`` are those of q for the coordinates and of v for the velocities:
     scale the model so that both matter alike, or use ``rtol``). The error of the run
     falls in proportion to ``tol`` (docs/guide/accuracy.md measures it).
