@@ -72,6 +72,7 @@ from moreau.compiled.layout import (
     K_T,
     K_TOK,
     R_GAP,
+    R_UNPROJECTED,
     RECORDS_FULL,
     S_MASS_READY,
     S_RECORD,
@@ -104,15 +105,15 @@ _KEPT = (C_SOLVES, C_FALLBACKS, C_UPDATES, C_ACCEPTED, C_REJECTED, C_FORCED)
 def snapshot(n: int, m: int, mf: int, me: int) -> Snapshot:
     """The arrays of a ``layout.Snapshot`` for n coordinates, m rows (mf tangent
     rows, me bilateral rows); allocated once per run."""
-    from moreau.compiled.layout import N_ACCUMULATORS, N_COUNTERS
+    from moreau.compiled.layout import N_ACCUMULATORS, N_COUNTERS, N_ROWSTATE
 
     return Snapshot(np.empty(n), np.empty(n), np.zeros(m, dtype=np.bool_), np.zeros(m), np.zeros(m, dtype=np.bool_),
-                    np.zeros(m, dtype=np.int64), np.zeros(m), np.zeros((m, 6)), np.zeros((2, m)),
+                    np.zeros(m, dtype=np.int64), np.zeros(m), np.zeros((m, N_ROWSTATE)), np.zeros((2, m)),
                     np.zeros(N_COUNTERS, dtype=np.int64), np.zeros(N_ACCUMULATORS), np.zeros(m if mf else 0),
                     np.zeros(me), np.empty(n), np.empty(n), np.zeros(m + mf + me), np.zeros(m, dtype=np.bool_),
                     np.zeros(m, dtype=np.bool_), np.zeros(m, dtype=np.bool_), np.full(m, np.nan),
                     np.zeros(m if mf else 0), np.zeros(m if mf else 0), np.zeros(m if mf else 0), np.zeros(m),
-                    np.zeros(m if mf else 0), np.zeros(n))
+                    np.zeros(m if mf else 0), np.zeros(n), np.zeros(m))
 
 
 @_part
@@ -200,6 +201,7 @@ def _run_adaptive(model, user, iset, fset, Minv, eligible, q, v, k_end, in_conta
             sn.gc[r] = gq[r]
         for r in range(m):
             sn.closed_c[r] = active[r]
+            sn.gu[r] = rs[r, R_UNPROJECTED]
         _slip(m, active, work[0].P, fr, sn.slip_c)
         _swap(False, q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, pen, cnt, acc, fr, eqw, sn)
         # two steps of H/2
@@ -218,7 +220,7 @@ def _run_adaptive(model, user, iset, fset, Minv, eligible, q, v, k_end, in_conta
                 _copy(True, work[0].P, sn.p_f)
                 if fr is not None:
                     _copy(True, fr.PT, sn.pt_f)
-        kind, unseen = _step_kind(model, Minv, work, m, n, H, q, v, gq, sn, fr, nimp0, cnt[C_NIMP], atol)
+        kind, unseen = _step_kind(model, Minv, work, m, n, H, q, v, gq, rs, sn, fr, nimp0, cnt[C_NIMP], atol)
         c = (2.0 ** p - 1.0) if kind == 0 else 1.0
         order = p if kind == 0 else (1 if kind == 1 else 0)
         err = max(_error(q, v, sn, atol, rtol, c), unseen)

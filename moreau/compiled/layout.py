@@ -57,10 +57,12 @@ METHOD_EXACT, METHOD_ENUM, METHOD_EXTERNAL = 0, 1, 2
 STEP_MIDPOINT, STEP_THETA, STEP_ENERGY = 0, 1, 2
 # drift control modes (S_DRIFT)
 DRIFT_NONE, DRIFT_POSITION, DRIFT_COMBINED = 0, 1, 2
-# per-row state of CombinedProjection (float array (m, 6)): gap at q_k, the gap where the
-# projection last held the row, held (pinned), restitution applied in this step, and for
-# a row that bounced at s into the step h/2 − s and (2 s − h) a_n (kernels.impact_law)
-R_GAP, R_PINGAP, R_PINNED, R_BOUNCED, R_DELAY, R_SHIFT = range(6)
+# per-row state of CombinedProjection (float array (m, N_ROWSTATE)): gap at q_k, the gap where
+# the projection last held the row, held (pinned), restitution applied in this step, for
+# a row that bounced at s into the step h/2 − s and (2 s − h) a_n (kernels.impact_law), and
+# the gap at q⁺ before drift control moved it (step-size control's crossing rule)
+R_GAP, R_PINGAP, R_PINNED, R_BOUNCED, R_DELAY, R_SHIFT, R_UNPROJECTED = range(7)
+N_ROWSTATE = 7
 # impact-log columns
 I_T, I_STEP, I_ROW, I_UB, I_UA, I_P, I_LOST, I_FLIGHT, I_FAST = range(9)
 # settings (float array)
@@ -148,7 +150,7 @@ call = njit(cache=True, nogil=True, _nrt=False,  # type: ignore[call-overload]
 Settings = namedtuple("Settings", "iset fset Minv eligible fgap")
 #: the state a chunk resumes from: q, v (n,); per row (m,): in contact, the impulse and activity
 #: summed since the last record, the step of its last impulse, its largest gap since then; the
-#: per-row state of CombinedProjection (m, 6); the deepest penetration and its step (2, m)
+#: per-row state of CombinedProjection (m, N_ROWSTATE); the deepest penetration and its step (2, m)
 RunState = namedtuple("RunState", "q v in_contact P_acc act_acc last_imp gmax rs pen")
 #: the record buffers: times, states, impulses, activity, gaps, energies, the impact log,
 #: the tangential impulses of a scene with friction
@@ -182,9 +184,10 @@ PassWork = namedtuple("PassWork", "Ms c2 s2 qp dq x ylast rlast mv fq")
 #: and of the first fine step, each row's time of its deepest penetration, and with friction
 #: each row's slip (0 sticking or open, ±1 the sign of its tangential impulse when it slides)
 #: at the end of the last accepted step, of the coarse and of the first fine step, the first
-#: fine step's normal and tangential impulses per row, and a spare vector (n)
+#: fine step's normal and tangential impulses per row, a spare vector (n), and the coarse
+#: step's end gaps before drift control moved them
 Snapshot = namedtuple("Snapshot", "q v in_contact P_acc act_acc last_imp gmax rs pen cnt acc PT_acc PE_acc "
-                      "qc vc gc closed0 closed_c closed_f pen_t slip0 slip_c slip_f p_f pt_f x")
+                      "qc vc gc closed0 closed_c closed_f pen_t slip0 slip_c slip_f p_f pt_f x gu")
 #: the lowered scene's arrays (compiled.lowering.CompiledScene.arrays): the int settings, the
 #: effects' kinds and offsets, the barriers' kinds, offsets, first rows and row counts, the
 #: parameter pool, each row's restitution and activation tolerance

@@ -47,6 +47,7 @@ from moreau.compiled.layout import (  # the loop's layout
     R_BOUNCED,
     R_DELAY,
     R_GAP,
+    R_UNPROJECTED,
     S_DRIFT,
     S_ECHECK,
     S_ENERGY,
@@ -149,6 +150,8 @@ def _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc
     m = ints[SC_M]
     if _user_failed(ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, q_new, cq, sq, gq), cnt):
         return USER_FAILED
+    for r in range(m):
+        rs[r, R_UNPROJECTED] = gq[r]
     if iset[S_DRIFT] != DRIFT_NONE:
         nproj = cnt[C_PROJ]
         if not _project(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc,

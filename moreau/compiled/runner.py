@@ -206,7 +206,8 @@ def _allocate(cs: CompiledScene, q0: np.ndarray, v0: np.ndarray, t0: float, n_re
     P_acc, act_acc = np.zeros(m), np.zeros(m, dtype=np.bool_)
     last_imp, gmax = np.full(m, -(1 << 62), dtype=np.int64), np.full(m, -np.inf)
     fgap = np.ascontiguousarray(flight_gap, dtype=float)
-    state = lay.RunState(q, v, in_contact, P_acc, act_acc, last_imp, gmax, np.zeros((m, 6)), np.zeros((2, m)))
+    rs = np.zeros((m, lay.N_ROWSTATE))
+    state = lay.RunState(q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, np.zeros((2, m)))
     tally = lay.Tally(np.zeros(lay.N_COUNTERS, dtype=np.int64), np.zeros(lay.N_ACCUMULATORS), np.zeros((2, 6)))
     tally.cnt[lay.C_REC] = 1
     work = vs.loop_workspace(n, m, mf, cs.friction, cs.tangent_row, me, variant)
