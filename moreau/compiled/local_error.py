@@ -3,16 +3,16 @@ switching points it must resolve: from the one step of H and the two of H/2 take
 state, the kind of the step, its scaled error, and the error of a switch that no midpoint of
 the three steps sees.
 
-- :func:`_step_kind`: the attempt's kind and unseen switch; :func:`_kind`: smooth,
+- ``_step_kind``: the attempt's kind and unseen switch; ``_kind``: smooth,
   persistent contact or switching (a row closes or opens, a closed row with friction
-  sticks, slips or reverses, an impact); :func:`_tangential` finds the persistent-contact
+  sticks, slips or reverses, an impact); ``_tangential`` finds the persistent-contact
   steps that are as smooth as a free one (the rows held at rest);
-- :func:`_error`: the scaled difference of the two answers;
-- :func:`_crossing`: a barrier crossed inside the step, the impact a step late, as the state
-  error it makes; :func:`_pull`: a closed row whose force falls through zero (or whose
+- ``_error``: the scaled difference of the two answers;
+- ``_crossing``: a barrier crossed inside the step, the impact a step late, as the state
+  error it makes; ``_pull``: a closed row whose force falls through zero (or whose
   friction reaches the cone) in the last quarter of the step, likewise;
-- :func:`_remembered`: the error that sizes the next smooth step, with a memory of the error
-  constant; :func:`_at_floor`: an error that does not grow with H.
+- ``_remembered``: the error that sizes the next smooth step, with a memory of the error
+  constant; ``_at_floor``: an error that does not grow with H.
 
 Each is a small part inlined into the driver (``layout.part``).
 """
