@@ -23,9 +23,9 @@ the kind of step:
   zero, or its friction reaching the cone, in the step's last quarter (``local_error._pull``).
 
 An attempt with err <= 1 is accepted, and the next H is H · min(4, 0.9 err^(−1/(order+1)))
-(a smooth step's err not below what the error constant of the last one to two largest steps
-predicts, ``local_error._remembered``; at most ``K_HMAX``); a rejected one is taken again with H · max(0.1, min(0.9,
-0.9 err^(−1/(order+1)))). Below ``K_HMIN`` an attempt is accepted anyway and counted
+(a smooth step's err not below what the error constant of the last one to two largest
+steps predicts, ``local_error._remembered``; at most ``K_HMAX``); a rejected one is taken
+again with H · max(0.1, min(0.9, 0.9 err^(−1/(order+1)))). Below ``K_HMIN`` an attempt is accepted anyway and counted
 (``C_FORCED``). An error that does not grow with H is a floor (the round-off of the step
 and its contact solve), not the step's: a step accepted within the tolerance at ``K_HMIN``,
 or grown by more than 1.5 since the last accepted one of the same kind (not switching)

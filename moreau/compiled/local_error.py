@@ -119,6 +119,20 @@ def _tangential(m, n, active, G, q, v, gq, sn):
 
 
 @_part
+def _response(model, Minv, work, row, x):
+    """M⁻¹ G_rowᵀ into ``x`` (the velocity change of a unit impulse on the row), and its
+    largest component and W = G_row M⁻¹ G_rowᵀ."""
+    own, lw = work[0], work[2]
+    G = own.G
+    _free_acceleration(model.ints, model.pool, Minv, own.L, lw.gen, own.cm, own.sm, G[row], x)
+    w, big = 0.0, 0.0
+    for i in range(x.shape[0]):
+        w += G[row, i] * x[i]
+        big = max(big, abs(x[i]))
+    return big, w
+
+
+@_part
 def _excess(a1, a2, H):
     """The impulse a row's force (or its friction's margin) a(t), taken linear through
     a1 = a(t + H/4) and a2 = a(t + 3H/4) (impulses over H/2), would exert beyond its zero
@@ -132,14 +146,13 @@ def _excess(a1, a2, H):
 
 
 @_part
-def _pull(model, Minv, work, m, n, H, active, sn, fr):
+def _pull(model, Minv, work, m, H, active, sn, fr):
     """The largest velocity change (the state's units) of the impulse a closed row would
     exert past a switching point inside the last quarter of the step: its contact force
     falling through zero (the row opens) or its friction force reaching mu times it (it
     slips). The step's midpoints do not see these points, so the three steps agree; the
     impulse through M⁻¹ Gᵀ is the error of taking the switch a step late (0 if none)."""
-    own, lw = work[0], work[2]
-    ints, G, P, x = model.ints, own.G, own.P, sn.x
+    P = work[0].P
     worst = 0.0
     for r in range(m):
         if not (active[r] and sn.closed_f[r] and sn.closed_c[r]):
@@ -149,32 +162,24 @@ def _pull(model, Minv, work, m, n, H, active, sn, fr):
             mu = fr.mu[r]
             a, row = _excess(mu * sn.p_f[r] - abs(sn.pt_f[r]), mu * P[r] - abs(fr.PT[r]), H), fr.tangent_row[r]
         if a > 0.0:
-            _free_acceleration(ints, model.pool, Minv, own.L, lw.gen, own.cm, own.sm, G[row], x)
-            for i in range(n):
-                worst = max(worst, a * abs(x[i]))
+            worst = max(worst, a * _response(model, Minv, work, row, sn.x)[0])
     return worst
 
 
 @_part
-def _crossing(model, Minv, work, m, n, sn, rs):
+def _crossing(model, Minv, work, m, sn, rs):
     """The state error (the state's units) of a barrier crossed inside the step: a row
     neither closed nor in contact at the start that ends the coarse and the fine steps a
     depth p deeper than at the start (gap ``sn.rs[r, R_GAP]``; the end gaps before drift
     control put the row back on its barrier, ``R_UNPROJECTED``) has its impact late by
     p / |ġ|, and the impact's velocity jump, (1 + e) ġ M⁻¹ G_rᵀ / W_rr (W_rr = G_r M⁻¹ G_rᵀ),
     that long in the state makes p (1 + e) |M⁻¹ G_rᵀ| / W_rr (0 if none)."""
-    own, lw = work[0], work[2]
     worst = 0.0
     for r in range(m):
         if not (sn.in_contact[r] or sn.closed0[r]):
             p = min(-rs[r, R_UNPROJECTED], -sn.gu[r]) - max(0.0, -sn.rs[r, R_GAP])
             if p > 0.0:
-                x = sn.x
-                _free_acceleration(model.ints, model.pool, Minv, own.L, lw.gen, own.cm, own.sm, own.G[r], x)
-                w, big = 0.0, 0.0
-                for i in range(n):
-                    w += own.G[r, i] * x[i]
-                    big = max(big, abs(x[i]))
+                big, w = _response(model, Minv, work, r, sn.x)
                 worst = max(worst, p * (1.0 + model.e[r]) * big / w if w > 0.0 else p)
     return worst
 
@@ -211,11 +216,11 @@ def _step_kind(model, Minv, work, m, n, H, q, v, gq, rs, sn, fr, nimp0, nimp, at
     a persistent-contact step whose rows are held at rest counts as smooth."""
     active = work[0].active
     kind = _kind(m, active, sn, nimp0, nimp, work[0].P, fr)
-    unseen = _crossing(model, Minv, work, m, n, sn, rs) / atol
+    unseen = _crossing(model, Minv, work, m, sn, rs) / atol
     if unseen > 0.0:
         kind = 2
     if kind == 1:  # (not with an impact: its impulse is no force to extrapolate)
-        unseen = _pull(model, Minv, work, m, n, H, active, sn, fr) / atol
+        unseen = _pull(model, Minv, work, m, H, active, sn, fr) / atol
         if unseen > 0.0:
             kind = 2
     if kind == 1 and _tangential(m, n, active, work[0].G, q, v, gq, sn):
