@@ -92,7 +92,7 @@ from moreau.compiled.layout import part as _part
 from moreau.compiled.local_error import _at_floor, _error, _remembered, _slip, _step_kind
 from moreau.compiled.loop import _record, _run_chunk
 from moreau.compiled.native import address, call_native
-from moreau.compiled.variants import VARIANTS, variant_of
+from moreau.compiled.variants import variant_of
 from moreau.core import kernels as _k
 from moreau.core.jitcache import call_recovering, compile_lock
 
@@ -100,6 +100,9 @@ log = logging.getLogger(__name__)
 
 # the counters a rejected attempt keeps: the work it did
 _KEPT = (C_SOLVES, C_FALLBACKS, C_UPDATES, C_ACCEPTED, C_REJECTED, C_FORCED)
+# the variants whose driver this process has loaded: their calls take no file lock (a set's
+# add is atomic; a race only takes the lock once more)
+_loaded: set[str] = set()
 
 
 def snapshot(n: int, m: int, mf: int, me: int) -> Snapshot:
@@ -279,14 +282,16 @@ def run_adaptive(model: tuple, user: np.ndarray, settings, state, records, tally
     (:func:`snapshot`). Returns a status."""
     steps = chunk_arguments(model, user, settings, state, records, tally, work, k_end)  # _run_chunk's
     args = (*steps, control, snap, address(_run_chunk, steps))
-    known = len(_run_adaptive.overloads)
-    if known >= len(VARIANTS):
+    variant = variant_of(work)
+    if variant in _loaded:
         return _run_adaptive(*args)
-    # until every variant is loaded: a new one is loaded (or compiled) one process at a
-    # time, others wait and load it; a damaged cache file is compiled again
+    # a variant new to this process is loaded (or compiled) one process at a time, others
+    # wait and load it; a damaged cache file is compiled again
+    known = len(_run_adaptive.overloads)
     t0 = time.perf_counter()
-    with compile_lock(".adaptive." + variant_of(work)):
+    with compile_lock(".adaptive." + variant):
         status = call_recovering(_run_adaptive, *args)
+    _loaded.add(variant)
     if len(_run_adaptive.overloads) > known and time.perf_counter() - t0 > 2.0:  # compiled, not loaded
         log.info("moreau: step-size control's driver compiled in %.0f s, once for this machine",
                  time.perf_counter() - t0)
