@@ -13,7 +13,8 @@ one table, absolute times on a shared 2-core machine are noisy):
 3. the woodpecker (Glocker's state, 0.45 s): the error of the three returns' times, ydot
    and phidot against fixed h = 1e-6 (``benchmarks/wp_friction.py``'s metrics); the
    reference's own distance from an h = 1e-7 run; the return-time error over tol against
-   the h = 1e-7 run for ten tolerances 1e-3 … 1e-6 (its scatter);
+   the h = 1e-7 run for ten tolerances 1e-3 … 1e-6 (its scatter); and the cost of the
+   ``simulate()`` call itself, over one step;
 4. with ``--piston``: the e = 0 piston over 2 cycles with ``PositionProjection(velocity=True)``,
    the side-change angles of the last cycle against fixed h = 1e-6 (``benchmarks/wp_problems.py``'s
    metric), ``StepControl(tol)`` with the largest step 1e-2, and coarse tolerances with the largest step 0.1;
@@ -125,6 +126,12 @@ def woodpecker():
         d = np.abs(_returns(traj) - ref).max(axis=0)
         _row(label, float(d[0]), traj, wall, base)
         print(f"  {'':<22} [{d[1]:.2e}, {d[2]:.2e}]")
+    # the call's own cost: a third of the cheapest fixed run at a coarse target is below it
+    calls = {label: min(_timed(lambda: mo.simulate(scene, (0.0, 1e-3), q0, v0, 1e-3, energy=False, **kw),
+                               repeats=1)[1] for _ in range(30))
+             for label, kw in (("fixed h", {}), ("StepControl", {"step_control": mo.StepControl(0.03)}))}
+    print("  the simulate() call over one step of 1e-3 (best of 30): "
+          + ", ".join(f"{k} {1e3 * w:.2f} ms" for k, w in calls.items()))
     finer = _returns(mo.simulate(scene, (0.0, 0.45), q0, v0, 1e-7, energy=False, record_every=10))
     print(f"  the reference itself against h = 1e-7: return times {np.abs(ref - finer)[:, 0].max():.2e} s")
     ladder = (1e-3, 5e-4, 2e-4, 1e-4, 5e-5, 2e-5, 1e-5, 5e-6, 2e-6, 1e-6)

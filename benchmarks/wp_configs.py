@@ -63,8 +63,9 @@ class Config:
     solver: str
     drift: str = "none"
     #: step-size control: the ladder's values are the tolerance of ``mo.StepControl`` and the
-    #: step is at most ``h_max`` (a problem's own, see :meth:`run_args`)
+    #: step is at most ``h_max`` (a problem's own, see :meth:`run_args`, unless given here)
     adaptive: bool = False
+    h_max: float | None = None
 
     def __post_init__(self) -> None:
         d = {False: "none", True: "proj"}[self.drift] if isinstance(self.drift, bool) else self.drift
@@ -74,15 +75,17 @@ class Config:
 
     @property
     def label(self) -> str:
-        return f"{self.integrator}/{self.solver}/{self.drift}" + ("/tol" if self.adaptive else "")
+        tol = ("/tol" if self.h_max is None else f"/tol/H={self.h_max:g}") if self.adaptive else ""
+        return f"{self.integrator}/{self.solver}/{self.drift}" + tol
 
     def run_args(self, x: float, h_max: float = 1e-2) -> tuple[float, dict]:
         """``(h, simulate's keyword arguments)`` of the ladder value ``x``: the step ``x``, or
-        with ``adaptive`` the largest step ``h_max`` and ``StepControl(x)``."""
+        with ``adaptive`` the largest step (this configuration's ``h_max``, else the problem's
+        ``h_max``) and ``StepControl(x)``."""
         kw = self.simulate_kwargs()
         if not self.adaptive:
             return x, kw
-        return h_max, {**kw, "step_control": mo.StepControl(x)}
+        return self.h_max or h_max, {**kw, "step_control": mo.StepControl(x)}
 
     def simulate_kwargs(self) -> dict:
         kw = SOLVERS[self.solver].simulate_kwargs()

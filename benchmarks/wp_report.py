@@ -161,14 +161,15 @@ def write_csv(runs: Sequence[Run], orders: dict, path: str) -> None:
                 names.append(k)
     with open(path, "w", newline="") as fh:
         w = csv.writer(fh)
-        # adaptive rows (step-size control): "h" is StepControl's tol, "order" the slope in tol
+        # adaptive rows (step-size control): "h" is StepControl's tol, "order" the slope in tol, "h_max"
+        # the largest step when the configuration sets it (else the problem's: wp_problems.py)
         w.writerow(["problem", "integrator", "solver", "checked", "drift", "adaptive", "h", "wall_s", "steps",
-                    "fallbacks", "status", "error", "order", *names])
+                    "fallbacks", "status", "error", "order", "h_max", *names])
         for r in runs:
             c = r.config
             w.writerow([r.problem, c.integrator, c.solver, SOLVERS[c.solver].checked, c.drift, c.adaptive, f"{r.h:.6g}",
                         f"{r.wall:.4f}", r.steps, r.fallbacks, r.status, f"{r.error:.6g}",
-                        f"{orders[(r.problem, c.label)]:.3f}",
+                        f"{orders[(r.problem, c.label)]:.3f}", "" if c.h_max is None else f"{c.h_max:g}",
                         *[("" if r.metrics.get(k) is None else f"{r.metrics[k]:.6g}") for k in names]])
 
 
@@ -178,7 +179,9 @@ def read_csv(path: str) -> tuple[list[Run], dict]:
     runs, orders = [], {}
     with open(path, newline="") as fh:
         for row in csv.DictReader(fh):
-            c = Config(row.pop("integrator"), row.pop("solver"), row.pop("drift"), row.pop("adaptive") == "True")
+            h_max = row.pop("h_max", "")
+            c = Config(row.pop("integrator"), row.pop("solver"), row.pop("drift"), row.pop("adaptive") == "True",
+                       float(h_max) if h_max else None)
             row.pop("checked")
             r = Run(row.pop("problem"), c, float(row.pop("h")), float(row.pop("wall_s")), int(row.pop("steps")),
                     int(row.pop("fallbacks")), row.pop("status"), float(row.pop("error")))
