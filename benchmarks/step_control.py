@@ -127,9 +127,11 @@ def woodpecker():
         _row(label, float(d[0]), traj, wall, base)
         print(f"  {'':<22} [{d[1]:.2e}, {d[2]:.2e}]")
     # the call's own cost: a third of the cheapest fixed run at a coarse target is below it
-    calls = {label: min(_timed(lambda: mo.simulate(scene, (0.0, 1e-3), q0, v0, 1e-3, energy=False, **kw),
-                               repeats=1)[1] for _ in range(30))
-             for label, kw in (("fixed h", {}), ("StepControl", {"step_control": mo.StepControl(0.03)}))}
+    def call(kw):
+        return min(_timed(lambda: mo.simulate(scene, (0.0, 1e-3), q0, v0, 1e-3, energy=False, **kw), repeats=1)[1]
+                   for _ in range(30))
+
+    calls = {"fixed h": call({}), "StepControl": call({"step_control": mo.StepControl(0.03)})}
     print("  the simulate() call over one step of 1e-3 (best of 30): "
           + ", ".join(f"{k} {1e3 * w:.2f} ms" for k, w in calls.items()))
     finer = _returns(mo.simulate(scene, (0.0, 0.45), q0, v0, 1e-7, energy=False, record_every=10))
