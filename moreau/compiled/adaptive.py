@@ -56,6 +56,7 @@ from moreau.compiled.layout import (
     C_SOLVES,
     C_UPDATES,
     DONE,
+    DRIFT_NONE,
     F_H,
     F_T0,
     I_STEP,
@@ -74,6 +75,7 @@ from moreau.compiled.layout import (
     R_GAP,
     R_UNPROJECTED,
     RECORDS_FULL,
+    S_DRIFT,
     S_MASS_READY,
     S_RECORD,
     S_STEP,
@@ -174,6 +176,7 @@ def _run_adaptive(model, user, iset, fset, Minv, eligible, q, v, k_end, in_conta
     p = 1 if iset[S_STEP] == STEP_MIDPOINT and ints[SC_VELOCITY_DEPENDENT] != 0 else 2
     stride = iset[S_RECORD]
     atol, rtol, hmax, hmin, t_end = ctl[K_ATOL], ctl[K_RTOL], ctl[K_HMAX], ctl[K_HMIN], ctl[K_END]
+    end = R_UNPROJECTED if iset[S_DRIFT] != DRIFT_NONE else R_GAP  # the end gaps' column before drift control
     while cnt[C_ACCEPTED] < k_end and ctl[K_T] < t_end:
         if cnt[C_REC] + 1 >= T.shape[0]:
             return RECORDS_FULL
@@ -204,7 +207,7 @@ def _run_adaptive(model, user, iset, fset, Minv, eligible, q, v, k_end, in_conta
             sn.gc[r] = gq[r]
         for r in range(m):
             sn.closed_c[r] = active[r]
-            sn.gu[r] = rs[r, R_UNPROJECTED]
+            sn.gu[r] = rs[r, end]
         _slip(m, active, work[0].P, fr, sn.slip_c)
         _swap(False, q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, pen, cnt, acc, fr, eqw, sn)
         # two steps of H/2
@@ -223,7 +226,7 @@ def _run_adaptive(model, user, iset, fset, Minv, eligible, q, v, k_end, in_conta
                 _copy(True, work[0].P, sn.p_f)
                 if fr is not None:
                     _copy(True, fr.PT, sn.pt_f)
-        kind, unseen = _step_kind(model, Minv, work, m, n, H, q, v, gq, rs, sn, fr, nimp0, cnt[C_NIMP], atol)
+        kind, unseen = _step_kind(model, Minv, work, m, n, H, q, v, gq, rs, end, sn, fr, nimp0, cnt[C_NIMP], atol)
         c = (2.0 ** p - 1.0) if kind == 0 else 1.0
         order = p if kind == 0 else (1 if kind == 1 else 0)
         err = max(_error(q, v, sn, atol, rtol, c), unseen)

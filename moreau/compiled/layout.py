@@ -60,7 +60,8 @@ DRIFT_NONE, DRIFT_POSITION, DRIFT_COMBINED = 0, 1, 2
 # per-row state of CombinedProjection (float array (m, N_ROWSTATE)): gap at q_k, the gap where
 # the projection last held the row, held (pinned), restitution applied in this step, for
 # a row that bounced at s into the step h/2 − s and (2 s − h) a_n (kernels.impact_law), and
-# the gap at q⁺ before drift control moved it (step-size control's crossing rule)
+# the gap at q⁺ before drift control moved it (stored under drift control only: without it,
+# R_GAP; step-size control's crossing rule)
 R_GAP, R_PINGAP, R_PINNED, R_BOUNCED, R_DELAY, R_SHIFT, R_UNPROJECTED = range(7)
 N_ROWSTATE = 7
 # impact-log columns

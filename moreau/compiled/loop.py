@@ -150,9 +150,9 @@ def _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc
     m = ints[SC_M]
     if _user_failed(ev.gaps(ints, bkind, boff, brow, bnrows, pool, user, q_new, cq, sq, gq), cnt):
         return USER_FAILED
-    for r in range(m):
-        rs[r, R_UNPROJECTED] = gq[r]
     if iset[S_DRIFT] != DRIFT_NONE:
+        for r in range(m):  # (step-size control's crossing rule reads the depth before drift control)
+            rs[r, R_UNPROJECTED] = gq[r]
         nproj = cnt[C_PROJ]
         if not _project(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc,
                         fail, eligible, ws, lw, rs, in_contact, eqw, v_new, P_acc, act_acc, last_imp, gmax, onset):
