@@ -114,6 +114,25 @@ def test_osqp_is_set_up_once_and_updated(monkeypatch):
     assert calls["update"] == traj.stats.solves > 0
 
 
+def test_osqp_setup_loads_the_refinement_for_the_solves_argument_types(rng):
+    """The refinement's kernels are loaded (or compiled) at setup, for exactly the argument
+    types of the solves: no solve compiles them again (a first OSQP run otherwise waits ~7 s
+    inside its first solve, and ``moreau compile`` would not have warmed it)."""
+    from moreau.contact import refine
+
+    osqp = mo.OSQPSolver()
+    M, b, G, c, rows = random_problem(rng)
+    osqp.setup(M.shape[0], G.shape[0])
+    kernels = (refine._normalized, refine._exact_from_proposed_set, refine._upper_solve)
+    before = [set(k.overloads) for k in kernels]
+    assert all(before)
+    for _ in range(3):
+        osqp.solve(M, b, G, c, rows)
+        M, b, G, c, rows = random_problem(rng)
+        osqp.setup(M.shape[0], G.shape[0])
+    assert [set(k.overloads) for k in kernels] == before
+
+
 def test_osqp_prints_nothing(capfd):
     mo.simulate(bouncing_ball(0.5), (0.0, 1.0), [1.0], [0.0], 1e-3, solver="osqp")
     out, err = capfd.readouterr()

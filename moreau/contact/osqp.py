@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from moreau.contact.base import ContactSolver, SolveFailed
-from moreau.contact.refine import _cholesky, _exact_from_proposed_set, _normalized, _upper_solve
+from moreau.contact.refine import _cholesky, _exact_from_proposed_set, _normalized, _upper_solve, ensure_loaded
 
 __all__ = ["OSQPSolver"]
 
@@ -76,6 +76,8 @@ class OSQPSolver(ContactSolver):
         import osqp
         import scipy.sparse as sp
 
+        if self.refine:  # its kernels before the first solve (compiled, with a word, on a new machine)
+            ensure_loaded()
         n, m = ndof, nrows
         self._n, self._m = n, m
         self._l = np.full(m, -np.inf)

@@ -4,12 +4,15 @@ proposes to the exact solution of the one-step problem, in mass-normalized units
 :func:`_exact_from_proposed_set` and its pieces are numba-compiled: small dense loops,
 called at every solve (LAPACK's triangular solves go through a threaded BLAS whose
 start-up costs milliseconds here). :func:`_cholesky` and :func:`_normalized` bring the
-problem to those units; :func:`_upper_solve` brings the answer back.
+problem to those units; :func:`_upper_solve` brings the answer back. :func:`ensure_loaded`
+loads them (or compiles them, once per machine) before a run's first solve.
 """
 
 from __future__ import annotations
 
+import logging
 import math
+import time
 
 import numpy as np
 from numba import njit
@@ -17,6 +20,7 @@ from numba import njit
 from moreau.core.kernels import lt_solve, sym_product
 
 _jit = njit(cache=True, nogil=True)
+log = logging.getLogger(__name__)
 
 
 def _cholesky(M):
@@ -360,3 +364,22 @@ def _exact_from_proposed_set(L, GR, cRo, A, uf, c, rR, u, p, v, P, info):
     info[0] = corrections + corrected
     _refined_answer(L, GR, cRo, A, uf, rR, W, S, ns, kept, F, q, dp, v, P)
     return True
+
+
+def ensure_loaded() -> float:
+    """Load the refinement's kernels from numba's cache, or compile them there (about 7 s,
+    once per machine and version, said in one logged line); returns the seconds it took.
+    Called by :meth:`moreau.OSQPSolver.setup` and ``moreau compile``, on a one-row problem
+    with the argument types of a run's solves."""
+    t0 = time.perf_counter()
+    one, zero = np.ones(1), np.zeros(1)
+    L, A = np.ones((1, 1)), np.empty((1, 1))
+    uf, r = np.empty(1), np.empty(1)
+    _normalized(L, one, L, A, r, uf)
+    _exact_from_proposed_set(L, L, zero, A, uf, zero, r, one, zero, np.empty(1), np.empty(1),
+                             np.zeros(2, dtype=np.int64))
+    _upper_solve(L, one)
+    spent = time.perf_counter() - t0
+    if spent > 2.0:  # compiled, not loaded
+        log.info("moreau: the exact refinement of OSQP's answers compiled in %.0f s, once for this machine", spent)
+    return spent

@@ -16,6 +16,7 @@ from moreau.compiled.layout import STEP_ENERGY, STEP_MIDPOINT, STEP_THETA
 from moreau.compiled.lowering import lower
 from moreau.compiled.runner import run_compiled
 from moreau.compiled.variants import variant
+from moreau.contact.refine import ensure_loaded
 from moreau.contact.solvers import ContactSolver
 from moreau.core.errors import attach_trajectory
 from moreau.core.validation import as_positive, as_record_every, as_time_span, checked_start
@@ -231,13 +232,14 @@ def ensure_compiled(*scenes: Scene, integrator: type[OneStepIntegrator] = Moreau
     step's, one with friction, and one with friction, bilateral rows and the later passes of
     :class:`~moreau.MoreauJeanPredictorCorrector` and :class:`~moreau.MoreauJeanEnergyConsistent`;
     a run compiles only the one its scene and ``integrator`` use. With ``scenes``: the
-    variants they run; without: all (to warm a cache: ``moreau compile``). Call it before
+    variants they run; without: all, and the kernels that make OSQP's answers exact
+    (:func:`moreau.contact.refine.ensure_loaded`; to warm a cache: ``moreau compile``). Call it before
     starting worker processes: they then load it, never two compiling. ``step_control``:
     also the driver of :class:`~moreau.StepControl` for those variants (else compiled at
     the first run that asks for it).
     """
     if not scenes:
-        return cache.ensure_compiled(None, step_control)
+        return cache.ensure_compiled(None, step_control) + ensure_loaded()
     step, iterations = _compiled_step(integrator), _iteration(integrator)[0]
     return sum(cache.ensure_compiled(v, step_control)
                for v in sorted({variant(lower(s).ints, step, iterations) for s in scenes}))
