@@ -53,7 +53,9 @@ Step-size control (``mo.StepControl``, the configurations labelled ``/tol``) run
 midpoint step over a ladder of tolerances instead of steps, on every problem but the
 chain (its error is read on a uniform grid of records); its "order" is the slope of the
 error in tol (1: the error proportional to tol), and a table compares the cheapest run
-with it and without it at each target error.
+with it and without it at each target error. The e = 0 piston's fixed runs with
+``PositionProjection(velocity=True)``, the configuration its step-control runs use, go up
+to their largest step 0.1.
 
 Loose OSQP tolerances are run *unchecked* (``fallback=None`` and no KKT acceptance
 test): with moreau's default checks (``tol=1e-6``, fallback ``enum``) a loose answer is
@@ -64,7 +66,7 @@ Run::
 
     python benchmarks/work_precision.py --quick      # ~2 min: prints the tables
     python benchmarks/work_precision.py --replot     # the figure again from docs/work_precision.csv
-    python benchmarks/work_precision.py              # full study (~34 min), writes
+    python benchmarks/work_precision.py              # full study (~28 min), writes
                                                      # docs/work_precision.{csv,png}
 
 Absolute times on a shared machine drift; ratios measured in one run hold better.

@@ -204,7 +204,7 @@ class PistonProblem(Problem):
             # adaptive: the largest step; without drift control the one the clearance allows
             hs, kw = config.run_args(h, h_max=1e-3 if config.drift == "none" else 1e-2)
             traj, wall, status = _timed(lambda: self.model.simulate(
-                self.cycles, hs, record_every=rec, energy=False, **kw))
+                self.cycles, hs, record_every=rec, energy=False, **kw), repeat_below=0.5)
             f = self.figures(traj) if status == "completed" else {}
             self._cache[key] = (f, wall, status, traj.stats, traj.message)
         return self._cache[key]

@@ -80,6 +80,8 @@ def make_problems(quick: bool = False) -> list[Problem]:
         ref = Config("mid", "exact", "projv" if e == 0.0 else "none")
         p = PistonProblem(plad, pist, e=e, h_ref=1e-6, ref_config=ref)
         p.ladders = {c: (plad if c.solver == "exact" else [h for h in plad if h >= 1e-4]) for c in pist}
+        if e == 0.0:  # the configuration step control runs, also fixed up to its largest step 0.1
+            p.ladders[Config("mid", "exact", "projv")] = [1e-1, 10**-1.5] + plad
         pistons.append(p)
     chain_ladder = [1e-2, 5e-3, 2e-3, 1e-3, 5e-4, 2e-4, 1e-4, 5e-5, 2e-5, 1e-5]  # divisors of 0.01 s
     tols = [1e-3, 1e-4, 1e-5, 1e-6, 1e-7]
