@@ -168,7 +168,7 @@ def write_csv(runs: Sequence[Run], orders: dict, path: str) -> None:
         for r in runs:
             c = r.config
             w.writerow([r.problem, c.integrator, c.solver, SOLVERS[c.solver].checked, c.drift, c.adaptive, f"{r.h:.6g}",
-                        f"{r.wall:.4f}", r.steps, r.fallbacks, r.status, f"{r.error:.6g}",
+                        f"{r.wall:.4g}", r.steps, r.fallbacks, r.status, f"{r.error:.6g}",
                         f"{orders[(r.problem, c.label)]:.3f}", "" if c.h_max is None else f"{c.h_max:g}",
                         *[("" if r.metrics.get(k) is None else f"{r.metrics[k]:.6g}") for k in names]])
 
