@@ -107,3 +107,25 @@ def test_two_identical_floors_equal_one():
         np.testing.assert_allclose(two.impulses.sum(axis=1), one.impulses[:, 0], atol=1e-10, rtol=1e-10)
         # a floor that left the impulses to its twin penetrated as deep as the twin, no deeper: no warning
         assert two.warnings == one.warnings == [], solver
+
+
+@pytest.mark.parametrize("e, drift", [(0.8, None), (0.0, mo.PositionProjection(velocity=True))])
+def test_impact_crossing_times_are_second_order(e, drift):
+    """``impacts.t_cross`` (the start gap closed at the approach speed; for a landing the
+    projection caught, linear between the gaps around it) against a ball's analytic first
+    impact, dropped from heights whose landings fall at every fraction of a step (caught by
+    the step's contact, a step late from below the floor, or by the projection): second
+    order in h, where the step's start ``t`` is first order."""
+    errs, starts = [], []
+    for h in (1e-3, 1e-4):
+        err, start = 0.0, 0.0
+        for h0 in np.linspace(0.5, 1.0, 9):
+            t1 = np.sqrt(2.0 * h0 / 9.81)
+            imp = mo.simulate(bouncing_ball(e), (0.0, 1.0), [h0], [0.0], h, energy=False,
+                              drift_control=drift).impacts
+            assert len(imp) >= 1 and abs(imp.t_cross[0] - imp.t[0]) <= h
+            err, start = max(err, abs(imp.t_cross[0] - t1)), max(start, abs(imp.t[0] - t1))
+        errs.append(err)
+        starts.append(start)
+    assert starts[0] > 300 * errs[0]  # t: O(h), up to a step off
+    assert errs[0] / errs[1] > 30  # second order: 100 over a decade of h

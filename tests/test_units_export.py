@@ -77,6 +77,17 @@ def test_files_written_before_units_existed_still_load(ball, tmp_path):
     assert zipfile.is_zipfile(old)
 
 
+def test_files_written_before_crossing_times_load_them_as_nan(ball, tmp_path):
+    path = ball.save(tmp_path / "new.npz")
+    with np.load(path) as z:
+        arrays = {k: z[k] for k in z.files if k != "impacts_t_cross"}
+    assert mo.load(path).impacts.t_cross.tolist() == ball.impacts.t_cross.tolist()
+    old = tmp_path / "old.npz"
+    np.savez_compressed(old, **arrays)
+    back = mo.load(old)
+    assert len(back.impacts) == len(ball.impacts) > 0 and np.isnan(back.impacts.t_cross).all()
+
+
 def test_repr_is_short(ball, piston):
     text = repr(ball)
     assert text == "Trajectory('bouncing_ball': 1001 records, t = 0 to 1 s, 1 dof, 1 row, completed, 2 impacts)"
@@ -106,10 +117,13 @@ def test_impacts_to_dataframe(ball):
     pd = pytest.importorskip("pandas")
     df = ball.impacts.to_dataframe()
     assert isinstance(df, pd.DataFrame) and len(df) == len(ball.impacts) == 2
-    assert list(df.columns) == ["t", "step", "row", "row_name", "U_before", "U_after", "impulse", "energy_lost"]
+    assert list(df.columns) == ["t", "t_cross", "step", "row", "row_name", "U_before", "U_after", "impulse",
+                                "energy_lost"]
     assert (df["row_name"] == "floor").all()
     np.testing.assert_array_equal(df["impulse"].to_numpy(), ball.impacts.impulse)
     assert df.attrs["units"]["impulse"] == "N s" and df.attrs["units"]["U_before"] == "m/s"
+    assert df.attrs["units"]["t_cross"] == df.attrs["units"]["t"] == "s"
+    np.testing.assert_array_equal(df["t_cross"].to_numpy(), ball.impacts.t_cross)
     assert len(mo.ImpactLog().to_dataframe()) == 0
 
 

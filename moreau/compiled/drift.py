@@ -19,8 +19,10 @@ from moreau.compiled.layout import (  # the loop's layout
     NOT_SPD,
     PROJECTION_FAILED,
     R_BOUNCED,
+    R_GAP,
     R_PINGAP,
     R_PINNED,
+    R_UNPROJECTED,
     S_DRIFT,
     S_DRIFT_ITER,
     S_DRIFT_VELOCITY,
@@ -170,7 +172,7 @@ def _project_rows(model, user, iset, fset, q, cq, sq, active, gq, M, L, cnt, acc
             return False
         if last:
             _held_impulses(n, m, cnt, held, GA, PA, v, dq, P_acc, act_acc, in_contact, last_imp, acc, L, lw.b, gmax,
-                           onset)
+                           rs, onset)
             return True
         if eqw is not None and ints[SC_ME] > 0:
             _eq_back(L, eqw.Q, eqw.yv, dq)
@@ -216,11 +218,13 @@ def _approaching(GA, v, k, n):
 
 
 @_part
-def _held_impulses(n, m, cnt, held, GA, PA, v, v_new, P_acc, act_acc, in_contact, last_imp, acc, L, tmp, gmax, onset):
+def _held_impulses(n, m, cnt, held, GA, PA, v, v_new, P_acc, act_acc, in_contact, last_imp, acc, L, tmp, gmax, rs,
+                   onset):
     """The velocity pass's impulses, counted with the step's (records, contact work, and an
     onset in the impact log for a row not in contact before: a landing the projection
     caught, by the step's rule (records._log_if_impact), with ``L`` the factor of M(q⁺)
-    and ``tmp`` (n,) for M⁻¹ f), and its velocity ``v_new`` into ``v``."""
+    and ``tmp`` (n,) for M⁻¹ f; its crossing time between the gaps at q_k and at q⁺ before
+    the projection, ``rs``), and its velocity ``v_new`` into ``v``."""
     t, h, f, fgap, IMP = onset
     k = cnt[C_K]
     solved = False
@@ -241,8 +245,10 @@ def _held_impulses(n, m, cnt, held, GA, PA, v, v_new, P_acc, act_acc, in_contact
                     us = 0.0
                     for i in range(n):
                         us += GA[j, i] * tmp[i]
+                    g0, g1 = rs[r, R_GAP], rs[r, R_UNPROJECTED]  # (linear between them)
+                    cross = t + (h * g0 / (g0 - g1) if g0 > 0.0 and g1 < 0.0 else 0.0)
                     _log_if_impact(IMP, cnt, t, k, r, ub, ua, h * us, PA[j], -0.5 * PA[j] * (ua + ub),
-                                   gmax[r] > fgap[r])
+                                   gmax[r] > fgap[r], cross)
                 P_acc[r] += PA[j]
                 act_acc[r] = True
                 in_contact[r] = True

@@ -64,8 +64,9 @@ DRIFT_NONE, DRIFT_POSITION, DRIFT_COMBINED = 0, 1, 2
 # R_GAP; step-size control's crossing rule)
 R_GAP, R_PINGAP, R_PINNED, R_BOUNCED, R_DELAY, R_SHIFT, R_UNPROJECTED = range(7)
 N_ROWSTATE = 7
-# impact-log columns
-I_T, I_STEP, I_ROW, I_UB, I_UA, I_P, I_LOST, I_FLIGHT, I_FAST = range(9)
+# impact-log columns (I_CROSS: the time the row's gap crossed zero in the step, estimated)
+I_T, I_STEP, I_ROW, I_UB, I_UA, I_P, I_LOST, I_FLIGHT, I_FAST, I_CROSS = range(10)
+N_IMPACT = 10
 # settings (float array)
 F_H, F_T0, F_TOL, F_DRIFT_TOL, F_PE0, F_EWARN, F_ESTOP = range(7)
 # (F_ITOL: the energy-consistent step's iteration tolerance)

@@ -7,6 +7,7 @@ from moreau.compiled.layout import (  # the loop's layout
     A_WORK_C,
     C_CONTACT,
     C_NIMP,
+    I_CROSS,
     I_FAST,
     I_FLIGHT,
     I_LOST,
@@ -16,6 +17,7 @@ from moreau.compiled.layout import (  # the loop's layout
     I_T,
     I_UA,
     I_UB,
+    R_GAP,
     R_SHIFT,
 )
 from moreau.compiled.layout import part as _part
@@ -45,14 +47,19 @@ def _log_onsets(n, m, t, k, h, v, v_new, f, L, P, G, vfree, in_contact, gmax, fg
                 ua += G[r, i] * v_new[i]
                 uf += G[r, i] * vfree[i]
             lost = -0.5 * P[r] * (ua + ub + rs[r, R_SHIFT])  # the energy lost: see impact_law
-            _log_if_impact(IMP, cnt, t, k, r, ub, ua, uf - ub, P[r], lost, gmax[r] > fgap[r])
+            # the gap at q_k closed at the approach speed (second order in h for a smooth
+            # approach; before t when q_k had crossed already)
+            g0 = rs[r, R_GAP]
+            cross = t + (max(-h, min(h, g0 / -ub)) if ub < 0.0 else 0.0)
+            _log_if_impact(IMP, cnt, t, k, r, ub, ua, uf - ub, P[r], lost, gmax[r] > fgap[r], cross)
 
 
 @_part
-def _log_if_impact(IMP, cnt, t, k, r, ub, ua, du_smooth, P, lost, flight):
-    """Log row ``r``'s onset in step ``k`` (starting at ``t``) if it is an impact: the normal
-    velocity ``ub`` faster than the smooth forces alone change it in the step (``du_smooth``),
-    or ``flight``, after the gap opened beyond its flight gap."""
+def _log_if_impact(IMP, cnt, t, k, r, ub, ua, du_smooth, P, lost, flight, cross):
+    """Log row ``r``'s onset in step ``k`` (starting at ``t``; its gap crossed zero at
+    ``cross``, estimated) if it is an impact: the normal velocity ``ub`` faster than the
+    smooth forces alone change it in the step (``du_smooth``), or ``flight``, after the gap
+    opened beyond its flight gap."""
     fast = -ub > abs(du_smooth)
     if not (fast or flight):
         return
@@ -65,6 +72,7 @@ def _log_if_impact(IMP, cnt, t, k, r, ub, ua, du_smooth, P, lost, flight):
     IMP[j, I_P] = P
     IMP[j, I_LOST] = lost
     IMP[j, I_FLIGHT] = 1.0 if flight else 0.0
+    IMP[j, I_CROSS] = cross
     IMP[j, I_FAST] = 1.0 if fast else 0.0
     cnt[C_NIMP] = j + 1
 

@@ -243,7 +243,7 @@ def _records(n_rec: int, n: int, m: int, me: int, mf: int, q0, v0, t0: float) ->
     # the bilateral rows' impulses and residuals are recorded after the contact rows
     recs = lay.Records(T, Q, V, np.zeros((n_rec, m + me)), np.zeros((n_rec, m), dtype=np.bool_),
                        np.full((n_rec, m + me), np.nan), np.full(n_rec, np.nan), np.full(n_rec, np.nan),
-                       np.empty((max(64, 16 * m), 9)), np.zeros((n_rec, m) if mf else (1, m)))
+                       np.empty((max(64, 16 * m), lay.N_IMPACT)), np.zeros((n_rec, m) if mf else (1, m)))
     T[0], Q[0], V[0] = t0, q0, v0
     return recs
 
@@ -340,7 +340,7 @@ def _assemble(scene, status, message, code, n_rec, T, Q, V, PS, ACT, GP, KE, PE,
     onsets = ImpactLog(t=I[:, lay.I_T].copy(), step=I[:, lay.I_STEP].astype(int), row=I[:, lay.I_ROW].astype(int),
                        U_before=I[:, lay.I_UB].copy(), U_after=I[:, lay.I_UA].copy(), impulse=I[:, lay.I_P].copy(),
                        energy_lost=I[:, lay.I_LOST].copy(), flight=I[:, lay.I_FLIGHT] != 0.0,
-                       fast=I[:, lay.I_FAST] != 0.0)
+                       fast=I[:, lay.I_FAST] != 0.0, t_cross=I[:, lay.I_CROSS].copy())
     stats = SolverStats(
         solver=_name(solver), fallback=_name(fallback), steps=k if ctl is None else int(cnt[lay.C_ACCEPTED]),
         contact_steps=int(cnt[lay.C_CONTACT]),

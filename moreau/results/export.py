@@ -110,7 +110,7 @@ def trajectory_to_xarray(traj: Trajectory) -> xarray.Dataset:
 def impacts_to_dataframe(log: ImpactLog) -> pandas.DataFrame:
     """The impact log as a :class:`pandas.DataFrame`, one row per impact.
 
-    Columns ``t``, ``step``, ``row``, ``row_name``, ``U_before``, ``U_after``,
+    Columns ``t``, ``t_cross``, ``step``, ``row``, ``row_name``, ``U_before``, ``U_after``,
     ``impulse``, ``energy_lost``; ``df.attrs["units"]`` maps each column to its unit
     (``impulse`` and the velocities per row joined by ``", "`` when the rows differ).
 
@@ -122,7 +122,7 @@ def impacts_to_dataframe(log: ImpactLog) -> pandas.DataFrame:
     pd = _require("pandas", "ImpactLog.to_dataframe()")
     names = log.row_names
     df = pd.DataFrame({
-        "t": log.t, "step": log.step, "row": log.row,
+        "t": log.t, "t_cross": log.t_cross, "step": log.step, "row": log.row,
         "row_name": [names[r] if 0 <= r < len(names) else "" for r in log.row],
         "U_before": log.U_before, "U_after": log.U_after,
         "impulse": log.impulse, "energy_lost": log.energy_lost,
@@ -135,7 +135,8 @@ def impacts_to_dataframe(log: ImpactLog) -> pandas.DataFrame:
     else:
         velocity = f"{gaps}/{t_unit}" if gaps and t_unit and t_unit != "1" and "," not in gaps else ""
     df.attrs["units"] = {
-        "t": t_unit, "step": "", "row": "", "row_name": "", "U_before": velocity, "U_after": velocity,
+        "t": t_unit, "t_cross": t_unit, "step": "", "row": "", "row_name": "",
+        "U_before": velocity, "U_after": velocity,
         "impulse": uniform(u.get("impulses", [])), "energy_lost": u.get("energy", ""),
     }
     return df

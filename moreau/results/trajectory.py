@@ -299,6 +299,7 @@ class Trajectory:
             n_on = data["impacts_t"].shape[0]
             for flag in ("flight", "fast"):  # files from before the flight test: every entry counts
                 data.setdefault("impacts_" + flag, np.ones(n_on, dtype=bool))
+            data.setdefault("impacts_t_cross", np.full(n_on, np.nan))  # (files from before it was logged)
             onsets = ImpactLog(**{name: data.pop("impacts_" + name) for name in _impact_arrays()})
             traj = cls(
                 t=data["t"], q=data["q"], v=data["v"], gaps=data["gaps"],

@@ -233,7 +233,7 @@ def ensure_compiled(*scenes: Scene, integrator: type[OneStepIntegrator] = Moreau
     :class:`~moreau.MoreauJeanPredictorCorrector` and :class:`~moreau.MoreauJeanEnergyConsistent`;
     a run compiles only the one its scene and ``integrator`` use. With ``scenes``: the
     variants they run; without: all, and the kernels that make OSQP's answers exact
-    (:func:`moreau.contact.refine.ensure_loaded`; to warm a cache: ``moreau compile``). Call it before
+    (``moreau.contact.refine.ensure_loaded``; to warm a cache: ``moreau compile``). Call it before
     starting worker processes: they then load it, never two compiling. ``step_control``:
     also the driver of :class:`~moreau.StepControl` for those variants (else compiled at
     the first run that asks for it).

@@ -170,7 +170,8 @@ def test_an_interrupt_after_the_buffers_grew_keeps_what_they_hold(monkeypatch, c
     whole = run()
     real_records, real_grown = runner._records, runner._grown
     calls = []  # chunks called since the log grew
-    monkeypatch.setattr(runner, "_records", lambda *a: real_records(*a)._replace(IMP=np.empty((4, 9))))
+    small = lambda *a: real_records(*a)._replace(IMP=np.empty((4, runner.lay.N_IMPACT)))  # noqa: E731
+    monkeypatch.setattr(runner, "_records", small)
     monkeypatch.setattr(runner, "_grown", lambda recs, impacts: calls.append(0) or real_grown(recs, impacts))
     monkeypatch.setattr(runner, "FIRST_CHUNK", 200)
 

@@ -58,6 +58,7 @@ def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, s
     k = 0
     try:
         step, gaps_at = integ.step, integ.gaps_at
+        g_start = gaps_at(integ.q, integ.v) if has_contacts else None  # each step's start gaps (t_cross)
         for k in range(1, n_steps + 1):
             contact = step()
             if eq is not None:
@@ -72,13 +73,14 @@ def run_python(scene: Scene, integ: OneStepIntegrator, h: float, n_steps: int, s
                     now = P > 0.0
                     new = now & ~in_contact
                     if new.any():
-                        _log_impacts(integ, np.flatnonzero(new), gmax > flight_gap, impacts)
+                        _log_impacts(integ, np.flatnonzero(new), gmax > flight_gap, g_start, impacts)
                     in_contact = now
                 elif in_contact.any():
                     in_contact = np.zeros(m, dtype=bool)
                 g_end = gaps_at(integ.q, integ.v)
                 pen_t[-g_end > pen], pen[:] = integ.t, np.maximum(pen, -g_end)
                 gmax = np.where(in_contact, -np.inf, np.maximum(gmax, g_end))
+                g_start = g_end
             if k % ENERGY_CHECK_EVERY == 0 or len(impacts) > n_impacts:  # and after a logged impact
                 check(k)
                 n_impacts = len(impacts)
@@ -164,14 +166,15 @@ def _work(integ: OneStepIntegrator, friction: bool, constraints: int) -> dict[st
                 "constraint_projection": integ.work_constraint_projection} if constraints else {})}
 
 
-def _log_impacts(integ: OneStepIntegrator, rows: np.ndarray, after_flight: np.ndarray,
+def _log_impacts(integ: OneStepIntegrator, rows: np.ndarray, after_flight: np.ndarray, g_start: np.ndarray,
                  out: list[ImpactRow]) -> None:
     """Log the contact onsets of the last step (``rows``) that are impacts by the flight
     test (``after_flight``, shape (m,)) or the velocity test (see :class:`ImpactLog`).
 
     Velocity test: ``−U_before > h |a_n|`` with ``h a_n = U_free − U_before``; slower
     onsets are a sliding contact closing again after the midpoint drift opened it for a
-    step (on a curved barrier the scheme does that).
+    step (on a curved barrier the scheme does that). The crossing time: the start gap
+    ``g_start`` closed at the approach speed, within the step.
     """
     d = integ.last_contact_details(rows)
     t_start = integ.t - integ.h
@@ -179,8 +182,10 @@ def _log_impacts(integ: OneStepIntegrator, rows: np.ndarray, after_flight: np.nd
         fast = bool(-d.U_before[j] > abs(d.U_free[j] - d.U_before[j]))
         flight = bool(after_flight[r])
         if fast or flight:
-            out.append((t_start, integ.k - 1, int(r), float(d.U_before[j]), float(d.U_after[j]),
-                        float(integ.P[r]), float(d.energy_lost[j]), flight, fast))
+            ub, g0 = float(d.U_before[j]), float(g_start[r])
+            cross = t_start + (max(-integ.h, min(integ.h, g0 / -ub)) if ub < 0.0 else 0.0)
+            out.append((t_start, integ.k - 1, int(r), ub, float(d.U_after[j]),
+                        float(integ.P[r]), float(d.energy_lost[j]), flight, fast, cross))
 
 
 def _step_back(T: np.ndarray, rec: int, impacts: list[ImpactRow], t_ok: float) -> tuple[int, list[ImpactRow]]:
