@@ -13,7 +13,7 @@ in flight. A **side change** is a record on one side after the last one-sided re
 on the other: the transits through flight or a diagonal contact in between do not count
 on their own. Repeated impacts on the same wall (e = 0.9) are not side changes; a quick
 transit to the other wall and back counts twice, as the paper describes it. Its time is
-that of the landing on the new side, to the step (:func:`change_times`).
+that of the landing on the new side, at its crossing inside the step (:func:`change_times`).
 """
 
 from __future__ import annotations
@@ -88,15 +88,17 @@ def side_changes(traj: mo.Trajectory) -> tuple[np.ndarray, np.ndarray]:
 
 
 def change_times(traj: mo.Trajectory, idx: np.ndarray, new_side: np.ndarray) -> np.ndarray:
-    """The time of each side change (τ): the start of the step in which the piston lands
-    on the new side, when a contact onset on that side is logged between the change's
-    record and the one before it (``traj.onsets``: after a flight, or fast); otherwise (the
-    old side released after a diagonal contact) the change's record time. ``idx``,
-    ``new_side``: from :func:`side_changes`.
+    """The time of each side change (τ): when the piston's corner crosses the new side's
+    wall, inside the step in which it lands there (the onset's ``t_cross``, second order
+    in h for a smooth approach), when a contact onset on that side is logged between the
+    change's record and the one before it (``traj.onsets``: after a flight, or fast);
+    otherwise (the old side released after a diagonal contact) the change's record time.
+    ``idx``, ``new_side``: from :func:`side_changes`.
 
     A record holds the impulses summed since the one before, so a side change read from the
     records alone is known to the record spacing (``record_every`` steps); the onset log
-    places the landing to the step."""
+    places the landing in its step (the step's start ``t`` where ``t_cross`` is unknown:
+    files saved before it was logged)."""
     times = traj.t[idx].astype(float)
     if not idx.size:
         return times
@@ -106,14 +108,17 @@ def change_times(traj: mo.Trajectory, idx: np.ndarray, new_side: np.ndarray) -> 
     # the landing step starts at or after the record before (less 1e-6 of the interval: the
     # round-off of a time summed step by step)
     lo = np.where(idx > 0, t[idx - 1] - 1e-6 * (t[idx] - t[idx - 1]), -np.inf)
+    at = np.where(np.isfinite(imp.t_cross), imp.t_cross, imp.t)  # the crossing, else the step's start
     for side, on in ((1, right), (-1, ~right)):
-        ts = np.sort(imp.t[on])
+        order = np.argsort(imp.t[on], kind="stable")
+        ts, cross = imp.t[on][order], at[on][order]
         sel = np.flatnonzero(new_side == side)
-        k = np.searchsorted(ts, lo[sel])  # the first onset on that side from lo on
+        k = np.searchsorted(ts, lo[sel])  # the first onset on that side from lo on (by its step)
         found = k < ts.size
-        first = ts[np.minimum(k, max(ts.size - 1, 0))] if ts.size else np.zeros(sel.size)
+        j = np.minimum(k, max(ts.size - 1, 0))
+        first = ts[j] if ts.size else np.zeros(sel.size)
         hit = found & (first <= t[idx[sel]])
-        times[sel[hit]] = first[hit]
+        times[sel[hit]] = cross[j[hit]]
     return times
 
 
@@ -133,8 +138,8 @@ class CycleFigures:
     side_changes : int
         Number of side changes in the cycle.
     change_angles_deg : list of float
-        Crank angles of the side changes, 0–720° from firing TDC, at the landing step
-        when the onset log has it (:func:`change_times`).
+        Crank angles of the side changes, 0–720° from firing TDC, at the landing's
+        crossing of the wall when the onset log has it (:func:`change_times`).
     impacts : int
         Impacts (logged) in the cycle, all four corners.
     energy_lost : float
