@@ -25,11 +25,14 @@ and the seconds from ``simulate()`` to its end (0.1 s of stepping) of two scenes
 
     python benchmarks/compile_cost.py
     python benchmarks/compile_cost.py --against REV --rounds 4 [--variant friction]   # this build and REV
+    python benchmarks/compile_cost.py --against REV --drivers      # step-size control's drivers
 
 With ``--against``, one variant only (default plain), compiled by this build and by
 ``REV`` alternately (this shared machine's speed drifted by up to a half between runs of
 one day: compare the rounds' pairs); a build of two variants (before 2026-12-02) compiles
-its full one for ``friction``.
+its full one for ``friction``. With ``--drivers`` too, each build's three loops are
+compiled once into a cache of its own, and each round times the three drivers on a copy
+of it (row 6 above, alternating).
 """
 
 from __future__ import annotations
@@ -37,6 +40,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -187,13 +191,39 @@ def against(rev: str, rounds: int, variant: str) -> None:
                       flush=True)
 
 
+def against_drivers(rev: str, rounds: int) -> None:
+    """Step-size control's drivers of the three variants, compiled beside their loaded loops
+    by this build and by ``rev``, alternating: per round the seconds of each."""
+    from interleaved import worktree
+
+    every = ["plain", "friction", "full"]
+    with worktree(rev) as (here, tree), tempfile.TemporaryDirectory() as base:
+        builds = {}
+        for name, src in (("this", here), (rev, tree)):
+            cache = os.path.join(base, name)
+            os.makedirs(cache)
+            probe(cache, every, tree=src)  # the loops, once per build
+            builds[name] = (cache, src)
+        print("step-size control's drivers beside their loaded loops (s), alternating")
+        print(f"{'round':>5s} {'build':>12s} {'plain':>7s} {'friction':>9s} {'full':>7s}")
+        for k in range(rounds):
+            for name, (cache, src) in builds.items():
+                copy = os.path.join(base, f"{name}-{k}")
+                shutil.copytree(cache, copy)
+                d = probe(copy, every, drivers=True, tree=src)["drivers"]
+                print(f"{k + 1:5d} {name[:12]:>12s} {d[0]:7.2f} {d[1]:9.2f} {d[2]:7.2f}", flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--against", metavar="REV", help="compile one variant here and at REV, alternating")
     parser.add_argument("--rounds", type=int, default=3, help="with --against: rounds (default 3)")
     parser.add_argument("--variant", choices=("plain", "friction", "full"), default="plain",
                         help="with --against: the variant compiled (default plain)")
+    parser.add_argument("--drivers", action="store_true", help="with --against: step-size control's drivers")
     args = parser.parse_args()
+    if args.against and args.drivers:
+        return against_drivers(args.against, args.rounds)
     if args.against:
         return against(args.against, args.rounds, args.variant)
     t_start = time.perf_counter()
