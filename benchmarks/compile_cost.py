@@ -222,6 +222,8 @@ def main() -> None:
                         help="with --against: the variant compiled (default plain)")
     parser.add_argument("--drivers", action="store_true", help="with --against: step-size control's drivers")
     args = parser.parse_args()
+    if args.drivers and not args.against:
+        parser.error("--drivers compares two builds: give --against REV")
     if args.against and args.drivers:
         return against_drivers(args.against, args.rounds)
     if args.against:
