@@ -179,7 +179,11 @@ def piston():
     base = rows[3][2]
     rows += [(f"tol = {tol:g}", *run(1e-2, step_control=mo.StepControl(tol))[:2]) for tol in (1e-8, 1e-9, 1e-10, 1e-11)]
     # coarse tolerances pay only with a larger largest step: at most 1e-2, no run is cheaper than fixed h = 1e-2
-    rows += [(f"H = 0.1, tol = {tol:g}", *run(0.1, step_control=mo.StepControl(tol))[:2]) for tol in (1e-6, 1e-7)]
+    rows += [(f"H = 0.1, tol = {tol:g}", *run(0.1, step_control=mo.StepControl(tol))[:2])
+             for tol in (1e-6, 1e-7, 1e-8)]
+    # a tolerance per component: tol for the coordinates (rad), k tol for the velocities
+    rows += [(f"H = 0.1, {tol:g}, v{k}x", *run(0.1, step_control=mo.StepControl((tol,) * 3 + (k * tol,) * 3))[:2])
+             for k in (10, 30, 100) for tol in (3e-7, 1e-7, 3e-8)]
     for label, traj, wall in rows:
         _row(label, _angle_distance(angles(traj), ref), traj, wall, base)
     for tol in (1e-10, 2e-11):  # the same tolerance, slightly different largest steps

@@ -66,6 +66,9 @@ class Config:
     #: step is at most ``h_max`` (a problem's own, see :meth:`run_args`, unless given here)
     adaptive: bool = False
     h_max: float | None = None
+    #: the velocities' tolerance as a multiple of the coordinates' (``StepControl``'s tol per
+    #: component; 1: one tolerance for both)
+    v_tol: float = 1.0
 
     def __post_init__(self) -> None:
         d = {False: "none", True: "proj"}[self.drift] if isinstance(self.drift, bool) else self.drift
@@ -76,16 +79,24 @@ class Config:
     @property
     def label(self) -> str:
         tol = ("/tol" if self.h_max is None else f"/tol/H={self.h_max:g}") if self.adaptive else ""
-        return f"{self.integrator}/{self.solver}/{self.drift}" + tol
+        vtol = f"/v{self.v_tol:g}x" if self.v_tol != 1.0 else ""
+        return f"{self.integrator}/{self.solver}/{self.drift}" + tol + vtol
 
-    def run_args(self, x: float, h_max: float = 1e-2) -> tuple[float, dict]:
+    def run_args(self, x: float, h_max: float = 1e-2, ndof: int | None = None) -> tuple[float, dict]:
         """``(h, simulate's keyword arguments)`` of the ladder value ``x``: the step ``x``, or
         with ``adaptive`` the largest step (this configuration's ``h_max``, else the problem's
-        ``h_max``) and ``StepControl(x)``."""
+        ``h_max``) and ``StepControl(x)`` (with ``v_tol``: x for each of the ``ndof``
+        coordinates, ``v_tol`` x for each velocity)."""
         kw = self.simulate_kwargs()
         if not self.adaptive:
             return x, kw
-        return self.h_max or h_max, {**kw, "step_control": mo.StepControl(x)}
+        if self.v_tol == 1.0:
+            tol: float | tuple[float, ...] = x
+        elif ndof is None:
+            raise ValueError(f"a configuration with v_tol = {self.v_tol!r} needs the scene's ndof")
+        else:
+            tol = (x,) * ndof + (self.v_tol * x,) * ndof
+        return self.h_max or h_max, {**kw, "step_control": mo.StepControl(tol)}
 
     def simulate_kwargs(self) -> dict:
         kw = SOLVERS[self.solver].simulate_kwargs()

@@ -202,7 +202,7 @@ class PistonProblem(Problem):
         if key not in self._cache:
             rec = 1 if config.adaptive else max(1, int(round(self.record_dt / h)))
             # adaptive: the largest step; without drift control the one the clearance allows
-            hs, kw = config.run_args(h, h_max=1e-3 if config.drift == "none" else 1e-2)
+            hs, kw = config.run_args(h, h_max=1e-3 if config.drift == "none" else 1e-2, ndof=self.model.scene.ndof)
             traj, wall, status = _timed(lambda: self.model.simulate(
                 self.cycles, hs, record_every=rec, energy=False, **kw), repeat_below=0.5)
             f = self.figures(traj) if status == "completed" else {}

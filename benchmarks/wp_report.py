@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import math
+import os
 from collections.abc import Sequence
 
 import numpy as np
@@ -153,24 +154,30 @@ def format_osqp(rows: Sequence[dict]) -> str:
 
 
 def write_csv(runs: Sequence[Run], orders: dict, path: str) -> None:
-    """One row per run: problem, configuration, h, wall time, errors, fitted order."""
+    """One row per run: problem, configuration, h, wall time, errors, fitted order; written
+    under a unique temporary name, then renamed into place (an interrupted write leaves the
+    last file whole)."""
     names = []
     for r in runs:
         for k in r.metrics:
             if k not in names and not isinstance(r.metrics[k], (list, tuple)):
                 names.append(k)
-    with open(path, "w", newline="") as fh:
+    tmp = f"{path}.{os.getpid()}.tmp"
+    with open(tmp, "w", newline="") as fh:
         w = csv.writer(fh)
         # adaptive rows (step-size control): "h" is StepControl's tol, "order" the slope in tol, "h_max"
-        # the largest step when the configuration sets it (else the problem's: wp_problems.py)
+        # the largest step when the configuration sets it (else the problem's: wp_problems.py), "v_tol"
+        # the velocities' tolerance over the coordinates' (empty: the same)
         w.writerow(["problem", "integrator", "solver", "checked", "drift", "adaptive", "h", "wall_s", "steps",
-                    "fallbacks", "status", "error", "order", "h_max", *names])
+                    "fallbacks", "status", "error", "order", "h_max", "v_tol", *names])
         for r in runs:
             c = r.config
             w.writerow([r.problem, c.integrator, c.solver, SOLVERS[c.solver].checked, c.drift, c.adaptive, f"{r.h:.6g}",
                         f"{r.wall:.4g}", r.steps, r.fallbacks, r.status, f"{r.error:.6g}",
                         f"{orders[(r.problem, c.label)]:.3f}", "" if c.h_max is None else f"{c.h_max:g}",
+                        "" if c.v_tol == 1.0 else f"{c.v_tol:g}",
                         *[("" if r.metrics.get(k) is None else f"{r.metrics[k]:.6g}") for k in names]])
+    os.replace(tmp, path)
 
 
 def read_csv(path: str) -> tuple[list[Run], dict]:
@@ -179,9 +186,9 @@ def read_csv(path: str) -> tuple[list[Run], dict]:
     runs, orders = [], {}
     with open(path, newline="") as fh:
         for row in csv.DictReader(fh):
-            h_max = row.pop("h_max", "")
+            h_max, v_tol = row.pop("h_max", ""), row.pop("v_tol", "")
             c = Config(row.pop("integrator"), row.pop("solver"), row.pop("drift"), row.pop("adaptive") == "True",
-                       float(h_max) if h_max else None)
+                       float(h_max) if h_max else None, float(v_tol) if v_tol else 1.0)
             row.pop("checked")
             r = Run(row.pop("problem"), c, float(row.pop("h")), float(row.pop("wall_s")), int(row.pop("steps")),
                     int(row.pop("fallbacks")), row.pop("status"), float(row.pop("error")))
@@ -251,5 +258,7 @@ def plot(runs: Sequence[Run], orders: dict, problems: Sequence[Problem], path: s
     fig.legend(handles=handles, loc="lower center", ncol=len(handles), fontsize=8)
     fig.suptitle("moreau work–precision: error against wall time (p = fitted order in h)")
     fig.tight_layout(rect=(0, 0.04, 1, 0.97))
-    fig.savefig(path, dpi=110)
+    tmp = f"{path}.{os.getpid()}.tmp.png"
+    fig.savefig(tmp, dpi=110)
+    os.replace(tmp, path)
     plt.close(fig)

@@ -164,6 +164,39 @@ def test_step_control_refuses_bad_values(ball):
         mo.simulate(scene, (0.0, 0.1), [1.0], [0.0], 1e-3, step_control=mo.StepControl(1e-6, h_min=1e-2))
     with pytest.raises(ValueError, match="step_control"):
         mo.simulate(scene, (0.0, 0.1), [1.0], [0.0], 1e-3, step_control=1e-6)
+    for tol, words in (([1e-6, -1e-6], r"positive in every component, got \[1e-06, -1e-06\]"),
+                       ("1e-6", "a number or a sequence"), ([], "positive in every component")):
+        with pytest.raises(ValueError, match=words):
+            mo.StepControl(tol)
+    with pytest.raises(ValueError, match=r"3 components, the state \(q, v\) of this scene 2 \(n = 1"):
+        mo.simulate(scene, (0.0, 0.1), [1.0], [0.0], 1e-3, step_control=mo.StepControl([1e-6] * 3))
+
+
+def _inclined(scale: float):
+    """The README's point on an inclined floor with its x coordinate in units 1/scale as
+    large (q = (scale x, y)): M = diag(m / scale², m), the gap's Jacobian (−0.2 / scale, 1)."""
+    m = 2.0
+    return mo.Scene(mo.FunctionSystem(np.diag([m / scale**2, m])), [mo.ConstantForce([0.0, -9.81 * m])],
+                    [mo.Contact(mo.FunctionBarrier(gap=lambda q: np.array([q[1] - 0.2 * q[0] / scale]),
+                                                   jacobian=lambda q: np.array([[-0.2 / scale, 1.0]])),
+                                mo.NewtonImpact(0.7))])
+
+
+def test_a_tolerance_per_component_follows_the_units():
+    """A coordinate in other units with its tolerances in the same units takes the same
+    steps: scaled by 2^10 (exact in floating point) the run is the unscaled one scaled, bit
+    for bit; one tolerance for both coordinates takes other steps."""
+    s, tol = 1024.0, (1e-5, 1e-5, 1e-4, 1e-4)
+    run = lambda scale, tol: mo.simulate(_inclined(scale), (0.0, 2.0), [0.0, 1.0], [scale * 1.0, 0.0], 1e-2,  # noqa: E731
+                                          energy=False, step_control=mo.StepControl(tol))
+    base = run(1.0, tol)
+    scaled = run(s, (tol[0] * s, tol[1], tol[2] * s, tol[3]))
+    assert base.status == "completed" and len(base.impacts) >= 4 and base.stats.rejected > 0
+    np.testing.assert_array_equal(scaled.t, base.t)
+    np.testing.assert_array_equal(scaled.q, base.q * [s, 1.0])
+    np.testing.assert_array_equal(scaled.v, base.v * [s, 1.0])
+    np.testing.assert_array_equal(scaled.impacts.t, base.impacts.t)
+    assert run(s, 1e-5).stats.steps != base.stats.steps  # (x's error s times larger in its units)
 
 
 @pytest.mark.slow

@@ -171,3 +171,20 @@ def test_step_control_gain_compares_the_cheapest_runs_reaching_each_target(wp):
     assert rows[0]["fixed"].wall == 10.0 and rows[0]["adaptive"].wall == 0.5 and rows[0]["ratio"] == 0.05
     assert rows[1]["adaptive"] is None and np.isnan(rows[1]["ratio"])
     assert "not reached" in wp.format_gain(rows)
+
+
+def test_a_configuration_with_per_component_tolerances_survives_its_csv(wp, tmp_path):
+    """v_tol: the velocities' tolerance a multiple of the coordinates' (StepControl's tol per
+    component), in the label and the CSV; without the scene's ndof it is refused."""
+    c = wp.Config("mid", "exact", "projv", adaptive=True, h_max=0.1, v_tol=30.0)
+    assert c.label == "mid/exact/projv/tol/H=0.1/v30x"
+    assert c.run_args(1e-7, ndof=2)[1]["step_control"].tol == (1e-7, 1e-7, 3e-6, 3e-6)
+    with pytest.raises(ValueError, match="v_tol = 30.0 needs the scene's ndof"):
+        c.run_args(1e-7)
+    plain = wp.Config("mid", "exact", "none", adaptive=True)
+    runs = [wp.Run("x", cfg, 1e-7, 1.0, 10, 0, "completed", 0.5) for cfg in (c, plain)]
+    path = str(tmp_path / "wp.csv")
+    wp.write_csv(runs, {("x", c.label): 1.0, ("x", plain.label): 2.0}, path)
+    back, orders = wp.read_csv(path)
+    assert [r.config for r in back] == [c, plain] and orders[("x", c.label)] == 1.0
+    assert os.listdir(tmp_path) == ["wp.csv"]  # (written through a temporary name)

@@ -200,4 +200,4 @@ def _warm_up(variant: str, adaptive: bool = False) -> None:
     run_compiled(scene, None, 0.0, np.array([1e-3]), np.array([-1.0]), 1e-3, 2, step=STEP_MIDPOINT, solver="exact",
                  fallback=None, stride=1, bar=None, energy=True, tol=1e-8, drift_control=None,
                  flight_gap=np.zeros(1), gmax0=np.full(1, np.inf), variant=variant,
-                 control=(2e-3, 1e-3, 0.0, 1e-12) if adaptive else None)
+                 control=(2e-3, np.full(2, 1e-3), 0.0, 1e-12) if adaptive else None)

@@ -116,13 +116,13 @@ N_ACCUMULATORS = 16
 #: step), at two checks in a row, is a motion the step does not resolve
 RUNAWAY_RATE = 0.4
 # step-size control's state (float array): the step to try next, the time reached, the end
-# time, the tolerances (absolute, relative), the largest and smallest step, the start of the
+# time, the relative tolerance (the absolute ones: Snapshot.atol), the largest and smallest step, the start of the
 # step of the last energy check that passed, the last accepted step, its scaled error and kind,
 # and the largest error constant (scaled error / H^(order+1)) of the smooth steps in the time
 # window of the largest step that holds the current time and in the one before, and the start
 # of the current window
-K_H, K_T, K_END, K_ATOL, K_RTOL, K_HMAX, K_HMIN, K_TOK, K_HACC, K_EACC, K_KACC, K_C0, K_C1, K_CB = range(14)
-N_CONTROL = 14
+K_H, K_T, K_END, K_RTOL, K_HMAX, K_HMIN, K_TOK, K_HACC, K_EACC, K_KACC, K_C0, K_C1, K_CB = range(13)
+N_CONTROL = 13
 
 # The step's parts are inlined into the loop by numba (IR level), as are the evaluation
 # functions (moreau.compiled.evaluate); the kernels and LCP routines they call are inlined by LLVM
@@ -187,9 +187,10 @@ PassWork = namedtuple("PassWork", "Ms c2 s2 qp dq x ylast rlast mv fq")
 #: each row's slip (0 sticking or open, ±1 the sign of its tangential impulse when it slides)
 #: at the end of the last accepted step, of the coarse and of the first fine step, the first
 #: fine step's normal and tangential impulses per row, a spare vector (n), and the coarse
-#: step's end gaps before drift control moved them
+#: step's end gaps before drift control moved them; and the absolute tolerance of each
+#: component of (q, v) (2 n)
 Snapshot = namedtuple("Snapshot", "q v in_contact P_acc act_acc last_imp gmax rs pen cnt acc PT_acc PE_acc "
-                      "qc vc gc closed0 closed_c closed_f pen_t slip0 slip_c slip_f p_f pt_f x gu")
+                      "qc vc gc closed0 closed_c closed_f pen_t slip0 slip_c slip_f p_f pt_f x gu atol")
 #: the lowered scene's arrays (compiled.lowering.CompiledScene.arrays): the int settings, the
 #: effects' kinds and offsets, the barriers' kinds, offsets, first rows and row counts, the
 #: parameter pool, each row's restitution and activation tolerance

@@ -32,13 +32,14 @@ MEMORY_CAP = 8.0
 
 
 @_part
-def _error(q, v, sn, atol, rtol, c):
-    """The scaled local error max |x_f − x_c| / (c (atol + rtol |x_f|)) of the fine answer
-    (q, v) against the coarse one kept in ``sn``."""
+def _error(q, v, sn, rtol, c):
+    """The scaled local error max |x_f − x_c| / (c (atol_i + rtol |x_f|)) of the fine answer
+    (q, v) against the coarse one kept in ``sn`` (atol_i: ``sn.atol``, q's then v's)."""
     err = 0.0
-    for a, b in ((q, sn.qc), (v, sn.vc)):
-        for i in range(a.shape[0]):
-            e = abs(a[i] - b[i]) / (c * (atol + rtol * abs(a[i])))
+    n = q.shape[0]
+    for a, b, k in ((q, sn.qc, 0), (v, sn.vc, n)):
+        for i in range(n):
+            e = abs(a[i] - b[i]) / (c * (sn.atol[k + i] + rtol * abs(a[i])))
             if e > err or e != e:
                 err = e if e == e else math.inf
     return err
@@ -119,16 +120,18 @@ def _tangential(m, n, active, G, q, v, gq, sn):
 
 
 @_part
-def _response(model, Minv, work, row, x):
-    """M⁻¹ G_rowᵀ into ``x`` (the velocity change of a unit impulse on the row), and its
-    largest component and W = G_row M⁻¹ G_rowᵀ."""
+def _response(model, Minv, work, row, sn):
+    """M⁻¹ G_rowᵀ into ``sn.x`` (the velocity change of a unit impulse on the row), its
+    largest component scaled by the velocities' tolerances, max |x_i| / atol_(n+i), and
+    W = G_row M⁻¹ G_rowᵀ."""
     own, lw = work[0], work[2]
-    G = own.G
+    G, x = own.G, sn.x
+    n = x.shape[0]
     _free_acceleration(model.ints, model.pool, Minv, own.L, lw.gen, own.cm, own.sm, G[row], x)
     w, big = 0.0, 0.0
-    for i in range(x.shape[0]):
+    for i in range(n):
         w += G[row, i] * x[i]
-        big = max(big, abs(x[i]))
+        big = max(big, abs(x[i]) / sn.atol[n + i])
     return big, w
 
 
@@ -147,9 +150,9 @@ def _excess(a1, a2, H):
 
 @_part
 def _pull(model, Minv, work, m, H, active, sn, fr):
-    """The largest velocity change (the state's units) of the impulse a closed row would
-    exert past a switching point inside the last quarter of the step: its contact force
-    falling through zero (the row opens) or its friction force reaching mu times it (it
+    """The largest velocity change (over the velocities' tolerances) of the impulse a closed
+    row would exert past a switching point inside the last quarter of the step: its contact
+    force falling through zero (the row opens) or its friction force reaching mu times it (it
     slips). The step's midpoints do not see these points, so the three steps agree; the
     impulse through M⁻¹ Gᵀ is the error of taking the switch a step late (0 if none)."""
     P = work[0].P
@@ -162,25 +165,34 @@ def _pull(model, Minv, work, m, H, active, sn, fr):
             mu = fr.mu[r]
             a, row = _excess(mu * sn.p_f[r] - abs(sn.pt_f[r]), mu * P[r] - abs(fr.PT[r]), H), fr.tangent_row[r]
         if a > 0.0:
-            worst = max(worst, a * _response(model, Minv, work, row, sn.x)[0])
+            worst = max(worst, a * _response(model, Minv, work, row, sn)[0])
     return worst
 
 
 @_part
+def _least(atol, n):
+    """The smallest of the velocities' tolerances, ``atol[n:]``."""
+    least = math.inf
+    for i in range(n, atol.shape[0]):
+        least = min(least, atol[i])
+    return least
+
+
+@_part
 def _crossing(model, Minv, work, m, sn, rs, end):
-    """The state error (the state's units) of a barrier crossed inside the step: a row
-    neither closed nor in contact at the start that ends the coarse and the fine steps a
+    """The state error (over the velocities' tolerances) of a barrier crossed inside the
+    step: a row neither closed nor in contact at the start that ends the coarse and the fine steps a
     depth p deeper than at the start (gap ``sn.rs[r, R_GAP]``; the end gaps before drift
     control put the row back on its barrier, ``rs[:, end]``) has its impact late by
     p / |ġ|, and the impact's velocity jump, (1 + e) ġ M⁻¹ G_rᵀ / W_rr (W_rr = G_r M⁻¹ G_rᵀ),
-    that long in the state makes p (1 + e) |M⁻¹ G_rᵀ| / W_rr (0 if none)."""
+    that long in the state makes p (1 + e) max_i |(M⁻¹ G_rᵀ)_i| / (atol_(n+i) W_rr) (0 if none)."""
     worst = 0.0
     for r in range(m):
         if not (sn.in_contact[r] or sn.closed0[r]):
             p = min(-rs[r, end], -sn.gu[r]) - max(0.0, -sn.rs[r, R_GAP])
             if p > 0.0:
-                big, w = _response(model, Minv, work, r, sn.x)
-                worst = max(worst, p * (1.0 + model.e[r]) * big / w if w > 0.0 else p)
+                big, w = _response(model, Minv, work, r, sn)
+                worst = max(worst, p * (1.0 + model.e[r]) * big / w if w > 0.0 else p / _least(sn.atol, sn.q.shape[0]))
     return worst
 
 
@@ -210,17 +222,17 @@ def _remembered(ctl, kind, order, err, H, t):
 
 
 @_part
-def _step_kind(model, Minv, work, m, n, H, q, v, gq, rs, end, sn, fr, nimp0, nimp, atol):
+def _step_kind(model, Minv, work, m, n, H, q, v, gq, rs, end, sn, fr, nimp0, nimp):
     """The kind of the attempt (0 smooth, 1 persistent contact, 2 switching) and the
     scaled error of a switch its midpoints do not see (:func:`_crossing`, :func:`_pull`);
     a persistent-contact step whose rows are held at rest counts as smooth."""
     active = work[0].active
     kind = _kind(m, active, sn, nimp0, nimp, work[0].P, fr)
-    unseen = _crossing(model, Minv, work, m, sn, rs, end) / atol
+    unseen = _crossing(model, Minv, work, m, sn, rs, end)
     if unseen > 0.0:
         kind = 2
     if kind == 1:  # (not with an impact: its impulse is no force to extrapolate)
-        unseen = _pull(model, Minv, work, m, H, active, sn, fr) / atol
+        unseen = _pull(model, Minv, work, m, H, active, sn, fr)
         if unseen > 0.0:
             kind = 2
     if kind == 1 and _tangential(m, n, active, work[0].G, q, v, gq, sn):

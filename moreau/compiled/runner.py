@@ -95,15 +95,16 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
                  bar, energy: bool, tol: float, drift_control, flight_gap: np.ndarray,
                  gmax0: np.ndarray, energy_growth: tuple[float, float] | None = None,
                  iteration: tuple[int, float] = (1, 0.0), variant: str | None = None,
-                 control: tuple[float, float, float, float] | None = None) -> Trajectory:
+                 control: tuple[float, np.ndarray, float, float] | None = None) -> Trajectory:
     """Run ``n_steps`` steps compiled from a validated initial state (see :func:`moreau.simulate`,
     which calls this after :func:`~moreau.compiled.cache.ensure_compiled`); ``gmax0`` is each
     row's initial flight gap (``moreau.run.flights.initial_flight``); ``energy_growth`` the energy
     check's ``(warn, stop)`` (None: no check); ``step``, ``iteration``: see ``_settings``;
     ``variant``: the loop's variant (:data:`moreau.compiled.variants.VARIANTS`; None: the scene's,
     :func:`moreau.compiled.variants.variant`; one without a feature the scene has is refused);
-    ``control``: step-size control's ``(t_end, atol, rtol, h_min)`` (:mod:`moreau.compiled.adaptive`;
-    ``h`` the largest step, ``stride`` in accepted steps), None for fixed steps."""
+    ``control``: step-size control's ``(t_end, atol, rtol, h_min)``, atol of shape (2 n,)
+    (:mod:`moreau.compiled.adaptive`; ``h`` the largest step, ``stride`` in accepted steps), None
+    for fixed steps."""
     cs = lower(scene) if cs is None else cs
     n, m = scene.ndof, scene.nrows
     iset, fset, eligible, called = _settings(scene, t0, h, n_steps, step, solver, fallback, stride, energy, tol,
@@ -132,9 +133,10 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     if control is not None:
         t_end, atol, rtol, h_min = control
         ctl = np.zeros(lay.N_CONTROL)
-        ctl[[lay.K_H, lay.K_T, lay.K_END, lay.K_ATOL, lay.K_RTOL, lay.K_HMAX, lay.K_HMIN, lay.K_TOK]] = (
-            h, t0, t_end, atol, rtol, h, h_min, t0)
+        ctl[[lay.K_H, lay.K_T, lay.K_END, lay.K_RTOL, lay.K_HMAX, lay.K_HMIN, lay.K_TOK]] = (
+            h, t0, t_end, rtol, h, h_min, t0)
         snap = ad.snapshot(n, m, mf, me)
+        snap.atol[:] = atol  # one per component of (q, v)
 
     status, message, interrupt = "completed", "", None
     wall0 = time.perf_counter()

@@ -187,8 +187,8 @@ class _Plan:
     energy_growth: tuple[float, float] | None
     #: (max_iterations, iteration_tol) of an iterating step, checked
     iteration: tuple[int, float] = (1, 0.0)
-    #: step-size control's (t_end, atol, rtol, h_min), or None for fixed steps
-    control: tuple[float, float, float, float] | None = None
+    #: step-size control's (t_end, atol of each component of (q, v), rtol, h_min), or None for fixed steps
+    control: tuple[float, np.ndarray, float, float] | None = None
 
 
 def _plan(scene: Scene, t_span: tuple[float, float], h: float, tol: float, record_every: int,
@@ -217,7 +217,7 @@ def _plan(scene: Scene, t_span: tuple[float, float], h: float, tol: float, recor
     if step_control is not None:
         if not isinstance(step_control, StepControl):
             raise ValueError(f"step_control must be a StepControl or None, got {step_control!r}")
-        control = (t1, step_control.tol, step_control.rtol, step_control.smallest(h))
+        control = (t1, step_control.absolute(scene.ndof), step_control.rtol, step_control.smallest(h))
     cs, solver, fallback = choose_backend(backend, scene, integrator, solver, fallback, drift_control)
     return _Plan(t0, h, tol, n_steps, stride, n_rec, cs, solver, fallback, fg, penetration_limit,
                  initial_penetration, as_energy_growth(energy_growth), iteration, control)
