@@ -61,7 +61,7 @@ print(f"largest loop residual |g| = {np.abs(traj.constraint_residuals).max():.1e
 # %%
 fig, ax = plt.subplots(3, 1, figsize=(8, 8), sharex=True)
 ax[0].plot(traj.t, E, lw=1)
-for t in traj.impacts.t:
+for t in traj.impacts.times():
     ax[0].axvline(t, color="tab:red", lw=0.5, alpha=0.5)
 ax[0].set_ylabel("energy (J)")
 ax[0].set_title("four-bar hitting a stop on the rocker (e = 0.5): impacts in red")

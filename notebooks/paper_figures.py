@@ -65,7 +65,7 @@ for fig_no, c in zip((2, 3, 4), cases):
     traj = trajs[c.label]
     params = PistonParameters(e=c.e, D=c.D)
     last = cycle_figures(traj, params)[-1]
-    imp_cycle = np.floor(np.interp(traj.impacts.t, traj.t, traj.q[:, 0]) / (4 * np.pi))
+    imp_cycle = np.floor(np.interp(traj.impacts.times(), traj.t, traj.q[:, 0]) / (4 * np.pi))
     P = traj.impacts.impulse[imp_cycle == last.cycle]
     last_rows.append({"figure": fig_no, "e": c.e, "D_mm": round(1e3 * c.D, 2), "side_changes": last.side_changes,
                       "angles_deg": " ".join(f"{a:.0f}" for a in last.change_angles_deg),

@@ -294,7 +294,7 @@ for k in range(len(sec)):
 print("cycle-to-cycle change of the section state, without φ1 (rad, rad per unit τ):",
       np.round(np.abs(np.diff(sec.x[:, 1:], axis=0)).max(axis=1), 6))
 
-cyc = np.floor(traj.impacts.t / (4 * np.pi)).astype(int)
+cyc = np.floor(traj.impacts.times() / (4 * np.pi)).astype(int)
 per_cycle = np.bincount(cyc[cyc >= 1] - 1, minlength=CYCLES)[:CYCLES]
 E_cycle = np.bincount(cyc[cyc >= 1] - 1, weights=traj.impacts.energy_lost[cyc >= 1], minlength=CYCLES)[:CYCLES]
 print("impacts per cycle:", per_cycle.tolist())

@@ -151,3 +151,30 @@ def test_step_control_sizes_the_steps_so_h_is_not_checked_against_the_clearance(
     assert traj.max_penetration.max() < 0.01 * model.params.clearance / model.params.l1
     with pytest.warns(RuntimeWarning, match="too coarse for the clearance"):
         model.simulate(0.01, 1e-2)
+
+
+def test_impacts_count_in_the_cycle_in_which_they_cross_the_wall():
+    # an impact whose step starts before the 720° boundary but which crosses the wall after it
+    # belongs to the next cycle: the cycle figures place impacts by ImpactLog.times()
+    import dataclasses
+
+    from moreau.problems.piston import cycle_figures
+    from moreau.problems.piston.analysis import crank_angle
+
+    model = piston_model(PistonParameters(e=0.9))
+    traj = model.simulate(3, 1e-3, record_every=1)
+    before = cycle_figures(traj, model.params)
+    imp, phi = traj.onsets, crank_angle(traj)
+    first = int(np.flatnonzero(imp.flight & imp.fast & (np.interp(imp.t, traj.t, phi) >= 4 * np.pi))[0])
+    i = int(np.searchsorted(phi, 4 * np.pi)) - 1  # the last record of the first cycle
+    moved = dataclasses.replace(imp, t=imp.t.copy(), t_cross=imp.t_cross.copy())
+    moved.t[first] = traj.t[i]  # the step starts in cycle 0 ...
+    moved.t_cross[first] = traj.t[i + 1]  # ... and the wall is crossed in cycle 1
+    after = cycle_figures(dataclasses.replace(traj, onsets=moved), model.params)
+    assert [c.impacts for c in after] == [c.impacts for c in before]
+    moved.t_cross[first] = traj.t[i] - 1e-9  # crossed before the boundary: cycle 0's
+    earlier = cycle_figures(dataclasses.replace(traj, onsets=moved), model.params)
+    assert earlier[0].impacts == before[0].impacts + 1 and earlier[1].impacts == before[1].impacts - 1
+    assert np.array_equal(moved.times()[:first], imp.t_cross[:first])
+    old = dataclasses.replace(moved, t_cross=np.full(len(imp), np.nan))  # a file from before t_cross
+    assert np.array_equal(old.times(), moved.t)

@@ -84,7 +84,7 @@ def bifurcation_point(*, make_scene: Callable, param: str, value: float, q0, v0,
         raise RuntimeError(f"{param} = {value}: simulation {traj.status}: {traj.message}")
     sec = stroboscopic(traj, T, phase_time, t_start=n_transient * T + phase_time - 0.5 * T)
     X = sec.x[-n_points:][:, list(components)]
-    t_imp = traj.impacts.t if len(traj.impacts) else np.zeros(0)
+    t_imp = traj.impacts.times() if len(traj.impacts) else np.zeros(0)
     out = {
         "section": X.tolist(),
         "t_section": sec.t[-n_points:].tolist(),

@@ -98,6 +98,12 @@ class ImpactLog:
         return (f"ImpactLog({len(self)} impacts, t = {self.t[0]:.6g} to {self.t[-1]:.6g}{t_unit}, "
                 f"largest impulse {self.impulse.max():.4g}{unit_suffix(self.units, 'impulses')})")
 
+    def times(self) -> np.ndarray:
+        """When each impact happened, shape (n_onsets,): the wall crossing ``t_cross``
+        where it is known (every run since it was logged), else the step's start ``t``
+        (files written before)."""
+        return np.where(np.isfinite(self.t_cross), self.t_cross, self.t)
+
     def to_dataframe(self) -> pandas.DataFrame:
         """The log as a pandas DataFrame, one row per impact, with a ``row_name`` column and
         each column's unit in ``df.attrs["units"]``; see

@@ -108,7 +108,7 @@ def change_times(traj: mo.Trajectory, idx: np.ndarray, new_side: np.ndarray) -> 
     # the landing step starts at or after the record before (less 1e-6 of the interval: the
     # round-off of a time summed step by step)
     lo = np.where(idx > 0, t[idx - 1] - 1e-6 * (t[idx] - t[idx - 1]), -np.inf)
-    at = np.where(np.isfinite(imp.t_cross), imp.t_cross, imp.t)  # the crossing, else the step's start
+    at = imp.times()  # the crossing, else the step's start
     for side, on in ((1, right), (-1, ~right)):
         order = np.argsort(imp.t[on], kind="stable")
         ts, cross = imp.t[on][order], at[on][order]
@@ -177,7 +177,7 @@ def cycle_figures(traj: mo.Trajectory, params: PistonParameters) -> list[CycleFi
     energy_unit = M11 * omega**2  # mass unit M̄_11/l1², length l1, time 1/ω → J
     impulse_unit = M11 * omega / l1  # → N s
     imp = traj.impacts
-    imp_phi = np.interp(imp.t, traj.t, phi1) if len(imp) else np.zeros(0)
+    imp_phi = np.interp(imp.times(), traj.t, phi1) if len(imp) else np.zeros(0)  # at the crossing
     loss = friction_loss_per_record(traj)
     out = []
     for k in range(int(cyc.min()) if cyc.size else 0, int(cyc.max()) if cyc.size else 0):
@@ -372,7 +372,7 @@ def sliding_phases(traj: mo.Trajectory, min_deg: float = 1.0) -> list[SlidingPha
     side = contact_side(traj)
     phi = crank_angle(traj)
     imp = traj.impacts
-    imp_phi = np.interp(imp.t, traj.t, phi) if len(imp) else np.zeros(0)
+    imp_phi = np.interp(imp.times(), traj.t, phi) if len(imp) else np.zeros(0)
     imp_side = np.where(np.isin(imp.row, RIGHT_ROWS), 1, -1)
     out: list[SlidingPhase] = []
     i, n, prev_end_phi = 0, side.shape[0], phi[0] if side.size else 0.0

@@ -219,7 +219,7 @@ def piston_point(e: float, D_mm: float = 80.04, cycles: int = 5, transient: int 
     side = contact_side(traj)
     dphi = np.diff(phi, prepend=phi[0])  # record i covers (phi[i-1], phi[i]]
     imp = traj.impacts
-    imp_cycle = np.floor(np.interp(imp.t, traj.t, phi) / FOUR_PI).astype(int) if len(imp) else np.zeros(0, int)
+    imp_cycle = np.floor(np.interp(imp.times(), traj.t, phi) / FOUR_PI).astype(int) if len(imp) else np.zeros(0, int)
     slaps = []
     for c in figs:
         P = imp.impulse[imp_cycle == c.cycle]
