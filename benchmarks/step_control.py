@@ -17,8 +17,9 @@ one table, absolute times on a shared 2-core machine are noisy):
    ``simulate()`` call itself, over one step;
 4. with ``--piston``: the e = 0 piston over 2 cycles with ``PositionProjection(velocity=True)``,
    the side-change angles of the last cycle against fixed h = 1e-6 (``benchmarks/wp_problems.py``'s
-   metric), ``StepControl(tol)`` with the largest step 1e-2, and coarse tolerances with the largest step 0.1;
-   and the error at tol = 1e-10 and 2e-11 for five largest steps 0.0094 … 0.0106 (its scatter).
+   metric), ``StepControl(tol)`` with the largest step 1e-2, and coarse tolerances with the largest step 0.1
+   (one tolerance, and one per component); at the coarse end fixed h = 10^-1.5 against largest steps
+   0.1 … 0.5; and the error at tol = 1e-10 and 2e-11 for five largest steps 0.0094 … 0.0106 (its scatter).
 
     python benchmarks/step_control.py [--piston]
 """
@@ -184,6 +185,10 @@ def piston():
     # a tolerance per component: tol for the coordinates (rad), k tol for the velocities
     rows += [(f"H = 0.1, {tol:g}, v{k}x", *run(0.1, step_control=mo.StepControl((tol,) * 3 + (k * tol,) * 3))[:2])
              for k in (10, 30, 100) for tol in (3e-7, 1e-7, 3e-8)]
+    # the coarse end: the cheapest fixed run there, and largest steps beyond 0.1
+    rows += [("fixed h = 0.0316", *run(10**-1.5, record_every=1)[:2])]
+    rows += [(f"H = {hm:g}, 1e-05, v30x", *run(hm, step_control=mo.StepControl((1e-5,) * 3 + (3e-4,) * 3))[:2])
+             for hm in (0.1, 0.2, 0.3, 0.5)]
     for label, traj, wall in rows:
         _row(label, _angle_distance(angles(traj), ref), traj, wall, base)
     for tol in (1e-10, 2e-11):  # the same tolerance, slightly different largest steps
