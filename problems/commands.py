@@ -41,6 +41,11 @@ from moreau.cli import (
 __all__ = ["register_ball", "register_piston", "register_sweep"]
 
 
+def _said(line: str) -> None:
+    """A line of the command's output, at once (a log file sees each case as it ends)."""
+    print(line, flush=True)
+
+
 def _solver_option(parser: argparse.ArgumentParser, help: str) -> None:
     from moreau.contact.solvers import available_solvers
 
@@ -87,8 +92,8 @@ def run_ball(args: argparse.Namespace) -> int:
     sol = BallSolution(args.h0, args.e)
     traj = simulate_and_save(scene, (0.0, args.t_end), [args.h0], [0.0], args.h,
                              out_stem=os.path.join(args.out, "ball"), solver=args.solver, backend=args.backend,
-                             progress=not args.no_progress, record_every=args.record_every,
-                             penetration_limit=0.01 * args.h0)  # 1 % of the drop
+                             progress=False if args.no_progress else None,  # None: a bar on a terminal
+                             record_every=args.record_every, penetration_limit=0.01 * args.h0)  # 1 % of the drop
     fig, ax = plt.subplots(figsize=(7, 3.5))
     ax.plot(traj.t, traj.q[:, 0], label=f"moreau, h = {args.h:g} s")
     ax.plot(traj.t, sol.position(traj.t), "--", lw=1, label="analytic")
@@ -188,7 +193,10 @@ def run_piston(args: argparse.Namespace) -> int:
           f"output in {args.out}/")
     stopped = None
     try:
-        rows = run_cases(cases, args.out, progress=not args.no_progress, workers=args.workers)
+        # bars on a terminal; elsewhere (a log file, a pipe) one line as each case ends, not the bars' cursor codes
+        bars = not args.no_progress and sys.stderr.isatty()
+        rows = run_cases(cases, args.out, progress=bars, workers=args.workers,
+                         report=None if bars or args.no_progress else _said)
     except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM: every case's row is attached
         attached = getattr(exc, "rows", None)
         if attached is None:

@@ -58,3 +58,16 @@ def test_piston_bad_diameter_is_rejected(tmp_path):
     r = subprocess.run([sys.executable, "-m", "moreau", "piston", "--D", "79", "--out", str(tmp_path)],
                        capture_output=True, text=True)
     assert r.returncode == 2 and "argument --D: 79 is outside (80, 100]" in r.stderr
+
+
+def test_piston_into_a_log_file_prints_a_line_per_case_not_bar_codes(tmp_path, capsys):
+    # pytest's captured stderr is no terminal: no bars (their cursor codes), one line per case
+    out = tmp_path / "out"
+    assert main(["piston", "--e", "0.9", "--D", "80.2", "--cycles", "1", "--transient", "0", "--h", "1e-3",
+                 "--out", str(out)]) == 0
+    said = capsys.readouterr()
+    assert "\x1b[" not in said.err and "\r" not in said.err and "step/s" not in said.err
+    assert said.out.count("case e0.9_D80.20mm: completed (simulated in") == 1
+    assert main(["piston", "--e", "0.9", "--D", "80.2", "--cycles", "1", "--transient", "0", "--h", "1e-3",
+                 "--out", str(out), "--no-progress"]) == 0
+    assert "simulated in" not in capsys.readouterr().out

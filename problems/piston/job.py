@@ -13,7 +13,7 @@ from __future__ import annotations
 import logging
 import os
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -220,9 +220,11 @@ def clear_case_files(cases: Sequence[Case], out: str) -> list[str]:
     return removed
 
 
-def run_cases(cases: Sequence[Case], out: str, progress: bool = True, workers: int | None = None) -> list[dict]:
+def run_cases(cases: Sequence[Case], out: str, progress: bool = True, workers: int | None = None,
+              report: Callable[[str], None] | None = None) -> list[dict]:
     """Run cases, in parallel processes (one per core by default); one row per case, in
-    input order, whatever happens.
+    input order, whatever happens. ``progress``: a bar per case (a terminal's); ``report``:
+    called with one line as each case ends (where no terminal shows the bars).
 
     The files an earlier run left for these cases in ``out`` are removed first. On Ctrl-C
     or SIGTERM no further case starts, the running ones save what they computed, and the
@@ -244,6 +246,9 @@ def run_cases(cases: Sequence[Case], out: str, progress: bool = True, workers: i
             if status == "failed":  # the reason, in one line
                 row["warnings"] = f"{type(exc).__name__}: {exc}".replace("\n", " ")
         rows[i] = row
+        if report is not None and row is not None:
+            report(f"case {cases[i].label}: {row['status']} (simulated in {row['wall_time_s']} s; "
+                   f"{sum(r is not None for r in rows)} of {len(cases)} cases done)")
 
     try:
         if workers == 1 or len(cases) == 1:
