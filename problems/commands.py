@@ -41,6 +41,15 @@ from moreau.cli import (
 __all__ = ["register_ball", "register_piston", "register_sweep"]
 
 
+def _progress_options(parser: argparse.ArgumentParser, bars: str) -> None:
+    """``--no-progress`` and ``--progress``: no progress bars, or bars also where the output
+    is not a terminal (by default only on one)."""
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("--no-progress", action="store_true", help=f"no progress {bars}")
+    group.add_argument("--progress", action="store_true",
+                       help=f"progress {bars} also where the output is not a terminal (a file, a pipe)")
+
+
 def _said(line: str) -> None:
     """A line of the command's output, at once (a log file sees each case as it ends)."""
     print(line, flush=True)
@@ -69,7 +78,7 @@ def register_ball(subparsers: Any) -> None:
     b.add_argument("--record-every", type=positive_int, default=1, metavar="K",
                    help="keep every K-th step (steps; default 1; raise it for long runs)")
     b.add_argument("--out", default="ball-out", help="output directory")
-    b.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _progress_options(b, "bar")
     b.set_defaults(func=run_ball)
 
 
@@ -92,7 +101,7 @@ def run_ball(args: argparse.Namespace) -> int:
     sol = BallSolution(args.h0, args.e)
     traj = simulate_and_save(scene, (0.0, args.t_end), [args.h0], [0.0], args.h,
                              out_stem=os.path.join(args.out, "ball"), solver=args.solver, backend=args.backend,
-                             progress=False if args.no_progress else None,  # None: a bar on a terminal
+                             progress=False if args.no_progress else (args.progress or None),  # None: on a terminal
                              record_every=args.record_every, penetration_limit=0.01 * args.h0)  # 1 % of the drop
     fig, ax = plt.subplots(figsize=(7, 3.5))
     ax.plot(traj.t, traj.q[:, 0], label=f"moreau, h = {args.h:g} s")
@@ -171,7 +180,7 @@ def register_piston(subparsers: Any) -> None:
                     help="keep every K-th step (steps; default: about one record per 0.1° of crank angle)")
     pi.add_argument("--out", default="piston-out", help="output directory (default piston-out); "
                     "a rerun first removes the files an earlier run left there for the same cases")
-    pi.add_argument("--no-progress", action="store_true", help="no progress bars")
+    _progress_options(pi, "bars")
     pi.set_defaults(func=run_piston)
 
 
@@ -194,7 +203,7 @@ def run_piston(args: argparse.Namespace) -> int:
     stopped = None
     try:
         # bars on a terminal; elsewhere (a log file, a pipe) one line as each case ends, not the bars' cursor codes
-        bars = not args.no_progress and sys.stderr.isatty()
+        bars = args.progress or (not args.no_progress and sys.stderr.isatty())
         rows = run_cases(cases, args.out, progress=bars, workers=args.workers,
                          report=None if bars or args.no_progress else _said)
     except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM: every case's row is attached
@@ -224,23 +233,26 @@ def run_piston(args: argparse.Namespace) -> int:
 
 # -- sweep --------------------------------------------------------------------------------
 def register_sweep(subparsers: Any) -> None:
-    """``moreau sweep piston``: the engine over a grid of e and D (see :mod:`.sweep_command`)."""
+    """``moreau sweep piston``: the engine over a grid of e, D and mu (see :mod:`.sweep_command`)."""
     from .sweep_command import param_spec, run_sweep
 
     sw = subparsers.add_parser("sweep", help="a parameter sweep of the piston engine (parallel, resumable)",
-                               description="Run the piston engine over a grid of restitutions e and cylinder "
-                                           "diameters D (cartesian product) on a local process pool or a Dask "
-                                           "cluster; one row per point in --out. An interrupted sweep resumes: "
+                               description="Run the piston engine over a grid of restitutions e, cylinder "
+                                           "diameters D and skirt frictions mu (cartesian product) on a local "
+                                           "process pool or a Dask cluster; one row per point in --out. An "
+                                           "interrupted sweep resumes: "
                                            "run the same command again.",
                                epilog="table columns: e, D_mm (mm), clearance_um (µm), mean_speed_rpm and "
                                       "settled_speed_rpm (rev/min), "
-                                      "energy_lost_J_mean (J per cycle), max_impulse_Ns (N s), wall_time_s (s); "
+                                      "energy_lost_J_mean and friction_loss_J_mean (J per cycle), "
+                                      "max_impulse_Ns (N s), wall_time_s (s); "
                                       "counts per cycle (side_changes_mean, slaps_mean, impacts_mean); h is in τ "
                                       "(see --h). See moreau.problems.piston.study.piston_point.")
     sw.add_argument("problem", choices=["piston"], help="the system to sweep")
     sw.add_argument("--param", type=param_spec, action="append", metavar="NAME=VALUES",
                     help="e=start:stop:num (numpy.linspace), e=0,0.5,0.9 or e=0.9; names: e (restitution, "
-                         "dimensionless), D (cylinder diameter, mm); defaults e=0, D=80.04")
+                         "dimensionless), D (cylinder diameter, mm), mu (Coulomb friction of the skirt, "
+                         "dimensionless, in [0, 10]); defaults e=0, D=80.04, mu=0")
     _engine_run_args(sw, cycles=5, h=3e-4)
     sw.add_argument("--out", default="sweep-out/piston_sweep.parquet", help="table, .parquet or .csv "
                     "(default sweep-out/piston_sweep.parquet)")

@@ -1,4 +1,4 @@
-"""``moreau sweep piston``: the piston engine over a grid of e and D; registered by
+"""``moreau sweep piston``: the piston engine over a grid of e, D and the skirt friction mu; registered by
 :func:`moreau.problems.commands.register_sweep`."""
 
 from __future__ import annotations
@@ -11,7 +11,8 @@ from moreau.cli import EXIT_FAILED, EXIT_OK, EXIT_USAGE, CLIError, Stopped, inte
 
 __all__ = ["param_spec", "run_sweep"]
 
-_SWEEP_PARAMS = {"e": ("e", 0.0, 1.0, False), "D": ("D_mm", 80.0, 100.0, True)}
+#: name on the command line: (point argument, lowest, highest, lowest excluded)
+_SWEEP_PARAMS = {"e": ("e", 0.0, 1.0, False), "D": ("D_mm", 80.0, 100.0, True), "mu": ("mu", 0.0, 10.0, False)}
 
 
 def param_spec(text: str) -> tuple[str, list[float]]:
@@ -90,16 +91,19 @@ def run_sweep(args: argparse.Namespace) -> int:
     grid = {_SWEEP_PARAMS[n][0]: v for n, v in given.items()}
     grid.setdefault("e", [0.0])
     grid.setdefault("D_mm", [80.04])
+    grid.setdefault("mu", [0.0])
     grid.update(cycles=args.cycles, transient=args.transient, h=args.h, solver=args.solver, backend=args.backend,
                 drift_control=not args.no_drift_control)
-    n = len(grid["e"]) * len(grid["D_mm"])
+    n = len(grid["e"]) * len(grid["D_mm"]) * len(grid["mu"])
     where = f"Dask scheduler {args.dask}" if args.dask else f"{args.workers or os.cpu_count()} processes"
     print(f"moreau sweep piston: {n} point(s), {args.transient} transient + {args.cycles} analyzed cycles "
           f"each, h = {args.h:g} τ, on {where}; table {args.out} (finished points kept in {args.out}.parts/)")
     import moreau as mo
     from moreau.problems.piston.model import piston_model
+    from moreau.problems.piston.params import PistonParameters
 
-    mo.ensure_compiled(piston_model().scene)  # here, once, the variant the points run: the workers load it
+    # here, once, the variants the points run (with friction where some mu > 0): the workers load them
+    mo.ensure_compiled(*(piston_model(PistonParameters(mu=mu)).scene for mu in {min(grid["mu"]), max(grid["mu"])}))
     try:
         df = sweep(piston_point, grid, executor=args.dask or "processes", workers=args.workers,
                    out=args.out, progress=not args.no_progress, cache_key=piston_cache_key(),
@@ -112,8 +116,10 @@ def run_sweep(args: argparse.Namespace) -> int:
         raise Stopped(f"the finished points are kept in {args.out}.parts/ and the table {args.out} lists every "
                       "point (error 'not computed' for the others); run the same command to resume",
                       interrupt_exit_code(exc)) from None
-    cols = ["e", "D_mm", "side_changes_mean", "slaps_mean", "impacts_mean", "energy_lost_J_mean", "mean_speed_rpm",
-            "settled_speed_rpm", "max_penetration_ratio", "error"]
+    cols = ["e", "D_mm", "mu", "side_changes_mean", "slaps_mean", "impacts_mean", "energy_lost_J_mean",
+            "friction_loss_J_mean", "mean_speed_rpm", "settled_speed_rpm", "max_penetration_ratio", "error"]
+    if not any(grid["mu"]):  # a frictionless sweep: its table as before
+        cols = [c for c in cols if c not in ("mu", "friction_loss_J_mean")]
     with pd.option_context("display.width", 200, "display.max_rows", 500):
         print(df[[c for c in cols if c in df.columns]].to_string(index=False, float_format=lambda x: f"{x:.6g}"))
     print(f"table written to {args.out}")

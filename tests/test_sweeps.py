@@ -284,7 +284,20 @@ def test_sweep_command_writes_the_table_and_resumes(tmp_path, capsys):
     assert {p.name: p.stat().st_mtime_ns for p in (tmp_path / "s.csv.parts").iterdir()} == mtimes
 
 
+def test_sweep_command_sweeps_the_skirt_friction(tmp_path, capsys):
+    # mu on the grid: the frictionless point loses nothing to friction, the rough one does, and its
+    # impacts dissipate less than the skirt (a sliding piston)
+    out = tmp_path / "mu.csv"
+    assert main(["sweep", "piston", "--param", "mu=0,0.05", "--cycles", "1", "--transient", "0", "--h", "1e-3",
+                 "--out", str(out), "--no-progress", "--workers", "1"]) == 0
+    df = read_table(out)
+    assert df["mu"].tolist() == [0.0, 0.05] and df["error"].isna().all()
+    assert df["friction_loss_J_mean"].iloc[0] == 0.0 and df["friction_loss_J_mean"].iloc[1] > 0.0
+    assert "friction_loss_J_mean" in capsys.readouterr().out
+
+
 @pytest.mark.parametrize("param, message", [
+    ("mu=-0.1", "-0.1 is outside [0, 10]"),
     ("e=0:1", "e=0:1: give start:stop:num"),
     ("e=0:1:x", "give start:stop:num"),
     ("e=1.5", "1.5 is outside [0, 1]"),

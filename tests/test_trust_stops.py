@@ -108,7 +108,7 @@ def summary(path) -> list[dict]:
 def test_sigterm_to_piston_saves_partials_lists_every_case_and_leaves_no_worker(tmp_path):
     # three cases on two workers: the third has not started when SIGTERM arrives
     proc, err = start_command(["piston", "--cycles", "400", "--transient", "0", "--h", "1e-3", "--workers", "2",
-                               "--out", "out"], tmp_path)
+                               "--out", "out", "--progress"], tmp_path)
     wait_for_progress(err, ["e0_D80.04mm", "e0.9_D80.04mm"], 20_000, proc)  # both workers recording
     workers = children(proc.pid)
     assert len(workers) >= 2
@@ -134,7 +134,7 @@ def test_sigterm_to_piston_saves_partials_lists_every_case_and_leaves_no_worker(
 @linux
 def test_workers_end_when_the_parent_is_killed(tmp_path):
     proc, err = start_command(["piston", "--cycles", "400", "--transient", "0", "--h", "1e-3", "--workers", "2",
-                               "--out", "out"], tmp_path)
+                               "--out", "out", "--progress"], tmp_path)
     wait_for(err, b"step/s]", proc)
     workers = children(proc.pid)
     assert len(workers) >= 2
@@ -175,8 +175,8 @@ def test_sigterm_to_sweep_keeps_the_record_lists_every_point_and_leaves_no_worke
 
 @linux
 def test_sigterm_to_ball_saves_the_partial_trajectory(tmp_path):
-    proc, err = start_command(["ball", "--t-end", "3000", "--h", "1e-5", "--record-every", "1000", "--out", "out"],
-                              tmp_path)
+    proc, err = start_command(["ball", "--t-end", "3000", "--h", "1e-5", "--record-every", "1000", "--out", "out",
+                               "--progress"], tmp_path)
     wait_for(err, b"step/s]", proc)
     os.kill(proc.pid, signal.SIGTERM)
     rc = finish(proc)

@@ -118,8 +118,8 @@ def last_line(stderr):
 def test_ball_command_interrupted_saves_a_partial_trajectory(tmp_path):
     # interrupted as soon as its progress bar shows steps: an event, not a wall time (a fast
     # machine with a warm cache steps far further in a second than a slow, loaded one)
-    rc, err, _ = interrupt_command(["ball", "--t-end", "3000", "--h", "1e-5", "--record-every", "1000", "--out", "out"],
-                                   tmp_path, after_progress=0.0)
+    rc, err, _ = interrupt_command(["ball", "--t-end", "3000", "--h", "1e-5", "--record-every", "1000", "--out", "out",
+                                    "--progress"], tmp_path, after_progress=0.0)
     assert rc == 130 and "Traceback" not in err, err[-3000:]  # 128 + SIGINT, the same for every command
     line = last_line(err)
     assert line.startswith("moreau ball: interrupted: interrupted by the user at step")
@@ -133,7 +133,7 @@ def test_ball_command_interrupted_saves_a_partial_trajectory(tmp_path):
 @pytest.mark.slow
 def test_piston_command_interrupted_saves_a_partial_trajectory(tmp_path):
     rc, err, _ = interrupt_command(["piston", "--e", "0", "--D", "80.04", "--cycles", "2000", "--transient", "0",
-                                    "--record-every", "100", "--h", "1e-3", "--out", "out"], tmp_path)
+                                    "--record-every", "100", "--h", "1e-3", "--out", "out", "--progress"], tmp_path)
     assert rc == 130 and "Traceback" not in err
     assert "partial trajectory saved" in err
     traj = mo.load(tmp_path / "out" / "piston_e0_D80.04mm.partial.npz")
@@ -146,7 +146,8 @@ def test_piston_command_interrupted_saves_a_partial_trajectory(tmp_path):
 def test_piston_command_with_workers_stops_promptly_on_interrupt(tmp_path):
     # three cases on two workers: the third is queued when Ctrl-C arrives
     rc, err, t_exit = interrupt_command(["piston", "--cycles", "1000", "--transient", "0", "--h", "1e-3",
-                                         "--record-every", "100", "--workers", "2", "--out", "out"], tmp_path)
+                                         "--record-every", "100", "--workers", "2", "--out", "out", "--progress"],
+                                        tmp_path)
     out = tmp_path / "out"
     partial = sorted(p.name for p in out.glob("*.partial.npz"))
     assert len(partial) >= 2  # the running cases saved what they computed
