@@ -260,5 +260,5 @@ def register_sweep(subparsers: Any) -> None:
     sw.add_argument("--dask-timeout", type=float_in(0.0, None, lo_open=True), default=10.0, metavar="SECONDS",
                     help="how long to wait for the Dask scheduler to answer (default 10 s)")
     sw.add_argument("--workers", type=positive_int, default=None, help="local processes (default: the cores)")
-    sw.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _progress_options(sw, "bar")
     sw.set_defaults(func=run_sweep)

@@ -288,12 +288,15 @@ def test_sweep_command_sweeps_the_skirt_friction(tmp_path, capsys):
     # mu on the grid: the frictionless point loses nothing to friction, the rough one does, and its
     # impacts dissipate less than the skirt (a sliding piston)
     out = tmp_path / "mu.csv"
+    # (pytest's captured stderr is no terminal: a line per finished point, no bar)
     assert main(["sweep", "piston", "--param", "mu=0,0.05", "--cycles", "1", "--transient", "0", "--h", "1e-3",
-                 "--out", str(out), "--no-progress", "--workers", "1"]) == 0
+                 "--out", str(out), "--workers", "1"]) == 0
     df = read_table(out)
     assert df["mu"].tolist() == [0.0, 0.05] and df["error"].isna().all()
     assert df["friction_loss_J_mean"].iloc[0] == 0.0 and df["friction_loss_J_mean"].iloc[1] > 0.0
-    assert "friction_loss_J_mean" in capsys.readouterr().out
+    said = capsys.readouterr()
+    assert "friction_loss_J_mean" in said.out and "\r" not in said.err and "point/s" not in said.err
+    assert "point 1 of 2 done: mu=0\n" in said.out and "point 2 of 2 done: mu=0.05\n" in said.out
 
 
 @pytest.mark.parametrize("param, message", [

@@ -164,6 +164,7 @@ def sweep(
     retry_errors: bool = False,
     cache_key: Any = None,
     dask_timeout: float = 10.0,
+    report: Callable[[str], None] | None = None,
 ):
     """Run ``fun(**point)`` over a grid of points; one row per point, in grid order.
 
@@ -196,6 +197,9 @@ def sweep(
         not reused.
     dask_timeout : float
         Seconds to wait for a Dask scheduler given by its address.
+    report : callable, optional
+        Called with one line as each point finishes (``"point 3 of 21 done: e=0.1,
+        D_mm=80.04"``, or ``failed``): progress where no terminal shows the bar.
 
     Returns
     -------
@@ -240,7 +244,7 @@ def sweep(
 
     bar = tqdm(total=len(points), initial=n_done, desc=f"sweep {name.rsplit('.', 1)[-1]}", unit="point",
                disable=not progress, smoothing=0.1)
-    on_done = _recorder(results, record, keys, points, bar)
+    on_done = _recorder(results, record, keys, points, bar, report)
     client, owned = None, False
     if record is not None:
         try:
@@ -306,8 +310,10 @@ def _open_record(out_path: str, fun: Callable[..., Mapping[str, Any]], cache_key
 
 
 def _recorder(results: list, record: _Record | None, keys: list[str], points: list[dict[str, Any]],
-              bar: Any) -> Callable[..., None]:
-    """The callback of a finished point: into ``results``, the record and the bar."""
+              bar: Any, report: Callable[[str], None] | None = None) -> Callable[..., None]:
+    """The callback of a finished point: into ``results``, the record, the bar and ``report``
+    (the point by the parameters that vary over the grid)."""
+    varying = [k for k in (points[0] if points else {}) if len({repr(p.get(k)) for p in points}) > 1]
 
     def on_done(i: int, result: dict | None, error: str | None, quiet: bool = False) -> None:
         if results[i] is not None and quiet:
@@ -319,6 +325,11 @@ def _recorder(results: list, record: _Record | None, keys: list[str], points: li
             log.warning("point %s failed: %s", points[i], error)
         if not quiet:
             bar.update(1)
+            if report is not None:
+                done = sum(r is not None for r in results)
+                what = ", ".join(f"{k}={v:g}" if isinstance(v := points[i][k], float) else f"{k}={v}" for k in varying)
+                report(f"point {done} of {len(points)} {'failed' if error is not None else 'done'}"
+                       + (f": {what}" if what else ""))
 
     return on_done
 
