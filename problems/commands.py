@@ -28,31 +28,19 @@ from moreau.cli import (
     EXIT_OK,
     Stopped,
     add_backend_option,
+    add_progress_options,
     float_in,
     int_at_least,
     interrupt_exit_code,
     output_dir,
     positive_int,
+    progress_mode,
     save_figure,
     simulate_and_save,
     write_summary,
 )
 
 __all__ = ["register_ball", "register_piston", "register_sweep"]
-
-
-def _progress_options(parser: argparse.ArgumentParser, bars: str) -> None:
-    """``--no-progress`` and ``--progress``: no progress bars, or bars also where the output
-    is not a terminal (by default only on one)."""
-    group = parser.add_mutually_exclusive_group()
-    group.add_argument("--no-progress", action="store_true", help=f"no progress {bars}")
-    group.add_argument("--progress", action="store_true",
-                       help=f"progress {bars} also where the output is not a terminal (a file, a pipe)")
-
-
-def _said(line: str) -> None:
-    """A line of the command's output, at once (a log file sees each case as it ends)."""
-    print(line, flush=True)
 
 
 def _solver_option(parser: argparse.ArgumentParser, help: str) -> None:
@@ -78,7 +66,7 @@ def register_ball(subparsers: Any) -> None:
     b.add_argument("--record-every", type=positive_int, default=1, metavar="K",
                    help="keep every K-th step (steps; default 1; raise it for long runs)")
     b.add_argument("--out", default="ball-out", help="output directory")
-    _progress_options(b, "bar")
+    add_progress_options(b, "bar")
     b.set_defaults(func=run_ball)
 
 
@@ -180,7 +168,7 @@ def register_piston(subparsers: Any) -> None:
                     help="keep every K-th step (steps; default: about one record per 0.1° of crank angle)")
     pi.add_argument("--out", default="piston-out", help="output directory (default piston-out); "
                     "a rerun first removes the files an earlier run left there for the same cases")
-    _progress_options(pi, "bars")
+    add_progress_options(pi, "bars")
     pi.set_defaults(func=run_piston)
 
 
@@ -202,10 +190,8 @@ def run_piston(args: argparse.Namespace) -> int:
           f"output in {args.out}/")
     stopped = None
     try:
-        # bars on a terminal; elsewhere (a log file, a pipe) one line as each case ends, not the bars' cursor codes
-        bars = args.progress or (not args.no_progress and sys.stderr.isatty())
-        rows = run_cases(cases, args.out, progress=bars, workers=args.workers,
-                         report=None if bars or args.no_progress else _said)
+        bars, report = progress_mode(args)  # off a terminal a line per case ends, not the bars' cursor codes
+        rows = run_cases(cases, args.out, progress=bars, workers=args.workers, report=report)
     except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM: every case's row is attached
         attached = getattr(exc, "rows", None)
         if attached is None:
@@ -260,5 +246,5 @@ def register_sweep(subparsers: Any) -> None:
     sw.add_argument("--dask-timeout", type=float_in(0.0, None, lo_open=True), default=10.0, metavar="SECONDS",
                     help="how long to wait for the Dask scheduler to answer (default 10 s)")
     sw.add_argument("--workers", type=positive_int, default=None, help="local processes (default: the cores)")
-    _progress_options(sw, "bar")
+    add_progress_options(sw, "bar")
     sw.set_defaults(func=run_sweep)

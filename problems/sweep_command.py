@@ -7,7 +7,16 @@ import argparse
 import os
 import sys
 
-from moreau.cli import EXIT_FAILED, EXIT_OK, EXIT_USAGE, CLIError, Stopped, interrupt_exit_code, output_dir
+from moreau.cli import (
+    EXIT_FAILED,
+    EXIT_OK,
+    EXIT_USAGE,
+    CLIError,
+    Stopped,
+    interrupt_exit_code,
+    output_dir,
+    progress_mode,
+)
 
 __all__ = ["param_spec", "run_sweep"]
 
@@ -71,10 +80,6 @@ def _sweep_out(path: str) -> str:
     return path
 
 
-def _said(line: str) -> None:
-    print(line, flush=True)
-
-
 def run_sweep(args: argparse.Namespace) -> int:
     """Run the sweep and print its table; exit code 1 when a point failed."""
     from moreau.problems.piston.study import piston_cache_key, piston_point
@@ -107,13 +112,12 @@ def run_sweep(args: argparse.Namespace) -> int:
     from moreau.problems.piston.params import PistonParameters
 
     # here, once, the variants the points run (with friction where some mu > 0): the workers load them
-    # a bar on a terminal; elsewhere (a log file, a pipe) a line per finished point
-    bars = args.progress or (not args.no_progress and sys.stderr.isatty())
+    bars, report = progress_mode(args)  # off a terminal a line per finished point
     mo.ensure_compiled(*(piston_model(PistonParameters(mu=mu)).scene for mu in {min(grid["mu"]), max(grid["mu"])}))
     try:
         df = sweep(piston_point, grid, executor=args.dask or "processes", workers=args.workers,
                    out=args.out, progress=bars, cache_key=piston_cache_key(),
-                   dask_timeout=args.dask_timeout, report=None if bars or args.no_progress else _said)
+                   dask_timeout=args.dask_timeout, report=report)
     except ImportError as exc:
         raise CLIError(str(exc), EXIT_USAGE) from None
     except ConnectionError as exc:  # an unreachable Dask scheduler

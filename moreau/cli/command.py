@@ -40,7 +40,8 @@ The handler's exceptions are reported in one line by ``main``: ``CLIError``
 missing optional dependency), ``OSError`` (1); Ctrl-C and SIGTERM are handled alike. The
 helpers a command needs are exported here: ``output_dir``, ``write_summary``, ``save_figure``,
 ``simulate_and_save``, the option types ``float_in``, ``positive_int``,
-``int_at_least``, ``add_backend_option``, and ``interrupt_exit_code`` (the exit
+``int_at_least``, ``add_backend_option``, ``add_progress_options`` with
+``progress_mode``, and ``interrupt_exit_code`` (the exit
 code of a Ctrl-C or SIGTERM, for ``Stopped``).
 
 Exit codes (the same for every subcommand)
@@ -73,10 +74,12 @@ from moreau.cli.common import (
     CLIError,
     Stopped,
     add_backend_option,
+    add_progress_options,
     float_in,
     int_at_least,
     output_dir,
     positive_int,
+    progress_mode,
     save_figure,
     simulate_and_save,
     write_summary,
@@ -85,9 +88,9 @@ from moreau.sweeps.pool import Terminated, interrupt_exit_code, sigterm_as_inter
 
 __all__ = [
     "ENTRY_POINT_GROUP", "EXIT_OK", "EXIT_FAILED", "EXIT_USAGE", "CLIError", "Stopped",
-    "add_backend_option", "build_parser", "command_entry_points", "float_in", "int_at_least",
+    "add_backend_option", "add_progress_options", "build_parser", "command_entry_points", "float_in", "int_at_least",
     "interrupt_exit_code", "main", "register_compile",
-    "output_dir", "positive_int", "save_figure", "simulate_and_save", "write_summary",
+    "output_dir", "positive_int", "progress_mode", "save_figure", "simulate_and_save", "write_summary",
 ]
 
 log = logging.getLogger("moreau.cli")

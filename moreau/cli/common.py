@@ -8,6 +8,7 @@ import argparse
 import csv
 import logging
 import os
+import sys
 import tempfile
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
@@ -166,6 +167,27 @@ def _fmt(x: object) -> str:
     if isinstance(x, float):
         return f"{x:.6g}"
     return str(x)
+
+
+def add_progress_options(parser: argparse.ArgumentParser, what: str = "bar") -> None:
+    """``--no-progress`` (no progress ``what``) and ``--progress`` (also where the output is
+    not a terminal; by default only on one)."""
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("--no-progress", action="store_true", help=f"no progress {what}")
+    group.add_argument("--progress", action="store_true",
+                       help=f"progress {what} also where the output is not a terminal (a file, a pipe)")
+
+
+def progress_mode(args: argparse.Namespace) -> tuple[bool, Callable[[str], None] | None]:
+    """``(bars, report)`` of :func:`add_progress_options`' flags: bars on a terminal (or with
+    ``--progress``); elsewhere ``report`` prints one line at a time, at once (a log sees each
+    as it ends), unless ``--no-progress``."""
+    bars = bool(args.progress) or (not args.no_progress and sys.stderr.isatty())
+    return bars, (None if bars or args.no_progress else _said)
+
+
+def _said(line: str) -> None:
+    print(line, flush=True)
 
 
 def add_backend_option(parser: argparse.ArgumentParser) -> None:

@@ -327,11 +327,16 @@ def _recorder(results: list, record: _Record | None, keys: list[str], points: li
             bar.update(1)
             if report is not None:
                 done = sum(r is not None for r in results)
-                what = ", ".join(f"{k}={v:g}" if isinstance(v := points[i][k], float) else f"{k}={v}" for k in varying)
+                what = ", ".join(f"{k}={_short(points[i][k])}" for k in varying)
                 report(f"point {done} of {len(points)} {'failed' if error is not None else 'done'}"
                        + (f": {what}" if what else ""))
 
     return on_done
+
+
+def _short(value: Any) -> str:
+    """A point's value in a line of progress: floats as %g."""
+    return f"{value:g}" if isinstance(value, float) else str(value)
 
 
 def _dispatch(executor: Any, client: Any, workers: int | None, fun: Callable[..., Mapping[str, Any]],
