@@ -297,6 +297,12 @@ def test_sweep_command_sweeps_the_skirt_friction(tmp_path, capsys):
     said = capsys.readouterr()
     assert "friction_loss_J_mean" in said.out and "\r" not in said.err and "point/s" not in said.err
     assert "point 1 of 2 done: mu=0\n" in said.out and "point 2 of 2 done: mu=0.05\n" in said.out
+    records = sorted(p for p in (out.parent / "mu.csv.parts").iterdir() if p.name != "sweep.json")
+    assert len(records) == 2
+    records[0].unlink()  # one point to compute again
+    assert main(["sweep", "piston", "--param", "mu=0,0.05", "--cycles", "1", "--transient", "0", "--h", "1e-3",
+                 "--out", str(out), "--workers", "1"]) == 0
+    assert capsys.readouterr().out.count("2 of 2 done") == 1  # one point read back, the other counted after it
 
 
 @pytest.mark.parametrize("param, message", [

@@ -313,11 +313,14 @@ def _recorder(results: list, record: _Record | None, keys: list[str], points: li
               bar: Any, report: Callable[[str], None] | None = None) -> Callable[..., None]:
     """The callback of a finished point: into ``results``, the record, the bar and ``report``
     (the point by the parameters that vary over the grid)."""
-    varying = [k for k in (points[0] if points else {}) if len({repr(p.get(k)) for p in points}) > 1]
+    varying = ([k for k in (points[0] if points else {}) if len({repr(p.get(k)) for p in points}) > 1]
+               if report is not None else [])
+    done = [sum(r is not None for r in results)]  # the points finished, those read back included
 
     def on_done(i: int, result: dict | None, error: str | None, quiet: bool = False) -> None:
         if results[i] is not None and quiet:
             return
+        done[0] += results[i] is None
         results[i] = (result, error)
         if record is not None:
             record.write(keys[i], points[i], result, error)
@@ -326,9 +329,8 @@ def _recorder(results: list, record: _Record | None, keys: list[str], points: li
         if not quiet:
             bar.update(1)
             if report is not None:
-                done = sum(r is not None for r in results)
                 what = ", ".join(f"{k}={_short(points[i][k])}" for k in varying)
-                report(f"point {done} of {len(points)} {'failed' if error is not None else 'done'}"
+                report(f"point {done[0]} of {len(points)} {'failed' if error is not None else 'done'}"
                        + (f": {what}" if what else ""))
 
     return on_done
