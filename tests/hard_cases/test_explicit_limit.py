@@ -83,3 +83,25 @@ def test_no_warning_where_the_check_does_not_apply():
     quiet(oscillator(), h, energy_growth=None)  # the stability checks are off
     # the energy-consistent step is implicit in the forces
     quiet(oscillator(), h, integrator=mo.MoreauJeanEnergyConsistent)
+
+
+def test_the_limit_is_named_exactly_where_h_omega_or_h_rho_reaches_2():
+    # linear springs and dampers of random 3-dof systems: the message appears exactly where the
+    # eigenvalues (computed here) put max(h ω, h ρ) >= 2, whether or not the norm bound the
+    # check tries first decides it
+    from moreau.model.stability import explicit_limit_message
+
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        R = rng.standard_normal((3, 3))
+        Mm = R @ R.T + 3 * np.eye(3)
+        S = rng.standard_normal((3, 3))
+        Kk = S @ S.T + 0.1 * np.eye(3)
+        Cc = np.diag(rng.uniform(0.0, 5.0, 3))
+        scene = mo.Scene(mo.FunctionSystem(Mm), [mo.LinearSpring(Kk), mo.LinearDamping(Cc)])
+        omega = np.sqrt(np.linalg.eigvals(np.linalg.solve(Mm, Kk)).real.max())
+        rho = np.abs(np.linalg.eigvals(np.linalg.solve(Mm, -Cc))).max()
+        limit = 2.0 / max(omega, rho)
+        for f in (0.5, 0.98, 1.02, 3.0):
+            said = explicit_limit_message(scene, 0.0, np.full(3, 0.1), np.zeros(3), f * limit)
+            assert (said is not None) == (f > 1.0), (f, omega, rho)
