@@ -285,8 +285,7 @@ def test_sweep_command_writes_the_table_and_resumes(tmp_path, capsys):
 
 
 def test_sweep_command_sweeps_the_skirt_friction(tmp_path, capsys):
-    # mu on the grid: the frictionless point loses nothing to friction, the rough one does, and its
-    # impacts dissipate less than the skirt (a sliding piston)
+    # mu on the grid: the frictionless point loses nothing to friction, the rough one does
     out = tmp_path / "mu.csv"
     # (pytest's captured stderr is no terminal: a line per finished point, no bar)
     assert main(["sweep", "piston", "--param", "mu=0,0.05", "--cycles", "1", "--transient", "0", "--h", "1e-3",
