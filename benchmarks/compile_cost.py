@@ -11,9 +11,11 @@ the script alone):
 3. **full, after them**: the same cache; the variant with friction, bilateral rows and
    later passes (joints, the predictor–corrector / energy-consistent step);
 4. **full alone**: a new empty cache, the full variant only;
-5. **warm**: the first cache again, every variant loaded;
-6. **drivers**: the first cache again, step-size control's driver of each variant compiled
-   beside its loaded loop (:mod:`moreau.compiled.native`).
+5. **warm**: the first cache again, every variant loaded (each runs fixed steps and
+   step-size control alike);
+6. **judge**: the first cache again, a short run of each variant with step-size control:
+   its judge of an attempt (``moreau.compiled.adaptive.judge_attempt``, called through its
+   address) is compiled apart from the loop, at the first such run.
 
 Each row: the seconds of ``moreau.ensure_compiled`` for that variant, the process's wall
 and CPU time and peak resident memory; then the compile time per kernel family of rows 1
@@ -25,14 +27,11 @@ and the seconds from ``simulate()`` to its end (0.1 s of stepping) of two scenes
 
     python benchmarks/compile_cost.py
     python benchmarks/compile_cost.py --against REV --rounds 4 [--variant friction]   # this build and REV
-    python benchmarks/compile_cost.py --against REV --drivers      # step-size control's drivers
 
 With ``--against``, one variant only (default plain), compiled by this build and by
 ``REV`` alternately (this shared machine's speed drifted by up to a half between runs of
 one day: compare the rounds' pairs); a build of two variants (before 2026-12-02) compiles
-its full one for ``friction``. With ``--drivers`` too, each build's three loops are
-compiled once into a cache of its own, and each round times the three drivers on a copy
-of it (row 6 above, alternating).
+its full one for ``friction``.
 """
 
 from __future__ import annotations
@@ -40,7 +39,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -136,6 +134,16 @@ _PROBE = textwrap.dedent('''
         return mo.Scene(mo.FunctionSystem(np.eye(2)), [mo.FunctionForce(force)],
                         [mo.Contact(mo.FunctionBarrier(gap, jac), 0.5)])
 
+    judges = []  # step-size control's judge of an attempt (compiled apart): a short run of each variant
+    for v in (asked if sys.argv[2:] == ["judge"] else ()):
+        from moreau.compiled.layout import STEP_MIDPOINT
+        from moreau.compiled.runner import one_row_scene, run_compiled
+        t = time.perf_counter()
+        run_compiled(one_row_scene(), None, 0.0, np.array([1e-3]), np.array([-1.0]), 1e-3, 2, step=STEP_MIDPOINT,
+                     solver="exact", fallback=None, stride=1, bar=None, energy=True, tol=1e-8, drift_control=None,
+                     flight_gap=np.zeros(1), gmax0=np.full(1, np.inf), variant=v,
+                     control=(2e-3, np.full(2, 1e-3), 0.0, 1e-12))
+        judges.append(time.perf_counter() - t)
     users = []
     for k in ((1, 2) if "plain" in names else ()):  # they run the plain variant
         scene = user_scene(k)
@@ -143,26 +151,21 @@ _PROBE = textwrap.dedent('''
         traj = mo.simulate(scene, (0.0, 0.1), [0.0, 1.0], [1.0, 0.0], 1e-3)
         assert traj.completed
         users.append(time.perf_counter() - t)
-    drivers = []
-    for v in (asked if sys.argv[2:] == ["drivers"] else ()):
-        t = time.perf_counter()
-        ensure_compiled(v, step_control=True)
-        drivers.append(time.perf_counter() - t)
     cpu = resource.getrusage(resource.RUSAGE_SELF)
     side = resource.getrusage(resource.RUSAGE_CHILDREN)  # the second process of the compile
-    print(json.dumps({"import": t_import, "loop": t_loop, "user": users, "drivers": drivers,
+    print(json.dumps({"import": t_import, "loop": t_loop, "user": users, "judges": judges,
                       "wall": time.perf_counter() - t0, "cpu_side": side.ru_utime + side.ru_stime,
                       "cpu": cpu.ru_utime + cpu.ru_stime, "rss_mb": cpu.ru_maxrss / 1024, "own": own,
                       "again": again, "passes": passes, "llvm": llvm}))
 ''')
 
 
-def probe(cache: str, variants: list[str], drivers: bool = False, tree: str | None = None) -> dict:
+def probe(cache: str, variants: list[str], tree: str | None = None, judge: bool = False) -> dict:
     """Run the probe in a new process with ``NUMBA_CACHE_DIR=cache``, loading (or compiling)
-    the loop's ``variants`` (names); ``drivers``: then step-size control's driver
-    of each; ``tree``: moreau imported from that checkout."""
+    the loop's ``variants`` (names); ``judge``: then a short run of each with step-size
+    control (its judge compiled); ``tree``: moreau imported from that checkout."""
     env = dict(os.environ, NUMBA_CACHE_DIR=cache, **({"PYTHONPATH": tree} if tree else {}))
-    out = subprocess.run([sys.executable, "-c", _PROBE, json.dumps(variants)] + (["drivers"] if drivers else []),
+    out = subprocess.run([sys.executable, "-c", _PROBE, json.dumps(variants)] + (["judge"] if judge else []),
                          capture_output=True, text=True, env=env)
     if out.returncode != 0:
         raise RuntimeError(out.stderr[-3000:])
@@ -191,41 +194,13 @@ def against(rev: str, rounds: int, variant: str) -> None:
                       flush=True)
 
 
-def against_drivers(rev: str, rounds: int) -> None:
-    """Step-size control's drivers of the three variants, compiled beside their loaded loops
-    by this build and by ``rev``, alternating: per round the seconds of each."""
-    from interleaved import worktree
-
-    every = ["plain", "friction", "full"]
-    with worktree(rev) as (here, tree), tempfile.TemporaryDirectory() as base:
-        builds = {}
-        for name, src in (("this", here), (rev, tree)):
-            cache = os.path.join(base, name)
-            os.makedirs(cache)
-            probe(cache, every, tree=src)  # the loops, once per build
-            builds[name] = (cache, src)
-        print("step-size control's drivers beside their loaded loops (s), alternating")
-        print(f"{'round':>5s} {'build':>12s} {'plain':>7s} {'friction':>9s} {'full':>7s}")
-        for k in range(rounds):
-            for name, (cache, src) in builds.items():
-                copy = os.path.join(base, f"{name}-{k}")
-                shutil.copytree(cache, copy)
-                d = probe(copy, every, drivers=True, tree=src)["drivers"]
-                print(f"{k + 1:5d} {name[:12]:>12s} {d[0]:7.2f} {d[1]:9.2f} {d[2]:7.2f}", flush=True)
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--against", metavar="REV", help="compile one variant here and at REV, alternating")
     parser.add_argument("--rounds", type=int, default=3, help="with --against: rounds (default 3)")
     parser.add_argument("--variant", choices=("plain", "friction", "full"), default="plain",
                         help="with --against: the variant compiled (default plain)")
-    parser.add_argument("--drivers", action="store_true", help="with --against: step-size control's drivers")
     args = parser.parse_args()
-    if args.drivers and not args.against:
-        parser.error("--drivers compares two builds: give --against REV")
-    if args.against and args.drivers:
-        return against_drivers(args.against, args.rounds)
     if args.against:
         return against(args.against, args.rounds, args.variant)
     t_start = time.perf_counter()
@@ -236,14 +211,14 @@ def main() -> None:
                 ("full (friction, joints, passes), beside them", probe(cache, ["full"])),
                 ("full, empty cache", probe(alone, ["full"])),
                 ("all three, warm cache", probe(cache, every))]
-        drivers = probe(cache, every, drivers=True)["drivers"]
+        judges = probe(cache, every, judge=True)["judges"]
     print("\nthe compiled loop before its first step, per variant (new processes; NUMBA_CACHE_DIR as said)")
     print(f"{'':44s} {'loop (s)':>9s} {'wall (s)':>9s} {'CPU (s)':>9s} {'peak MB':>9s}")
     for label, r in runs:
         print(f"{label:44s} {r['loop']:9.2f} {r['wall']:9.2f} {r['cpu']:9.2f} {r['rss_mb']:9.0f}")
     print(f"{'import moreau (s)':44s} {runs[0][1]['import']:9.2f}")
-    print(f"{'step-size control drivers, loops cached (s)':44s} plain {drivers[0]:5.2f}   friction "
-          f"{drivers[1]:5.2f}   full {drivers[2]:5.2f}")
+    print(f"{'step-size control judge, loops cached (s)':44s} plain {judges[0]:5.2f}   friction "
+          f"{judges[1]:5.2f}   full {judges[2]:5.2f}")
     for i in range(2):
         label = f"user scene {i + 1}: simulate() to its end (s)"
         print(f"{label:44s} cold {runs[0][1]['user'][i]:6.2f}   warm {runs[4][1]['user'][i]:6.2f}")

@@ -113,25 +113,11 @@ def make_problems(quick: bool = False) -> list[Problem]:
     ]
 
 
-def _warm_up_step_control() -> None:
-    """Compile (or load) step-size control's driver for both loop variants, so that no
-    timed run pays for it (the bouncing ball: the plain variant; the woodpecker: the full)."""
-    import moreau as mo
-    from moreau.problems.bouncing_ball import bouncing_ball
-    from moreau.problems.woodpecker import GLOCKER_STATE, woodpecker
-
-    control = mo.StepControl(1e-3)
-    mo.simulate(bouncing_ball(0.8), (0.0, 0.01), [1.0], [0.0], 1e-3, step_control=control)
-    mo.simulate(woodpecker(), (0.0, 0.01), *GLOCKER_STATE, 1e-3, step_control=control)
-
-
 def run_study(problems: Sequence[Problem], log: Callable[[str], None] | None = None,
               freeze: bool = False) -> list[Run]:
     """Run every problem's configurations over its ladder; returns the runs in order.
     ``freeze``: after each problem's reference, :func:`wp_configs.settle` (for the study's
     own process: it freezes every object alive then)."""
-    if any(c.adaptive for p in problems for c in p.configs):
-        _warm_up_step_control()
     runs = []
     for p in problems:
         t0 = time.perf_counter()

@@ -45,8 +45,8 @@ def loop_variants_side_by_side(request):
 
         if worker == "gw1":
             ensure_compiled("full")
-        else:  # with step-size control's driver of the plain variant, while gw1 still compiles
-            ensure_compiled("plain", step_control=True)
+        else:  # while gw1 still compiles
+            ensure_compiled("plain")
             ensure_compiled("friction")
 
 

@@ -218,23 +218,24 @@ def test_a_scene_without_friction_or_bilateral_rows_compiles_none_of_their_code(
                                                   "implicit.", "bilateral."))}
 
 
-def test_ensure_compiled_with_step_control_loads_that_variants_driver():
-    """``ensure_compiled(step_control=True)`` also loads step-size control's driver, for the
-    variants asked for only (a new process; the cache holds it from the suite's first worker,
-    or this compiles it once)."""
+def test_step_size_control_runs_on_the_variant_already_loaded():
+    """A run with step-size control compiles nothing more than its variant of the loop: the
+    same compiled function takes both (a new process; the cache holds the plain variant from
+    the suite's first worker, or this compiles it once)."""
     probe = textwrap.dedent("""
-        from numba.core import types
         import moreau as mo
-        from moreau.compiled import adaptive
+        from moreau.compiled.loop import _run_chunk
         from moreau.problems.bouncing_ball import bouncing_ball
-        assert len(adaptive._run_adaptive.overloads) == 0
-        mo.ensure_compiled(bouncing_ball(0.8), step_control=True)
-        print([isinstance(sig[31], types.NoneType) for sig in adaptive._run_adaptive.overloads])
+        scene = bouncing_ball(0.8)
+        mo.ensure_compiled(scene)
+        known = len(_run_chunk.overloads)
+        traj = mo.simulate(scene, (0.0, 1.0), [1.0], [0.0], 1e-2, step_control=mo.StepControl(1e-6))
+        print(known, len(_run_chunk.overloads), traj.completed and traj.stats.rejected > 0)
     """)
     out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=600,
                          env=dict(os.environ, PYTHONPATH=os.getcwd()))
     assert out.returncode == 0, out.stderr[-2000:]
-    assert out.stdout.split("\n")[-2] == "[True]"  # the plain variant's driver (fr is None), loaded
+    assert out.stdout.split("\n")[-2] == "1 1 True"  # one overload of the loop, before and after
 
 
 def test_no_cached_function_is_compiled_again_for_a_literal_argument():

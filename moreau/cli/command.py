@@ -181,7 +181,7 @@ def _run_compile(args: argparse.Namespace) -> int:
     from moreau.core.jitcache import cache_dir
     from moreau.run.simulation import ensure_compiled
 
-    seconds = ensure_compiled(step_control=True)  # everything a run can load: warms a cache once
+    seconds = ensure_compiled()  # everything a run can load: warms a cache once
     print(f"moreau compile: the time loop is in {cache_dir() or 'no cache (not writable)'} "
           f"({seconds:.1f} s to load or compile)")
     return EXIT_OK

@@ -2,9 +2,15 @@
 (step doubling, Studer, Leine & Glocker, IJNME 76(11), 2008), compared, and accepted or
 taken again with a smaller H.
 
-The steps are the loop's own (``moreau.compiled.loop._run_chunk``, called for one
-step at a time): the step is written once. The comparison of the two answers x_c (one
-step of H) and x_f (two of H/2), x = (q, v), gives the local error of x_f, scaled
+The steps are the loop's own: ``moreau.compiled.loop._run_chunk`` given a controller state
+and a snapshot runs each attempt's three steps through its one step, with the parts here
+inlined (:func:`_begin` before an attempt, :func:`_swap` to save and restore its start,
+:func:`_after_step` after each step), and judges the attempt in :func:`judge_attempt`,
+called through its address: a run without step-size control compiles none of the judge,
+and an attempt costs one call (a call of the whole loop per step passes some thousand
+words of arguments and checks the arrays' overlaps: 2.4 µs an attempt, measured on the
+woodpecker). The comparison of the two answers x_c (one step of H) and x_f (two of H/2),
+x = (q, v), gives the local error of x_f, scaled
 componentwise as ``err = max |x_f − x_c| / (c (atol_i + rtol |x_f|))``, where c depends on
 the kind of step:
 
@@ -42,7 +48,6 @@ import logging
 import time
 
 import numpy as np
-from numba import njit
 
 from moreau.compiled.layout import (
     C_ACCEPTED,
@@ -75,6 +80,8 @@ from moreau.compiled.layout import (
     R_UNPROJECTED,
     RECORDS_FULL,
     S_DRIFT,
+    S_JUDGE,
+    S_JUDGE_KEY,
     S_MASS_READY,
     S_RECORD,
     S_STEP,
@@ -85,25 +92,25 @@ from moreau.compiled.layout import (
     SC_TRIG,
     SC_VELOCITY_DEPENDENT,
     STEP_MIDPOINT,
-    USER_FAILED,
+    STEP_ON,
     Snapshot,
-    chunk_arguments,
 )
+from moreau.compiled.layout import call as _call
 from moreau.compiled.layout import part as _part
 from moreau.compiled.local_error import _at_floor, _error, _remembered, _slip, _step_kind
-from moreau.compiled.loop import _record, _run_chunk
-from moreau.compiled.native import address, call_native
+from moreau.compiled.native import address_and_key, call_checked
 from moreau.compiled.variants import variant_of
 from moreau.core import kernels as _k
-from moreau.core.jitcache import call_recovering, compile_lock
+from moreau.core.jitcache import compile_lock
 
 log = logging.getLogger(__name__)
 
+# the variants whose judge this process has loaded: later runs take no file lock (a set's
+# add is atomic; a race only takes the lock once more)
+_judged: set[str] = set()
+
 # the counters a rejected attempt keeps: the work it did
 _KEPT = (C_SOLVES, C_FALLBACKS, C_UPDATES, C_ACCEPTED, C_REJECTED, C_FORCED)
-# the variants whose driver this process has loaded: their calls take no file lock (a set's
-# add is atomic; a race only takes the lock once more)
-_loaded: set[str] = set()
 
 
 def snapshot(n: int, m: int, mf: int, me: int) -> Snapshot:
@@ -158,143 +165,165 @@ def _swap(save, q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, pen, cnt, 
         _copy(save, eqw.PE_acc, sn.PE_acc)
 
 
-@njit(cache=True, nogil=True, _nrt=False)  # type: ignore[call-overload]  # numba's internal flag
-def _run_adaptive(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
-                  T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work, PTS,
-                  fr, eqw, ec, ctl, sn, loop):
-    """Accepted steps until ``cnt[C_ACCEPTED] == k_end`` or the end time ``ctl[K_END]``; the
-    arguments of ``moreau.compiled.loop._run_chunk``, the controller's state ``ctl``
-    (``layout.K_*``) and snapshot ``sn``, and the address of ``_run_chunk``'s machine code
-    for these arguments, ``loop`` (:mod:`moreau.compiled.native`: its steps are called
-    there, not compiled into this function again). Returns a status (``RECORDS_FULL``,
-    ``IMPACTS_FULL``: grow the buffers and call again, nothing lost)."""
+@_part
+def _attempt_step(phase, H, last, ctl, sn, k_end, fset, active, T, IMP, m, q, v, in_contact, P_acc, act_acc,
+                  last_imp, gmax, rs, pen, cnt, acc, fr, eqw):
+    """Before step ``phase`` of an attempt: (``STEP_ON``, H, whether it ends the run). Before
+    the step of H (phase 0) an attempt begins: its start saved into ``sn``, its closed rows
+    kept and the step of H set in ``fset``; or (status, 0, False) when the chunk ends
+    (DONE: ``cnt[C_ACCEPTED] == k_end`` or the end time reached; ``RECORDS_FULL``,
+    ``IMPACTS_FULL``: grow the buffers and call again, nothing lost). Before the first step
+    of H/2 the start is restored. (One call site of :func:`_swap`: its copies are compiled once.)"""
+    if phase == 0:
+        status, H, last = _begin(ctl, sn, k_end, fset, active, T, IMP, m, cnt)
+        if status != STEP_ON:
+            return status, H, last
+    if phase <= 1:
+        _swap(phase == 0, q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, pen, cnt, acc, fr, eqw, sn)
+    return STEP_ON, H, last
+
+
+@_part
+def _begin(ctl, sn, k_end, fset, active, T, IMP, m, cnt):
+    """The start of an attempt (:func:`_attempt_step`'s), its state not yet saved."""
+    t, H, t_end = ctl[K_T], ctl[K_H], ctl[K_END]
+    if cnt[C_ACCEPTED] >= k_end or t >= t_end:
+        return DONE, 0.0, False
+    if cnt[C_REC] + 1 >= T.shape[0]:
+        return RECORDS_FULL, 0.0, False
+    if cnt[C_NIMP] + 3 * m > IMP.shape[0]:  # room for three steps' impacts: an attempt is never cut
+        return IMPACTS_FULL, 0.0, False
+    last = H >= (t_end - t) * (1.0 - 1e-9)  # the end, not a sliver of a step after it
+    if last:
+        H = t_end - t
+    for r in range(m):
+        sn.closed0[r] = active[r]
+    fset[F_H] = H  # one step of H
+    fset[F_T0] = t - cnt[C_K] * H
+    return STEP_ON, H, last
+
+
+@_part
+def _after_step(phase, H, last, model, iset, fset, Minv, work, q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs,
+                pen, cnt, acc, fr, eqw, IMP, ctl, sn):
+    """After step ``phase`` of an attempt (0 the step of H, 1 and 2 the two of H/2): the
+    next phase, and 1 when the state is to be recorded (else 0; ``native.MISMATCH``: the
+    judge's address was made for other types). After the step of H its end is kept (the
+    loop then restores the start), after the first of H/2 its closed rows, slips and
+    impulses are kept, after the second :func:`judge_attempt` accepts or rejects the attempt."""
     ints = model.ints
     n, m = ints[SC_N], ints[SC_M]
-    active, gq = work[0].active, work[0].gq
-    mg = m + ints[SC_MF] + ints[SC_ME]
-    p = 1 if iset[S_STEP] == STEP_MIDPOINT and ints[SC_VELOCITY_DEPENDENT] != 0 else 2
-    stride = iset[S_RECORD]
-    rtol, hmax, hmin, t_end = ctl[K_RTOL], ctl[K_HMAX], ctl[K_HMIN], ctl[K_END]
+    own = work[0]
+    active, gq = own.active, own.gq
     end = R_UNPROJECTED if iset[S_DRIFT] != DRIFT_NONE else R_GAP  # the end gaps' column before drift control
-    while cnt[C_ACCEPTED] < k_end and ctl[K_T] < t_end:
-        if cnt[C_REC] + 1 >= T.shape[0]:
-            return RECORDS_FULL
-        if cnt[C_NIMP] + 3 * m > IMP.shape[0]:  # room for three steps' impacts: an attempt is never cut
-            return IMPACTS_FULL
-        t = ctl[K_T]
-        H = ctl[K_H]
-        last = H >= (t_end - t) * (1.0 - 1e-9)  # the end, not a sliver of a step after it
-        if last:
-            H = t_end - t
-        k0, nimp0, eok0 = cnt[C_K], cnt[C_NIMP], cnt[C_EOK]
-        _swap(True, q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, pen, cnt, acc, fr, eqw, sn)
-        for r in range(m):
-            sn.closed0[r] = active[r]
-        # one step of H, then back to the start
-        fset[F_H] = H
-        fset[F_T0] = t - k0 * H
-        status = call_native(loop, (model, user, iset, fset, Minv, eligible, q, v, k0 + 1, in_contact, P_acc,
-                                    act_acc, T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax,
-                                    fgap, rs, work, PTS, fr, eqw, ec))
-        if status != DONE:
-            return status
+    t, k0 = ctl[K_T], sn.cnt[C_K]  # (sn.cnt keeps the start's step, impacts and energy check)
+    if phase == 0:
         iset[S_MASS_READY] = 1  # a constant M and its factor are formed: not again per call
         for i in range(n):
             sn.qc[i] = q[i]
             sn.vc[i] = v[i]
-        for r in range(mg):
+        for r in range(m + ints[SC_MF] + ints[SC_ME]):
             sn.gc[r] = gq[r]
         for r in range(m):
             sn.closed_c[r] = active[r]
             sn.gu[r] = rs[r, end]
-        _slip(m, active, work[0].P, fr, sn.slip_c)
-        _swap(False, q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, pen, cnt, acc, fr, eqw, sn)
-        # two steps of H/2
-        fset[F_H] = 0.5 * H
+        _slip(m, active, own.P, fr, sn.slip_c)
+        fset[F_H] = 0.5 * H  # two steps of H/2
         fset[F_T0] = t - k0 * 0.5 * H
-        for j in range(2):
-            status = call_native(loop, (model, user, iset, fset, Minv, eligible, q, v, k0 + 1 + j, in_contact,
-                                        P_acc, act_acc, T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail,
-                                        last_imp, gmax, fgap, rs, work, PTS, fr, eqw, ec))
-            if status != DONE:
-                return status
-            if j == 0:
-                for r in range(m):
-                    sn.closed_f[r] = active[r]
-                _slip(m, active, work[0].P, fr, sn.slip_f)
-                _copy(True, work[0].P, sn.p_f)
-                if fr is not None:
-                    _copy(True, fr.PT, sn.pt_f)
-        kind, unseen = _step_kind(model, Minv, work, m, n, H, q, v, gq, rs, end, sn, fr, nimp0, cnt[C_NIMP])
-        c = (2.0 ** p - 1.0) if kind == 0 else 1.0
-        order = p if kind == 0 else (1 if kind == 1 else 0)
-        err = max(_error(q, v, sn, rtol, c), unseen)
-        if err > 1.0 and 0.5 * H > hmin:  # rejected: back to the start, a smaller step
-            cnt[C_REJECTED] += 1
-            _swap(False, q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, pen, cnt, acc, fr, eqw, sn)
-            for r in range(m):
-                active[r] = sn.closed0[r]
-            ctl[K_H] = max(hmin, H * max(0.1, min(0.9, 0.9 * err ** (-1.0 / (order + 1)))))
-            continue
-        if err > 1.0:
-            cnt[C_FORCED] += 1
-        _slip(m, active, work[0].P, fr, sn.slip0)
-        # Richardson: one order more (the gaps alike, to second order in the change); not
-        # with bilateral rows, whose g_E(q) = 0 the extrapolated q would leave
-        if kind == 0 and ints[SC_ME] == 0:
-            for i in range(n):
-                q[i] += (q[i] - sn.qc[i]) / c
-                v[i] += (v[i] - sn.vc[i]) / c
-            for r in range(mg):
-                gq[r] += (gq[r] - sn.gc[r]) / c
-            for r in range(m):
-                rs[r, R_GAP] = gq[r]
-            if ints[SC_TRIG]:  # cos q, sin q of the extrapolated q (the record's energies)
-                _k.trig(q, work[0].cq, work[0].sq)
-        for j in range(nimp0, cnt[C_NIMP]):  # the log's step: the accepted step's index
-            IMP[j, I_STEP] = cnt[C_ACCEPTED]
+        return 1, np.int64(0)
+    if phase == 1:
         for r in range(m):
-            if pen[0, r] > sn.pen[0, r]:
-                sn.pen_t[r] = t + H
-        if cnt[C_EOK] != eok0:
-            ctl[K_TOK] = t
-        cnt[C_ACCEPTED] += 1
-        ctl[K_T] = t_end if last else t + H
-        e = _remembered(ctl, kind, order, err, H, t)
-        grow = 4.0 if e == 0.0 else min(4.0, 0.9 * e ** (-1.0 / (order + 1)))
-        same = kind != 2 and ctl[K_KACC] == kind  # (errors of one kind scale alike with H)
-        if err <= 1.0 and _at_floor(H, err, hmin, ctl[K_HACC] if same else 0.0, ctl[K_EACC]):
-            grow = max(grow, 2.0)
-        ctl[K_HACC], ctl[K_EACC], ctl[K_KACC] = H, err, kind
-        ctl[K_H] = min(hmax, max(hmin, H * max(grow, 0.1)))
-        if cnt[C_ACCEPTED] % stride == 0 or last:
-            rec = cnt[C_REC]
-            if _record(model, user, iset, fset, cnt[C_K], q, v, work[0].cq, work[0].sq, work[0].M, P_acc, act_acc,
-                       gq, T, Q, V, PS, ACT, GP, KE, PE, cnt, fr, PTS, eqw) != DONE:
-                return USER_FAILED
-            T[rec] = ctl[K_T]
-    return DONE
+            sn.closed_f[r] = active[r]
+        _slip(m, active, own.P, fr, sn.slip_f)
+        _copy(True, own.P, sn.p_f)
+        if fr is not None:
+            _copy(True, fr.PT, sn.pt_f)
+        return 2, np.int64(0)
+    # the attempt judged in its own compiled function, called through its address (S_JUDGE): only
+    # a run with step-size control compiles it, and the loop's compile holds none of it
+    return 0, call_checked(iset[S_JUDGE], iset[S_JUDGE_KEY], (H, last, model, iset, Minv, work, q, v, in_contact,
+                                                              P_acc, act_acc, last_imp, gmax, rs, pen, cnt, acc, fr,
+                                                              eqw, IMP, ctl, sn))
 
 
-def run_adaptive(model: tuple, user: np.ndarray, settings, state, records, tally, work: tuple, k_end: int,
-                 control: np.ndarray, snap: Snapshot) -> int:
-    """Accepted steps with step-size control up to ``k_end`` of them, or to the end time
-    (see the module docstring); the arguments of :func:`moreau.compiled.loop.run_chunk`,
-    the controller's state ``control`` (``layout.K_*``) and its snapshot arrays
-    (:func:`snapshot`). Returns a status."""
-    steps = chunk_arguments(model, user, settings, state, records, tally, work, k_end)  # _run_chunk's
-    args = (*steps, control, snap, address(_run_chunk, steps))
+@_call
+def judge_attempt(H, last, model, iset, Minv, work, q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, pen, cnt,
+                  acc, fr, eqw, IMP, ctl, sn):
+    """The attempt of step ``H`` after its second step of H/2: accepted (extrapolated where
+    smooth; 1 when the state is to be recorded, else 0) or rejected (the start restored, 0),
+    and the next H chosen (``ctl[K_H]``)."""
+    ints = model.ints
+    n, m = ints[SC_N], ints[SC_M]
+    own = work[0]
+    active, gq = own.active, own.gq
+    end = R_UNPROJECTED if iset[S_DRIFT] != DRIFT_NONE else R_GAP  # the end gaps' column before drift control
+    t = ctl[K_T]
+    nimp0, eok0, mg = sn.cnt[C_NIMP], sn.cnt[C_EOK], m + ints[SC_MF] + ints[SC_ME]
+    p = 1 if iset[S_STEP] == STEP_MIDPOINT and ints[SC_VELOCITY_DEPENDENT] != 0 else 2
+    kind, unseen = _step_kind(model, Minv, work, m, n, H, q, v, gq, rs, end, sn, fr, nimp0, cnt[C_NIMP])
+    c = (2.0 ** p - 1.0) if kind == 0 else 1.0
+    order = p if kind == 0 else (1 if kind == 1 else 0)
+    err = max(_error(q, v, sn, ctl[K_RTOL], c), unseen)
+    hmax, hmin = ctl[K_HMAX], ctl[K_HMIN]
+    if err > 1.0 and 0.5 * H > hmin:  # rejected: back to the start, a smaller step
+        cnt[C_REJECTED] += 1
+        _swap(False, q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, pen, cnt, acc, fr, eqw, sn)
+        for r in range(m):
+            active[r] = sn.closed0[r]
+        ctl[K_H] = max(hmin, H * max(0.1, min(0.9, 0.9 * err ** (-1.0 / (order + 1)))))
+        return np.int64(0)
+    if err > 1.0:
+        cnt[C_FORCED] += 1
+    _slip(m, active, own.P, fr, sn.slip0)
+    # Richardson: one order more (the gaps alike, to second order in the change); not
+    # with bilateral rows, whose g_E(q) = 0 the extrapolated q would leave
+    if kind == 0 and ints[SC_ME] == 0:
+        for i in range(n):
+            q[i] += (q[i] - sn.qc[i]) / c
+            v[i] += (v[i] - sn.vc[i]) / c
+        for r in range(mg):
+            gq[r] += (gq[r] - sn.gc[r]) / c
+        for r in range(m):
+            rs[r, R_GAP] = gq[r]
+        if ints[SC_TRIG]:  # cos q, sin q of the extrapolated q (the record's energies)
+            _k.trig(q, own.cq, own.sq)
+    for j in range(nimp0, cnt[C_NIMP]):  # the log's step: the accepted step's index
+        IMP[j, I_STEP] = cnt[C_ACCEPTED]
+    for r in range(m):
+        if pen[0, r] > sn.pen[0, r]:
+            sn.pen_t[r] = t + H
+    if cnt[C_EOK] != eok0:
+        ctl[K_TOK] = t
+    cnt[C_ACCEPTED] += 1
+    ctl[K_T] = ctl[K_END] if last else t + H
+    e = _remembered(ctl, kind, order, err, H, t)
+    grow = 4.0 if e == 0.0 else min(4.0, 0.9 * e ** (-1.0 / (order + 1)))
+    same = kind != 2 and ctl[K_KACC] == kind  # (errors of one kind scale alike with H)
+    if err <= 1.0 and _at_floor(H, err, hmin, ctl[K_HACC] if same else 0.0, ctl[K_EACC]):
+        grow = max(grow, 2.0)
+    ctl[K_HACC], ctl[K_EACC], ctl[K_KACC] = H, err, kind
+    ctl[K_H] = min(hmax, max(hmin, H * max(grow, 0.1)))
+    return np.int64(1) if cnt[C_ACCEPTED] % iset[S_RECORD] == 0 or last else np.int64(0)
+
+
+def judge_address(model: tuple, settings, state, records, tally, work: tuple, control: np.ndarray,
+                  snap: Snapshot) -> tuple[int, int]:
+    """The address of :func:`judge_attempt`'s machine code for a run's arrays (those of
+    :func:`moreau.compiled.loop.run_chunk`) and the key of its argument types, as
+    :func:`_after_step` calls it (the ``S_JUDGE`` settings): loaded, or compiled (once per
+    machine, by one process at a time; logged) when the run is the first with step-size
+    control for its variant of the loop."""
+    st = state
+    args = (0.0, False, model, settings.iset, settings.Minv, work[:3], st.q, st.v, st.in_contact, st.P_acc,
+            st.act_acc, st.last_imp, st.gmax, st.rs, st.pen, tally.cnt, tally.acc, work[3], work[4], records.IMP,
+            control, snap)
     variant = variant_of(work)
-    if variant in _loaded:
-        return _run_adaptive(*args)
-    # a variant new to this process is loaded (or compiled) one process at a time, others
-    # wait and load it; a damaged cache file is compiled again
-    known = len(_run_adaptive.overloads)
-    t0 = time.perf_counter()
-    with compile_lock(".adaptive." + variant):
-        status = call_recovering(_run_adaptive, *args)
-    _loaded.add(variant)
-    if len(_run_adaptive.overloads) > known and time.perf_counter() - t0 > 2.0:  # compiled, not loaded
-        log.info("moreau: step-size control's driver compiled in %.0f s, once for this machine",
-                 time.perf_counter() - t0)
-    return status
+    if variant in _judged:
+        return address_and_key(judge_attempt, args)
+    known, t0 = len(judge_attempt.overloads), time.perf_counter()
+    with compile_lock(".judge." + variant):
+        found = address_and_key(judge_attempt, args)
+    _judged.add(variant)
+    if len(judge_attempt.overloads) > known and time.perf_counter() - t0 > 2.0:  # compiled, not loaded
+        log.info("moreau: step-size control compiled in %.0f s, once for this machine", time.perf_counter() - t0)
+    return found

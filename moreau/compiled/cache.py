@@ -33,14 +33,13 @@ COMPILE_SECONDS = {"plain": 30, "friction": 20, "full": 45}
 _NAMES = {"plain": "the plain midpoint step", "friction": "friction",
           "full": "friction, bilateral rows and later passes"}
 _ready = {v: threading.Event() for v in VARIANTS}
-_drivers: set[str] = set()  # the variants whose step-control driver this process has
 _ready_lock = threading.Lock()
 #: second processes started ahead of their variant's compile (:func:`compiling_ahead`)
 _ahead: dict[str, side_compile.Helper] = {}
 _ahead_lock = threading.Lock()
 
 
-def ensure_compiled(variant: str | None = None, step_control: bool = False) -> float:
+def ensure_compiled(variant: str | None = None) -> float:
     """Load a variant of the compiled time loop from numba's cache, or compile it (once per
     machine and version, saying so in one logged line) when it is not there; returns the
     seconds it took (0 when this process has it already).
@@ -51,23 +50,13 @@ def ensure_compiled(variant: str | None = None, step_control: bool = False) -> f
     started together on an empty cache compile once: the first holds a lock in the cache
     directory (:func:`moreau.core.jitcache.compile_lock`), the others wait and then load
     what it saved. Call it before starting worker
-    processes, or to warm a cache (``moreau compile`` does). ``step_control``: also step-size
-    control's driver for that variant (:mod:`moreau.compiled.adaptive`; otherwise compiled or loaded
-    on first use).
+    processes, or to warm a cache (``moreau compile`` does). Each variant runs fixed steps and
+    step-size control (:mod:`moreau.compiled.adaptive`) alike.
     """
     if variant is None:
-        return sum(ensure_compiled(v, step_control) for v in VARIANTS)
+        return sum(ensure_compiled(v) for v in VARIANTS)
     if variant not in VARIANTS:
         raise ValueError(f"variant={variant!r}: expected one of {VARIANTS} or None")
-    if step_control:
-        spent = ensure_compiled(variant)
-        with _ready_lock:
-            if variant in _drivers:
-                return spent
-            t = time.perf_counter()
-            compile_call(_warm_up, variant, True)  # (the driver takes its own lock, and loads or compiles)
-            _drivers.add(variant)
-            return spent + time.perf_counter() - t
     if _ready[variant].is_set():
         return 0.0
     with _ready_lock:
@@ -143,9 +132,8 @@ def _load_or_compile(variant: str, cold: bool, d: str | None) -> None:
 
 def cached_variants() -> set[str]:
     """The variants of the loop (:data:`moreau.compiled.variants.VARIANTS`) in numba's cache for
-    this source (read from numba's index of ``moreau.compiled.loop._run_chunk``: which of its
-    last three arguments, friction's, the bilateral rows' and the later passes' arrays, are
-    None)."""
+    this source (read from numba's index of ``moreau.compiled.loop._run_chunk``: which of
+    friction's, the bilateral rows' and the later passes' arrays are None)."""
     from numba.core import types
 
     from moreau.compiled.loop import _run_chunk
@@ -154,7 +142,7 @@ def cached_variants() -> set[str]:
         index = _run_chunk._cache._cache_file._load_index()  # numba's own (stamp-checked) index
     except Exception:  # noqa: BLE001 - unreadable or another numba: treated as absent, compiled
         return set()
-    return {named(*(isinstance(t, types.NoneType) for t in key[0][-3:])) for key in index}
+    return {named(*(isinstance(t, types.NoneType) for t in key[0][-5:-2])) for key in index}  # (then ctl, sn)
 
 
 @contextlib.contextmanager
@@ -184,20 +172,30 @@ def _signals_deferred() -> Iterator[None]:
 def _compile_loop(variant: str) -> None:
     """The loop of a variant (:data:`moreau.compiled.variants.VARIANTS`), loaded or compiled (for a run's types)."""
     from moreau.compiled.layout import chunk_arguments
-    from moreau.compiled.loop import _run_chunk
+    from moreau.compiled.loop import _run_chunk, control_arguments
     from moreau.compiled.runner import chunk_example
 
-    args = chunk_arguments(*chunk_example(variant))
+    args = (*chunk_arguments(*chunk_example(variant)), *control_arguments(None, None))
     _run_chunk.compile(tuple(_run_chunk.typeof_pyval(a) for a in args))
 
 
-def _warm_up(variant: str, adaptive: bool = False) -> None:
+def ensure_judged(variant: str) -> float:
+    """Load (or compile) step-size control's judge of an attempt for a variant of the loop
+    (:func:`moreau.compiled.adaptive.judge_attempt`, compiled apart from the loop; else at
+    the first run with step-size control), and the variant itself; returns the seconds."""
+    t = time.perf_counter()
+    ensure_compiled(variant)
+    compile_call(_warm_up, variant, True)
+    return time.perf_counter() - t
+
+
+def _warm_up(variant: str, controlled: bool = False) -> None:
     """Two steps of a one-row scene on a variant of the loop: loads (or
-    compiles) every compiled function a run of that variant calls; ``adaptive``: with
-    step-size control (its driver)."""
+    compiles) every compiled function a run of that variant calls; ``controlled``: with
+    step-size control (its judge)."""
     scene = one_row_scene()
     _compile_loop(variant)  # before the run's own calls: the drift projection is the second process's meanwhile
     run_compiled(scene, None, 0.0, np.array([1e-3]), np.array([-1.0]), 1e-3, 2, step=STEP_MIDPOINT, solver="exact",
                  fallback=None, stride=1, bar=None, energy=True, tol=1e-8, drift_control=None,
                  flight_gap=np.zeros(1), gmax0=np.full(1, np.inf), variant=variant,
-                 control=(2e-3, np.full(2, 1e-3), 0.0, 1e-12) if adaptive else None)
+                 control=(2e-3, np.full(2, 1e-3), 0.0, 1e-12) if controlled else None)

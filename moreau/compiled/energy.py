@@ -36,6 +36,22 @@ from moreau.core import kernels as _k
 
 
 @_part
+def _step_work(n, h, f, fb, v, v_new, bias_work, acc):
+    """The smooth forces' work over a step, h fᵀ (v + v⁺)/2, into ``acc[A_WORK_F]``; with
+    ``bias_work`` the bias terms' share of it (fb: the bias of the last force evaluation)
+    into ``acc[A_WORK_B]``."""
+    wf = 0.0
+    for i in range(n):
+        wf += f[i] * (v[i] + v_new[i])
+    acc[A_WORK_F] += 0.5 * h * wf
+    if bias_work:
+        wb = 0.0
+        for i in range(n):
+            wb += fb[i] * (v[i] + v_new[i])
+        acc[A_WORK_B] += 0.5 * h * wb
+
+
+@_part
 def _kinetic_energy(model, user, q, v, cq, sq, M, cnt):
     """``(status, T)``: T = ½ vᵀ M(q) v with M(q) evaluated into ``M``; status DONE, or
     USER_FAILED when a user mass matrix failed."""

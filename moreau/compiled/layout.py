@@ -23,6 +23,8 @@ PROJECTION_FAILED = 11
 RECORDS_FULL = 12
 # (a function called through its address was made for other argument types: moreau's own bug)
 NATIVE_MISMATCH = 13
+# (step-size control's attempt goes on with its next step: never a chunk's status)
+STEP_ON = -1
 # settings (int array)
 S_STEP, S_DRIFT, S_DRIFT_ITER, S_STRIDE, S_NSTEPS, S_METHOD, S_FALLBACK, S_ENERGY, S_MEMORY, S_LOCATE = range(10)
 # (S_ECHECK: the energy check's interval in steps, 0 = off; see moreau.run.energy)
@@ -36,8 +38,8 @@ S_EXTERNAL = 12
 # own S_STRIDE and S_NSTEPS then never record)
 S_RECORD = 14
 # (S_MASS_READY: 1 once a constant M and its factor are in the run's work arrays: step-size
-# control's driver sets it after its first step, so its many one-step calls of the loop do
-# not form and factor M again; 0 for fixed steps, whose chunks form it once each)
+# control sets it after its first step, so its chunks do not form and factor M again; 0 for
+# fixed steps, whose chunks form it once each)
 S_MASS_READY = 15
 # (S_DRIFT_VELOCITY: 1 when drift control also makes the velocity of the rows it held
 # admissible at q⁺, G(q⁺) v⁺ >= 0: PositionProjection(velocity=True))
@@ -50,7 +52,9 @@ S_FRICTION, S_FRICTION_KEY = 19, 20
 # (S_WARM, S_WARM_KEY, S_DELASSUS, S_DELASSUS_KEY: the same for a chain's warm start and its
 # Delassus matrix, compiled.step.warm_start_addresses)
 S_WARM, S_WARM_KEY, S_DELASSUS, S_DELASSUS_KEY = 21, 22, 23, 24
-N_SETTINGS = 25
+# (S_JUDGE, S_JUDGE_KEY: the same for step-size control's judge of an attempt, compiled.adaptive.judge_address)
+S_JUDGE, S_JUDGE_KEY = 25, 26
+N_SETTINGS = 27
 # the LCP methods (S_METHOD, S_FALLBACK): dual active set, enumeration, called back; -1 none
 METHOD_EXACT, METHOD_ENUM, METHOD_EXTERNAL = 0, 1, 2
 # the step (S_STEP): midpoint, predictor-corrector, energy-consistent

@@ -14,7 +14,7 @@ the three steps sees.
 - ``_remembered``: the error that sizes the next smooth step, with a memory of the error
   constant; ``_at_floor``: an error that does not grow with H.
 
-Each is a small part inlined into the driver (``layout.part``).
+Each is a small part inlined into the loop's variant with step-size control (``layout.part``).
 """
 
 from __future__ import annotations

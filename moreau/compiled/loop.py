@@ -18,15 +18,14 @@ import numpy as np
 from numba import njit
 
 from moreau.compiled import evaluate as ev
+from moreau.compiled.adaptive import _after_step, _attempt_step, snapshot
 from moreau.compiled.bilateral import _eq_hold, _eq_project_velocity, _eq_records
 from moreau.compiled.drift import _project
-from moreau.compiled.energy import _energy_check, _kinetic_energy
+from moreau.compiled.energy import _energy_check, _kinetic_energy, _step_work
 from moreau.compiled.implicit import end_of_pass, energy_start, pass_forces, velocity_passes
 from moreau.compiled.layout import (  # the loop's layout
-    A_WORK_B,
     A_WORK_E,
     A_WORK_EV,
-    A_WORK_F,
     C_FAILKIND,
     C_K,
     C_NIMP,
@@ -40,6 +39,8 @@ from moreau.compiled.layout import (  # the loop's layout
     F_PE0,
     F_T0,
     IMPACTS_FULL,
+    K_T,
+    NATIVE_MISMATCH,
     NONFINITE,
     NONFINITE_GAP,
     NOT_CONVERGED,
@@ -63,10 +64,12 @@ from moreau.compiled.layout import (  # the loop's layout
     SC_MF,
     SC_N,
     SC_TRIG,
+    STEP_ON,
     USER_FAILED,
     Records,
     RunState,
     Settings,
+    Snapshot,
     Tally,
     chunk_arguments,
 )
@@ -175,14 +178,14 @@ def _end_gaps(model, user, iset, fset, q_new, cq, sq, active, gq, M, L, cnt, acc
 
 
 @_part
-def _record(model, user, iset, fset, k, q, v, cq, sq, M, P_acc, act_acc, gq, T, Q, V, PS, ACT, GP, KE, PE, cnt,
+def _record(model, user, iset, fset, t, q, v, cq, sq, M, P_acc, act_acc, gq, T, Q, V, PS, ACT, GP, KE, PE, cnt,
             fr, PTS, eqw):
-    """Record the state after step k (and the impulses and activity summed since the last
+    """Record the state at time t (and the impulses and activity summed since the last
     record, the gaps and, when asked, the energies); returns DONE or USER_FAILED."""
     ints, ekind, eoff, pool = model.ints, model.ekind, model.eoff, model.pool
     n, m = ints[SC_N], ints[SC_M]
     rec = cnt[C_REC]
-    T[rec] = fset[F_T0] + k * fset[F_H]
+    T[rec] = t
     for i in range(n):
         Q[rec, i] = q[i]
         V[rec, i] = v[i]
@@ -213,7 +216,7 @@ def _record(model, user, iset, fset, k, q, v, cq, sq, M, P_acc, act_acc, gq, T, 
 
 
 def run_chunk(model: tuple, user: np.ndarray, settings: Settings, state: RunState, records: Records, tally: Tally,
-              work: tuple, k_end: int) -> int:
+              work: tuple, k_end: int, control: np.ndarray | None = None, snap: Snapshot | None = None) -> int:
     """Advance the run to step ``k_end`` (see the module docstring); returns a status.
 
     ``state`` (``layout.RunState``; with the step ``cnt[C_K]``) is
@@ -227,21 +230,35 @@ def run_chunk(model: tuple, user: np.ndarray, settings: Settings, state: RunStat
     pass with f(v_k), then f((v_k + v*)/2); the energy-consistent step's iterates until v⁺
     stops changing), the contact records, the end position, the gaps and drift control
     there, and a record every ``stride`` steps.
+
+    With step-size control (:mod:`moreau.compiled.adaptive`): its state ``control`` (``layout.K_*``) and
+    snapshot ``snap`` (``adaptive.snapshot``); ``k_end`` then counts accepted steps, and the run also stops
+    at the end time. The same compiled loop runs both (a run without control passes empty arrays).
     """
-    return _run_chunk(*chunk_arguments(model, user, settings, state, records, tally, work, k_end))
+    return _run_chunk(*chunk_arguments(model, user, settings, state, records, tally, work, k_end),
+                      *control_arguments(control, snap))
+
+
+def control_arguments(control: np.ndarray | None, snap: Snapshot | None) -> tuple[np.ndarray, Snapshot]:
+    """The loop's last two arguments: step-size control's state and snapshot, or (no
+    control) arrays of their types and no elements."""
+    if control is None or snap is None:
+        return np.zeros(0), snapshot(0, 0, 0, 0)
+    return control, snap
 
 
 # Compiled without reference counting (numba's internal ``_nrt`` flag): every array it touches is owned by the
 # caller and nothing is allocated, so the counts (an atomic increment and decrement per array per use, measured
 # at two thirds of a contact step's time) would be pure overhead. User callables run in their own wrappers.
-# Called from Python and, by step-size control, through its address: no C entry point is built.
+# Called from Python only: no C entry point is built.
 @njit(cache=True, nogil=True, _nrt=False, no_cfunc_wrapper=True)  # type: ignore[call-overload]  # numba's flag
 def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact, P_acc, act_acc,
                T, Q, V, PS, ACT, GP, KE, PE, IMP, pen, cnt, acc, fail, last_imp, gmax, fgap, rs, work, PTS,
-               fr, eqw, ec):
+               fr, eqw, ec, ctl, sn):
     """The steps of :func:`run_chunk`, on the fields of its named tuples; ``fr``, ``eqw``,
     ``ec``: friction's, the bilateral rows' and the later passes' arrays, or None (their
-    code pruned at compile time: one compiled variant per feature set)."""
+    code pruned at compile time: one compiled variant per feature set); ``ctl``, ``sn``:
+    step-size control's state and snapshot, empty without it."""
     ints, pool = model.ints, model.pool
     n, m = ints[SC_N], ints[SC_M]
     h, t0 = fset[F_H], fset[F_T0]
@@ -260,7 +277,17 @@ def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact,
         if _k.cholesky(M, L, n) >= 0:
             return NOT_SPD
     cap = IMP.shape[0]
-    while cnt[C_K] < k_end:
+    controlled = ctl.shape[0] > 0
+    phase, H, last = 0, 0.0, False  # step-size control: the attempt's step of H (0), its two of H/2 (1, 2)
+    while True:
+        if controlled:  # an attempt begun (its start saved), or its first step of H/2 (the start restored)
+            status, H, last = _attempt_step(phase, H, last, ctl, sn, k_end, fset, own.active, T, IMP, m, q, v,
+                                            in_contact, P_acc, act_acc, last_imp, gmax, rs, pen, cnt, acc, fr, eqw)
+            if status != STEP_ON:
+                return status
+            h, t0 = fset[F_H], fset[F_T0]
+        elif cnt[C_K] >= k_end:
+            break
         if m > 0 and cnt[C_NIMP] + m > cap:
             return IMPACTS_FULL
         k = cnt[C_K]
@@ -296,15 +323,7 @@ def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact,
                     return NOT_CONVERGED
         if eqw is not None and me > 0:
             acc[A_WORK_E] += _eq_records(n, m + ints[SC_MF], me, v, v_new, G, eqw.PE, eqw.PE_acc)
-        wf = 0.0  # smooth-force work of the step, h fᵀ (v + v⁺)/2
-        for i in range(n):
-            wf += f[i] * (v[i] + v_new[i])
-        acc[A_WORK_F] += 0.5 * h * wf
-        if bias_work:  # the bias terms' share of it (fb: the bias of the last force evaluation)
-            wb = 0.0
-            for i in range(n):
-                wb += fb[i] * (v[i] + v_new[i])
-            acc[A_WORK_B] += 0.5 * h * wb
+        _step_work(n, h, f, fb, v, v_new, bias_work, acc)
         _contact_records(n, m, t, k, h, code == 1, v, v_new, f, L, P, active, G, vfree, P_acc, act_acc,
                          in_contact, last_imp, gmax, fgap, rs, IMP, cnt, acc, friction, fr, me, eqw)
         if not _end_position(n, m, h, code == 1, iset, qm, v_new, L, P, G, rs, vbar, vfree, q_new):
@@ -341,8 +360,15 @@ def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact,
             status = _energy_check(model, user, iset, fset, k, q, v, cq, sq, M, cnt, acc, lw.q_warn, lw.v_warn)
             if status != DONE:
                 return status
-        if k % stride == 0 or k == nsteps:
-            if _record(model, user, iset, fset, k, q, v, cq, sq, M, P_acc, act_acc, gq, T, Q, V, PS, ACT, GP, KE,
-                       PE, cnt, fr, PTS, eqw) != DONE:
-                return USER_FAILED
+        record = k % stride == 0 or k == nsteps
+        if controlled:  # the attempt's next step, or its end (accepted or rejected; 1: record it)
+            phase, code = _after_step(phase, H, last, model, iset, fset, Minv, work, q, v, in_contact, P_acc,
+                                      act_acc, last_imp, gmax, rs, pen, cnt, acc, fr, eqw, IMP, ctl, sn)
+            h, t0 = fset[F_H], fset[F_T0]
+            if code < 0:
+                return NATIVE_MISMATCH
+            record = code == 1
+        if record and _record(model, user, iset, fset, ctl[K_T] if controlled else t0 + k * h, q, v, cq, sq, M, P_acc,
+                              act_acc, gq, T, Q, V, PS, ACT, GP, KE, PE, cnt, fr, PTS, eqw) != DONE:
+            return USER_FAILED  # (with step-size control: at an accepted attempt's end)
     return DONE

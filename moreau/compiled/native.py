@@ -1,13 +1,10 @@
 """A compiled function called through its address, in numba's own calling convention.
 
 A direct call of one ``@njit`` function from another links the callee's code into the
-caller's, and LLVM optimizes and generates it again there. Step-size control's driver
-(:mod:`moreau.compiled.adaptive`) steps with the loop's ``_run_chunk``: called directly,
-the whole loop would be compiled a second time into the driver. It calls the address of
-the loop's machine code instead (:func:`address`, passed in as an int64): the driver's
-module holds only the call (its compile time: ``benchmarks/compile_cost.py``). The loop
-calls its drift projection so (``call_checked``, with a key of the argument types checked
-first), and its compile neither compiles nor waits for it.
+caller's, and LLVM optimizes and generates it again there. The loop calls its drift
+projection through the projection's address instead (``call_checked``, with a key of the
+argument types checked first): the loop's compile neither compiles nor waits for it, and
+the loop's module holds only the call.
 """
 
 from __future__ import annotations
@@ -21,7 +18,7 @@ from numba.core import cgutils, types
 from numba.core.callconv import excinfo_t
 from numba.extending import intrinsic
 
-__all__ = ["MISMATCH", "address", "address_and_key", "call_checked", "call_native", "type_key"]
+__all__ = ["MISMATCH", "address_and_key", "call_checked", "type_key"]
 
 
 #: (id of the dispatcher, numba's fingerprint of the arguments' types) -> (address, key of
@@ -30,15 +27,11 @@ __all__ = ["MISMATCH", "address", "address_and_key", "call_checked", "call_nativ
 _addresses: dict[tuple[int, bytes], tuple[int, int]] = {}
 
 
-def address(dispatcher: Any, args: tuple) -> int:
-    """The address of ``dispatcher``'s machine code for the numba types of ``args`` (the
-    Python values it will be called with, typed as numba types them; it must return an
-    int64), loaded from numba's cache or compiled when the process has not got it."""
-    return address_and_key(dispatcher, args)[0]
-
-
 def address_and_key(dispatcher: Any, args: tuple) -> tuple[int, int]:
-    """:func:`address` and the :func:`type_key` of the arguments' types, for :func:`call_checked`."""
+    """The address of ``dispatcher``'s machine code for the numba types of ``args`` (the
+    Python values it will be called with; it must return an int64), loaded from numba's
+    cache or compiled when the process has not got it, and the :func:`type_key` of those
+    types, for :func:`call_checked`."""
     key = (id(dispatcher), compute_fingerprint(args))
     found = _addresses.get(key)
     if found is not None:
@@ -78,24 +71,11 @@ def _emit_call(context, builder, addr, argtys, packed_args):
     return builder.load(ret)
 
 
-def _call_native(typingctx, addr, args):
-    """``call_native(addr, args)``: the int64 function at ``addr`` (from :func:`address`
-    for arguments of exactly these types) called on the tuple ``args``; an exception it
-    raised is raised on in the caller."""
-    argtys = tuple(args.types)
-    sig = types.int64(types.int64, args)
-
-    def codegen(context, builder, signature, llargs):
-        return context.get_returned_value(builder, types.int64, _emit_call(context, builder, llargs[0], argtys,
-                                                                            llargs[1]))
-
-    return sig, codegen
-
-
 def _call_checked(typingctx, addr, key, args):
-    """``call_checked(addr, key, args)``: :func:`call_native` when ``key`` is the
-    :func:`type_key` of ``args``' types here (from :func:`address_and_key`), else
-    :data:`MISMATCH` without a call: an address made for other types is never called."""
+    """``call_checked(addr, key, args)``: the int64 function at ``addr`` called on the
+    tuple ``args`` when ``key`` is the :func:`type_key` of ``args``' types here (from
+    :func:`address_and_key`), else :data:`MISMATCH` without a call: an address made for
+    other types is never called. An exception the callee raised is raised on in the caller."""
     argtys = tuple(args.types)
     sig = types.int64(types.int64, types.int64, args)
     expected = type_key(argtys)
@@ -110,7 +90,5 @@ def _call_checked(typingctx, addr, key, args):
     return sig, codegen
 
 
-#: ``call_native(addr, args) -> int64`` in compiled code
-call_native: Any = intrinsic(_call_native)
 #: ``call_checked(addr, key, args) -> int64`` in compiled code
 call_checked: Any = intrinsic(_call_checked)

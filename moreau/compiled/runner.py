@@ -83,8 +83,8 @@ def _settings(scene, t0: float, h: float, n_steps: int, step: int, solver, fallb
     steps = (1 << 62, -1) if adaptive else (stride, n_steps)
     iset = np.array([step, drift_mode, drift_iter, *steps, method, fb, int(energy), memory, locate,
                      echeck, iteration[0], main.address if main else 0, back.address if back else 0, stride,
-                     0, velocity, 0, 0, 0, 0, 0, 0, 0, 0], dtype=np.int64)  # (S_MASS_READY: not yet;
-    # S_PROJECT, S_FRICTION, S_WARM, S_DELASSUS: run_compiled's)
+                     0, velocity, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0], dtype=np.int64)  # (S_MASS_READY: not yet;
+    # S_PROJECT, S_FRICTION, S_WARM, S_DELASSUS, S_JUDGE: run_compiled's)
     assert iset.shape[0] == lay.N_SETTINGS
     warn, stop = energy_growth if energy_growth is not None else (math.inf, math.inf)
     return iset, np.array([h, t0, tol, drift_tol, 0.0, warn, stop, iteration[1]]), eligible, (main, back)
@@ -137,6 +137,8 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
             h, t0, t_end, rtol, h, h_min, t0)
         snap = ad.snapshot(n, m, mf, me)
         snap.atol[:] = atol  # one per component of (q, v)
+        iset[lay.S_JUDGE], iset[lay.S_JUDGE_KEY] = ad.judge_address(model, settings, state, recs, tally, work, ctl,
+                                                                    snap)
 
     status, message, interrupt = "completed", "", None
     wall0 = time.perf_counter()
@@ -271,13 +273,12 @@ def _chunks(cs, called, bar, model, user, settings, state, box, tally, work, n_s
     while cnt[lay.C_K] < n_steps if ctl is None else ctl[lay.K_T] < ctl[lay.K_END]:
         c0 = time.perf_counter()
         recs = box[0]
+        k_before = int(cnt[lay.C_K])
+        k_end = min(n_steps, k_before + chunk) if ctl is None else int(cnt[lay.C_ACCEPTED]) + chunk  # (accepted)
+        code = lp.run_chunk(model, user, settings, state, recs, tally, work, k_end, ctl, snap)
         if ctl is None:
-            k_before = int(cnt[lay.C_K])
-            code = lp.run_chunk(model, user, settings, state, recs, tally, work, min(n_steps, k_before + chunk))
             advanced = int(cnt[lay.C_K]) - k_before
         else:
-            code = ad.run_adaptive(model, user, settings, state, recs, tally, work, int(cnt[lay.C_ACCEPTED]) + chunk,
-                                   ctl, snap)
             advanced = min(n_steps, int((ctl[lay.K_T] - recs.T[0]) / h + 1e-9)) - done
         done += advanced
         if bar is not None:

@@ -15,7 +15,7 @@ from moreau.compiled import cache
 from moreau.compiled.layout import STEP_ENERGY, STEP_MIDPOINT, STEP_THETA
 from moreau.compiled.lowering import lower
 from moreau.compiled.runner import run_compiled
-from moreau.compiled.variants import variant
+from moreau.compiled.variants import VARIANTS, variant
 from moreau.contact.refine import ensure_loaded
 from moreau.contact.solvers import ContactSolver
 from moreau.core.errors import attach_trajectory
@@ -223,8 +223,7 @@ def _plan(scene: Scene, t_span: tuple[float, float], h: float, tol: float, recor
                  initial_penetration, as_energy_growth(energy_growth), iteration, control)
 
 
-def ensure_compiled(*scenes: Scene, integrator: type[OneStepIntegrator] = MoreauJeanMidpoint,
-                    step_control: bool = False) -> float:
+def ensure_compiled(*scenes: Scene, integrator: type[OneStepIntegrator] = MoreauJeanMidpoint) -> float:
     """Load the compiled time loop from numba's cache, or compile it there (once per machine
     and version, said in one logged line); returns the seconds it took.
 
@@ -232,16 +231,16 @@ def ensure_compiled(*scenes: Scene, integrator: type[OneStepIntegrator] = Moreau
     step's, one with friction, and one with friction, bilateral rows and the later passes of
     :class:`~moreau.MoreauJeanPredictorCorrector` and :class:`~moreau.MoreauJeanEnergyConsistent`;
     a run compiles only the one its scene and ``integrator`` use. With ``scenes``: the
-    variants they run; without: all, and the kernels that make OSQP's answers exact
+    variants they run; without: all, step-size control's judge of an attempt for each
+    (``moreau.compiled.cache.ensure_judged``; else compiled at a variant's first run with
+    :class:`~moreau.StepControl`) and the kernels that make OSQP's answers exact
     (``moreau.contact.refine.ensure_loaded``; to warm a cache: ``moreau compile``). Call it before
-    starting worker processes: they then load it, never two compiling. ``step_control``:
-    also the driver of :class:`~moreau.StepControl` for those variants (else compiled at
-    the first run that asks for it).
+    starting worker processes: they then load it, never two compiling.
     """
     if not scenes:
-        return cache.ensure_compiled(None, step_control) + ensure_loaded()
+        return cache.ensure_compiled(None) + sum(cache.ensure_judged(v) for v in VARIANTS) + ensure_loaded()
     step, iterations = _compiled_step(integrator), _iteration(integrator)[0]
-    return sum(cache.ensure_compiled(v, step_control)
+    return sum(cache.ensure_compiled(v)
                for v in sorted({variant(lower(s).ints, step, iterations) for s in scenes}))
 
 
@@ -294,7 +293,7 @@ def _checked_run(scene: Scene, plan: _Plan, q0: ArrayLike, v0: ArrayLike, integr
     bar = None
     try:
         # the loop's variant, before the progress bar moves: a compile says so
-        cache.ensure_compiled(variant(plan.cs.ints, step, plan.iteration[0]), step_control=plan.control is not None)
+        cache.ensure_compiled(variant(plan.cs.ints, step, plan.iteration[0]))
         bar = progress_bar(progress, plan.n_steps, scene.name)
         traj = run_compiled(scene, plan.cs, t0, q, v, plan.h, plan.n_steps,
                             step=step, iteration=plan.iteration,

@@ -148,7 +148,7 @@ def test_painleves_warning_quotes_the_loops_time_and_a_step_only_on_fixed_steps(
     assert len(out.warnings) == 2
 
 
-@pytest.mark.slow  # step-size control's driver of the full variant compiles (about 30 s)
+@pytest.mark.slow
 def test_a_run_with_step_control_says_when_it_met_painleves_region():
     """The frozen rod from t = 0.3 with step-size control: one warning, at t = 0.3, with
     no step number, kept in traj.warnings."""

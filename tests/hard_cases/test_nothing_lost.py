@@ -186,7 +186,6 @@ def test_an_interrupt_after_the_buffers_grew_keeps_what_they_hold(monkeypatch, c
         return run_chunk
 
     monkeypatch.setattr(runner.lp, "run_chunk", interrupted_after_growth(runner.lp.run_chunk))
-    monkeypatch.setattr(runner.ad, "run_adaptive", interrupted_after_growth(runner.ad.run_adaptive))
     with pytest.raises(KeyboardInterrupt) as info:
         run()
     got = info.value.trajectory.impacts
