@@ -4,8 +4,8 @@ taken again with a smaller H.
 
 The steps are the loop's own: ``moreau.compiled.loop._run_chunk`` given a controller state
 and a snapshot runs each attempt's three steps through its one step, with the parts here
-inlined (:func:`_begin` before an attempt, :func:`_swap` to save and restore its start,
-:func:`_after_step` after each step), and judges the attempt in :func:`judge_attempt`,
+inlined (``_begin`` before an attempt, ``_swap`` to save and restore its start,
+``_after_step`` after each step), and judges the attempt in ``judge_attempt``,
 called through its address: a run without step-size control compiles none of the judge,
 and an attempt costs one call (a call of the whole loop per step passes some thousand
 words of arguments and checks the arrays' overlaps: 2.4 µs an attempt, measured on the
@@ -173,7 +173,7 @@ def _attempt_step(phase, H, last, ctl, sn, k_end, fset, active, T, IMP, m, q, v,
     kept and the step of H set in ``fset``; or (status, 0, False) when the chunk ends
     (DONE: ``cnt[C_ACCEPTED] == k_end`` or the end time reached; ``RECORDS_FULL``,
     ``IMPACTS_FULL``: grow the buffers and call again, nothing lost). Before the first step
-    of H/2 the start is restored. (One call site of :func:`_swap`: its copies are compiled once.)"""
+    of H/2 the start is restored. (One call site of ``_swap``: its copies are compiled once.)"""
     if phase == 0:
         status, H, last = _begin(ctl, sn, k_end, fset, active, T, IMP, m, cnt)
         if status != STEP_ON:
@@ -185,7 +185,7 @@ def _attempt_step(phase, H, last, ctl, sn, k_end, fset, active, T, IMP, m, q, v,
 
 @_part
 def _begin(ctl, sn, k_end, fset, active, T, IMP, m, cnt):
-    """The start of an attempt (:func:`_attempt_step`'s), its state not yet saved."""
+    """The start of an attempt (``_attempt_step``'s), its state not yet saved."""
     t, H, t_end = ctl[K_T], ctl[K_H], ctl[K_END]
     if cnt[C_ACCEPTED] >= k_end or t >= t_end:
         return DONE, 0.0, False
@@ -210,7 +210,7 @@ def _after_step(phase, H, last, model, iset, fset, Minv, work, q, v, in_contact,
     next phase, and 1 when the state is to be recorded (else 0; ``native.MISMATCH``: the
     judge's address was made for other types). After the step of H its end is kept (the
     loop then restores the start), after the first of H/2 its closed rows, slips and
-    impulses are kept, after the second :func:`judge_attempt` accepts or rejects the attempt."""
+    impulses are kept, after the second ``judge_attempt`` accepts or rejects the attempt."""
     ints = model.ints
     n, m = ints[SC_N], ints[SC_M]
     own = work[0]
@@ -308,9 +308,9 @@ def judge_attempt(H, last, model, iset, Minv, work, q, v, in_contact, P_acc, act
 
 def judge_address(model: tuple, settings, state, records, tally, work: tuple, control: np.ndarray,
                   snap: Snapshot) -> tuple[int, int]:
-    """The address of :func:`judge_attempt`'s machine code for a run's arrays (those of
+    """The address of ``judge_attempt``'s machine code for a run's arrays (those of
     :func:`moreau.compiled.loop.run_chunk`) and the key of its argument types, as
-    :func:`_after_step` calls it (the ``S_JUDGE`` settings): loaded, or compiled (once per
+    ``_after_step`` calls it (the ``S_JUDGE`` settings): loaded, or compiled (once per
     machine, by one process at a time; logged) when the run is the first with step-size
     control for its variant of the loop."""
     st = state

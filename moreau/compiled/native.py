@@ -74,7 +74,7 @@ def _emit_call(context, builder, addr, argtys, packed_args):
 def _call_checked(typingctx, addr, key, args):
     """``call_checked(addr, key, args)``: the int64 function at ``addr`` called on the
     tuple ``args`` when ``key`` is the :func:`type_key` of ``args``' types here (from
-    :func:`address_and_key`), else :data:`MISMATCH` without a call: an address made for
+    :func:`address_and_key`), else ``MISMATCH`` without a call: an address made for
     other types is never called. An exception the callee raised is raised on in the caller."""
     argtys = tuple(args.types)
     sig = types.int64(types.int64, types.int64, args)
