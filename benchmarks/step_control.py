@@ -38,7 +38,6 @@ sys.path.insert(0, str(Path(__file__).parent))
 from wp_configs import _timed, settle  # noqa: E402
 from wp_friction import _returns  # noqa: E402
 from wp_problems import _angle_distance  # noqa: E402
-from wp_study import _warm_up_step_control  # noqa: E402
 
 import moreau as mo  # noqa: E402
 
@@ -201,8 +200,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--piston", action="store_true", help="also the e = 0 piston (about 90 s more)")
     args = ap.parse_args()
-    mo.ensure_compiled()
-    _warm_up_step_control()
+    mo.ensure_compiled()  # the loop's variants and step-size control's judges
     settle()
     ball()
     pendulum()
