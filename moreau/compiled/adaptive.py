@@ -4,12 +4,12 @@ taken again with a smaller H.
 
 The steps are the loop's own: ``moreau.compiled.loop._run_chunk`` given a controller state
 and a snapshot runs each attempt's three steps through its one step, with the parts here
-inlined (``_begin`` before an attempt, ``_swap`` to save and restore its start,
+inlined (``_attempt_step`` before each step, ``_swap`` to save and restore its start,
 ``_after_step`` after each step), and judges the attempt in ``judge_attempt``,
 called through its address: a run without step-size control compiles none of the judge,
-and an attempt costs one call (a call of the whole loop per step passes some thousand
-words of arguments and checks the arrays' overlaps: 2.4 µs an attempt, measured on the
-woodpecker). The comparison of the two answers x_c (one step of H) and x_f (two of H/2),
+and an attempt costs one call (a call of the whole loop per step would pass some
+thousand words of arguments and check the arrays' overlaps: its cost is in
+docs/performance.md). The comparison of the two answers x_c (one step of H) and x_f (two of H/2),
 x = (q, v), gives the local error of x_f, scaled
 componentwise as ``err = max |x_f − x_c| / (c (atol_i + rtol |x_f|))``, where c depends on
 the kind of step:
@@ -169,37 +169,28 @@ def _swap(save, q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, pen, cnt, 
 def _attempt_step(phase, H, last, ctl, sn, k_end, fset, active, T, IMP, m, q, v, in_contact, P_acc, act_acc,
                   last_imp, gmax, rs, pen, cnt, acc, fr, eqw):
     """Before step ``phase`` of an attempt: (``STEP_ON``, H, whether it ends the run). Before
-    the step of H (phase 0) an attempt begins: its start saved into ``sn``, its closed rows
-    kept and the step of H set in ``fset``; or (status, 0, False) when the chunk ends
-    (DONE: ``cnt[C_ACCEPTED] == k_end`` or the end time reached; ``RECORDS_FULL``,
+    the step of H (phase 0) an attempt begins: its closed rows and start kept in ``sn`` and
+    the step of H set in ``fset``; or (status, 0, False) when the chunk ends (DONE:
+    ``cnt[C_ACCEPTED] == k_end`` or the end time reached; ``RECORDS_FULL``,
     ``IMPACTS_FULL``: grow the buffers and call again, nothing lost). Before the first step
     of H/2 the start is restored. (One call site of ``_swap``: its copies are compiled once.)"""
     if phase == 0:
-        status, H, last = _begin(ctl, sn, k_end, fset, active, T, IMP, m, cnt)
-        if status != STEP_ON:
-            return status, H, last
+        t, H, t_end = ctl[K_T], ctl[K_H], ctl[K_END]
+        if cnt[C_ACCEPTED] >= k_end or t >= t_end:
+            return DONE, 0.0, False
+        if cnt[C_REC] + 1 >= T.shape[0]:
+            return RECORDS_FULL, 0.0, False
+        if cnt[C_NIMP] + 3 * m > IMP.shape[0]:  # room for three steps' impacts: an attempt is never cut
+            return IMPACTS_FULL, 0.0, False
+        last = H >= (t_end - t) * (1.0 - 1e-9)  # the end, not a sliver of a step after it
+        if last:
+            H = t_end - t
+        for r in range(m):
+            sn.closed0[r] = active[r]
+        fset[F_H] = H  # one step of H
+        fset[F_T0] = t - cnt[C_K] * H
     if phase <= 1:
         _swap(phase == 0, q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, pen, cnt, acc, fr, eqw, sn)
-    return STEP_ON, H, last
-
-
-@_part
-def _begin(ctl, sn, k_end, fset, active, T, IMP, m, cnt):
-    """The start of an attempt (``_attempt_step``'s), its state not yet saved."""
-    t, H, t_end = ctl[K_T], ctl[K_H], ctl[K_END]
-    if cnt[C_ACCEPTED] >= k_end or t >= t_end:
-        return DONE, 0.0, False
-    if cnt[C_REC] + 1 >= T.shape[0]:
-        return RECORDS_FULL, 0.0, False
-    if cnt[C_NIMP] + 3 * m > IMP.shape[0]:  # room for three steps' impacts: an attempt is never cut
-        return IMPACTS_FULL, 0.0, False
-    last = H >= (t_end - t) * (1.0 - 1e-9)  # the end, not a sliver of a step after it
-    if last:
-        H = t_end - t
-    for r in range(m):
-        sn.closed0[r] = active[r]
-    fset[F_H] = H  # one step of H
-    fset[F_T0] = t - cnt[C_K] * H
     return STEP_ON, H, last
 
 
