@@ -12,6 +12,7 @@ with ``STEP_THETA``, of :class:`moreau.MoreauJeanPredictorCorrector`, with ``STE
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -243,8 +244,15 @@ def control_arguments(control: np.ndarray | None, snap: Snapshot | None) -> tupl
     """The loop's last two arguments: step-size control's state and snapshot, or (no
     control) arrays of their types and no elements."""
     if control is None or snap is None:
-        return np.zeros(0), snapshot(0, 0, 0, 0)
+        return _no_control()
     return control, snap
+
+
+@functools.cache
+def _no_control() -> tuple[np.ndarray, Snapshot]:
+    """An empty control state and a snapshot of no rows, made once: the loop reads and writes
+    them only when the state has elements, so every fixed-step run (any thread) shares them."""
+    return np.zeros(0), snapshot(0, 0, 0, 0)
 
 
 # Compiled without reference counting (numba's internal ``_nrt`` flag): every array it touches is owned by the
