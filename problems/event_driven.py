@@ -90,13 +90,14 @@ class EventDrivenSolution:
         Q = np.full((times.size, n), np.nan)
         V = np.full((times.size, n), np.nan)
         starts = np.array([s[0] for s in self._segments])
-        for i, tt in enumerate(times):
-            if tt < starts[0] - 1e-14 or tt > self.t_end + 1e-12:
-                continue
-            j = max(0, int(np.searchsorted(starts, tt, side="right")) - 1)
+        inside = (times >= starts[0] - 1e-14) & (times <= self.t_end + 1e-12)
+        seg = np.maximum(0, np.searchsorted(starts, times, side="right") - 1)
+        for j in np.unique(seg[inside]):  # each segment's interpolant once, on all its times
+            at = np.flatnonzero(inside & (seg == j))
             t0, t1, sol = self._segments[j]
-            y = sol(min(max(tt, t0), t1)) if sol is not None else self._segment_const(j)
-            Q[i], V[i] = y[:n], y[n:]
+            y = (sol(np.clip(times[at], t0, t1)).T if sol is not None
+                 else np.broadcast_to(self._segment_const(j), (at.size, 2 * n)))
+            Q[at], V[at] = y[:, :n], y[:, n:]
         return Q, V
 
     def _segment_const(self, j):
