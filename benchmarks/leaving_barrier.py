@@ -9,7 +9,7 @@ Prints, in one run, for ``mo.PositionProjection()`` and ``mo.PositionProjection(
    against N = m (g cos θ − v²/R), v² = v0² + 2 g R (1 − cos θ);
 2. the e = 0 piston over 2 cycles: the side-change angles of the last cycle
    (``problems.piston.analysis.cycle_figures``) against a run with ``velocity=True`` at
-   h = 1e-5, and the wall time (best of up to three runs below 0.5 s).
+   h = 1e-5, and the wall time (best of up to ten runs within 0.5 s).
 
     python benchmarks/leaving_barrier.py      # about 15 s on 2 cores
 """

@@ -1,6 +1,6 @@
 """What step-size control (``mo.StepControl``) costs against fixed steps, at the same error.
 
-Prints, in one run (wall times: the best of up to three runs below 0.5 s; compare within
+Prints, in one run (wall times: the best of up to ten runs within 0.5 s, `wp_configs._timed`; compare within
 one table, absolute times on a shared 2-core machine are noisy):
 
 1. the bouncing ball (e = 0.8, from 1 m, 4.5 s): the largest error of the first 6 impact
@@ -19,7 +19,10 @@ one table, absolute times on a shared 2-core machine are noisy):
    the side-change angles of the last cycle against fixed h = 1e-6 (``benchmarks/wp_problems.py``'s
    metric), ``StepControl(tol)`` with the largest step 1e-2, and coarse tolerances with the largest step 0.1
    (one tolerance, and one per component); at the coarse end fixed h = 10^-1.5 against largest steps
-   0.1 … 0.5; and the error at tol = 1e-10 and 2e-11 for five largest steps 0.0094 … 0.0106 (its scatter).
+   0.1 … 0.5; and the error at tol = 1e-10 and 2e-11 for five largest steps 0.0094 … 0.0106 (its scatter);
+5. an attempt's own cost: the woodpecker over 0.45 s with ``StepControl(1e6)`` at H = 2e-5 (every
+   attempt accepted, 22 500 attempts of one step of H and two of H/2) against fixed H plus fixed H/2,
+   best of 15 runs each, taken in turn; the difference over the attempts is what the controller adds.
 
     python benchmarks/step_control.py [--piston]
 """
@@ -196,6 +199,28 @@ def piston():
         print(f"  tol = {tol:g}, largest step 0.0094 ... 0.0106: " + " ".join(f"{e:.2g}" for e in errs))
 
 
+def attempt_cost(rounds: int = 15) -> None:
+    from moreau.problems.woodpecker import GLOCKER_STATE, woodpecker
+
+    scene, (q0, v0), H, T = woodpecker(), GLOCKER_STATE, 2e-5, 0.45
+    runs = {"fixed H": (H, {}), "fixed H/2": (H / 2, {}),
+            "StepControl(1e6), H": (H, {"step_control": mo.StepControl(1e6)})}
+    best = dict.fromkeys(runs, float("inf"))
+    stats = {}
+    for _ in range(rounds):  # in turn, so that a slow phase of the machine falls on all three
+        for label, (h, kw) in runs.items():
+            traj, wall, _ = _timed(lambda h=h, kw=kw: mo.simulate(scene, (0.0, T), q0, v0, h, energy=False, **kw),
+                                   repeats=1)
+            best[label], stats[label] = min(best[label], wall), traj.stats
+    print(f"\n5. An attempt's own cost: woodpecker, {T} s, H = {H:g} (best of {rounds}, in turn)")
+    for label in runs:
+        st = stats[label]
+        print(f"  {label:<22} {1e3 * best[label]:9.2f} ms  {st.steps:7d} steps  {st.rejected:4d} rejected")
+    attempts = stats["StepControl(1e6), H"].steps + stats["StepControl(1e6), H"].rejected
+    extra = best["StepControl(1e6), H"] - best["fixed H"] - best["fixed H/2"]
+    print(f"  controller's own cost: {1e6 * extra / attempts:.2f} µs an attempt over {attempts} attempts")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--piston", action="store_true", help="also the e = 0 piston (about 90 s more)")
@@ -207,6 +232,7 @@ def main() -> None:
     woodpecker()
     if args.piston:
         piston()
+    attempt_cost()
 
 
 if __name__ == "__main__":

@@ -66,10 +66,11 @@ Run::
 
     python benchmarks/work_precision.py --quick      # ~2 min: prints the tables
     python benchmarks/work_precision.py --replot     # the figure again from docs/work_precision.csv
-    python benchmarks/work_precision.py              # full study (~28 min), writes
+    python benchmarks/work_precision.py              # full study (~20 min), writes
                                                      # docs/work_precision.{csv,png}
 
-Absolute times on a shared machine drift; ratios measured in one run hold better.
+Absolute times on a shared machine drift; ratios measured in one run hold better. Each wall
+time is the best of up to ten runs within 0.5 s (``wp_configs._timed``).
 The functions are importable from this script (``run_study``, ``fit_orders``,
 ``drift_cost``, ``osqp_comparison``, ``format_table``, ...); they live in its parts beside
 it: ``wp_configs.py`` (configurations, runs, timing), ``wp_problems.py`` (the problems and

@@ -140,11 +140,13 @@ def settle() -> None:
     gc.freeze()
 
 
-def _timed(fn, repeat_below: float = 0.0, repeats: int = 3):
+def _timed(fn, repeat_below: float = 0.0, repeats: int = 10):
     """(trajectory, wall time, status) of ``fn()``. A run faster than ``repeat_below``
-    seconds is repeated (up to ``repeats`` runs in all) and the shortest time kept: the
-    runs are deterministic, and on a shared machine the minimum is the cost."""
-    best, traj, status = float("inf"), None, "completed"
+    seconds is repeated, up to ``repeats`` runs in all and until the runs together took
+    ``repeat_below``, and the shortest time kept: the runs are deterministic, and on a
+    shared machine the minimum is the cost (a run of 10 ms is taken 10 times, one of
+    0.2 s three times)."""
+    best, traj, status, spent = float("inf"), None, "completed", 0.0
     for _ in range(max(1, repeats)):
         t0 = time.perf_counter()
         status = "completed"
@@ -153,7 +155,7 @@ def _timed(fn, repeat_below: float = 0.0, repeats: int = 3):
         except (mo.SolverError, mo.SimulationError) as exc:
             traj, status = exc.trajectory, "failed"
         wall = time.perf_counter() - t0
-        best = min(best, wall)
-        if wall >= repeat_below:
+        best, spent = min(best, wall), spent + wall
+        if wall >= repeat_below or spent >= repeat_below:
             break
     return traj, best, status

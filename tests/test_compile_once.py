@@ -238,6 +238,24 @@ def test_step_size_control_runs_on_the_variant_already_loaded():
     assert out.stdout.split("\n")[-2] == "1 1 True"  # one overload of the loop, before and after
 
 
+def test_ensure_compiled_without_scenes_loads_the_judges_runs_use():
+    """``mo.ensure_compiled()`` (``moreau compile``) loads step-size control's judge for every
+    variant with the argument types runs give it: a controlled run on the plain variant and
+    one on the friction variant afterwards compile no judge of their own."""
+    from moreau.compiled import adaptive
+    from moreau.problems.bouncing_ball import bouncing_ball
+    from moreau.problems.woodpecker import GLOCKER_STATE, woodpecker
+
+    mo.ensure_compiled()
+    assert adaptive._judged >= set(VARIANTS)
+    known = len(adaptive.judge_attempt.overloads)
+    assert known >= len(VARIANTS)
+    ball = mo.simulate(bouncing_ball(0.8), (0.0, 1.0), [1.0], [0.0], 1e-2, step_control=mo.StepControl(1e-5))
+    bird = mo.simulate(woodpecker(), (0.0, 0.02), *GLOCKER_STATE, 1e-3, step_control=mo.StepControl(1e-4))
+    assert ball.completed and bird.completed and ball.stats.rejected > 0
+    assert len(adaptive.judge_attempt.overloads) == known
+
+
 def test_no_cached_function_is_compiled_again_for_a_literal_argument():
     """A constant argument (``0``, ``True``) at one call site types as a literal, and numba
     compiles the callee (and all it calls) once more for it: in the loop's variants that

@@ -326,3 +326,37 @@ def test_steps_forced_at_h_min_are_counted_and_warned_with_the_remedy(ball):
         traj = mo.simulate(scene, (0.0, 1.0), [1.0], [0.0], 1e-2, energy=False,
                            step_control=mo.StepControl(1e-6, h_min=5e-3))
     assert traj.stats.forced > 0 and any("h_min" in w for w in traj.warnings)
+
+
+@pytest.mark.parametrize("case", ["smooth", "impacts"])
+def test_an_accepted_attempt_is_the_fixed_steps_it_takes(case, ball):
+    """With every attempt accepted at H (``StepControl(1e6)``), each step of the run is what
+    fixed-step runs from its start give: one step of H (x_c) and two of H/2 (x_f) combined as
+    the module says: x_f + (x_f − x_c)/3 in a smooth phase of the undamped pendulum (the
+    midpoint step of order 2), x_f across the ball's impacts (a switching step, never
+    extrapolated; its flights are exact, x_f = x_c)."""
+    from moreau.problems.pendulum_wall import pendulum_wall
+
+    H = 1e-2
+    scene, x0, T = ((pendulum_wall(wall_x=None, damping=0.0), (1.0, 0.5), 0.3) if case == "smooth"
+                    else (ball[0], (1.0, 0.0), 1.2))
+    traj = mo.simulate(scene, (0.0, T), [x0[0]], [x0[1]], H, energy=False, step_control=mo.StepControl(1e6))
+    assert traj.stats.rejected == 0 and np.allclose(np.diff(traj.t), H)
+    if case == "impacts":
+        assert len(traj.impacts.t) >= 2
+
+    def end(k, h):  # the state after fixed steps of h from the run's k-th step
+        with warnings.catch_warnings():  # an impact step ends inside the floor: the run's last step here
+            warnings.simplefilter("ignore", RuntimeWarning)
+            run = mo.simulate(scene, (traj.t[k], traj.t[k] + H), traj.q[k], traj.v[k], h, energy=False,
+                              initial_penetration=1.0)
+        assert run.stats.steps == round(H / h)
+        return np.concatenate([run.q[-1], run.v[-1]])
+
+    for k in range(len(traj.t) - 1):
+        coarse, fine = end(k, H), end(k, H / 2)
+        expected = fine + (fine - coarse) / 3 if case == "smooth" else fine
+        if case == "smooth":
+            assert np.abs(fine - coarse).max() > 1e-6  # the extrapolation is seen
+        got = np.concatenate([traj.q[k + 1], traj.v[k + 1]])
+        np.testing.assert_allclose(got, expected, rtol=0, atol=1e-13, err_msg=f"step {k}")
