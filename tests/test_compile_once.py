@@ -238,6 +238,7 @@ def test_step_size_control_runs_on_the_variant_already_loaded():
     assert out.stdout.split("\n")[-2] == "1 1 True"  # one overload of the loop, before and after
 
 
+@pytest.mark.slow  # compiles the full variant's judge (about 5 s), which no default test runs
 def test_ensure_compiled_without_scenes_loads_the_judges_runs_use():
     """``mo.ensure_compiled()`` (``moreau compile``) loads step-size control's judge for every
     variant with the argument types runs give it: a controlled run on the plain variant and
