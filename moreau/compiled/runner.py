@@ -116,7 +116,8 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
     if variant not in vs.VARIANTS or vs.VARIANTS.index(variant) < vs.VARIANTS.index(needed):
         raise ValueError(f"variant={variant!r}: this scene needs the loop's {needed!r} variant or a larger one "
                          f"of {vs.VARIANTS}")
-    settings, state, recs, tally, work = _allocate(cs, q0, v0, t0, min(n_rec, 4096) if control else n_rec, iset,
+    # with step control n_rec (at steps of H, the largest) is the fewest records: room for 4x, grown if need be
+    settings, state, recs, tally, work = _allocate(cs, q0, v0, t0, min(4 * n_rec, 4096) if control else n_rec, iset,
                                                    fset, eligible, flight_gap, me, variant)
     box = [recs]  # the buffers, grown in place of the first when they fill (kept on Ctrl-C too)
     q, v, in_contact, P_acc, act_acc, _, gmax, rs, pen = state

@@ -139,7 +139,8 @@ def penetration_warnings(scene, traj, h: float, limit: float | None,
                      8.0 * np.finfo(float).eps * gap_size)
     when = traj.max_penetration_t if traj.max_penetration_t is not None else np.full(len(pen), np.nan)
 
-    U_all = np.abs(traj.impacts.U_before)
+    impacts = traj.impacts  # (a selection made at each access)
+    U_all = np.abs(impacts.U_before)
     scene_scale = h * float(U_all.max()) if U_all.size else 0.0  # the deepest step scale h·|U⁻| of any impact
 
     def at(r: int | np.integer) -> str:  # the time of the row's deepest penetration, when the run kept it
@@ -160,12 +161,12 @@ def penetration_warnings(scene, traj, h: float, limit: float | None,
                 out.append(f"row {traj.row_names[r]!r} penetrated {pen[r]:.3g} (gap units){at(r)} {why}")
             continue
         else:
-            U = np.abs(traj.impacts.U_before[traj.impacts.row == r])
+            U = np.abs(impacts.U_before[impacts.row == r])
             if U.size == 0:
                 continue  # no impact: the drift of a sliding contact, left to drift control
             lim, why = h * float(U.max()), f"h·|U⁻| = {h:g} × {float(U.max()):.3g}, the step's own scale"
         if pen[r] > lim:
-            t_imp = traj.impacts.t[traj.impacts.row == r]
+            t_imp = impacts.t[impacts.row == r]
             away = float(np.min(np.abs(t_imp - when[r]), initial=np.inf))
             cause = "the contact is not resolved at this step size"
             if drift_control is None and carried[r] and away > 2.0 * h:  # deepest in contact, not at an impact
