@@ -35,19 +35,38 @@ def chaotic_pendulum():
 
 @pytest.fixture(scope="session", autouse=True)
 def loop_variants_side_by_side(request):
-    """Under pytest-xdist, the first two workers load the compiled loop's variants before
-    their first test (:data:`moreau.compiled.variants.VARIANTS`): on an empty cache gw1
-    compiles the full one while gw0 compiles the others (each under its own lock), instead
-    of one worker waiting for another's compile in its first test that needs it."""
+    """Under pytest-xdist, the first two workers load what the suite compiles before their
+    first test: on an empty cache gw0 compiles the plain and the friction variants of the
+    compiled loop (:data:`moreau.compiled.variants.VARIANTS`) with step-size control's judge
+    of each, while gw1 compiles OSQP's exact refinement and the tangent map's smooth steps
+    (neither shares the loop's kernels), then the full variant, whose kernels the plain one
+    has put in the cache by then, and its judge; each under its own lock, instead of a
+    worker waiting in its first test that needs one for another's compile."""
     worker = getattr(request.config, "workerinput", {}).get("workerid")
     if worker in ("gw0", "gw1"):
-        from moreau.compiled.cache import ensure_compiled
+        from moreau.compiled.cache import ensure_judged
 
         if worker == "gw1":
-            ensure_compiled("full")
-        else:  # while gw1 still compiles
-            ensure_compiled("plain")
-            ensure_compiled("friction")
+            from moreau.contact.refine import ensure_loaded
+
+            ensure_loaded()
+            _tangent_steps_loaded()
+            ensure_judged("full")
+        else:
+            ensure_judged("plain")
+            ensure_judged("friction")
+
+
+def _tangent_steps_loaded():
+    """Load (or compile) ``moreau.compiled.tangent.smooth_steps`` with the argument types
+    ``lyapunov_spectrum_tangent`` passes: one smooth step of the free ball."""
+    import numpy as np
+
+    from moreau.dynamics.tangent import _compiled_smooth_steps
+    from moreau.problems.bouncing_ball import bouncing_ball
+
+    X = np.hstack([np.ones((2, 1)), np.zeros((2, 1))])
+    _compiled_smooth_steps(bouncing_ball(0.5), 1e-7)(0.0, 1e-3, X, 0, 1, np.ascontiguousarray(np.eye(2)))
 
 
 # modules with tests that run the loop's full variant (friction, bilateral rows, the later
