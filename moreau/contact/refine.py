@@ -158,9 +158,14 @@ def _proposed_set(p, s, S):
             found[ns] = i
             key[ns] = s[i] - p[i]
             ns += 1
-    order = np.argsort(key[:ns])
+    for a in range(ns):  # a stable insertion sort by key (numba's argsort compiles for seconds)
+        i, kk, b = found[a], key[a], a
+        while b > 0 and kk < key[b - 1]:
+            found[b], key[b] = found[b - 1], key[b - 1]
+            b -= 1
+        found[b], key[b] = i, kk
     for a in range(ns):
-        S[a] = found[order[a]]
+        S[a] = found[a]
     return ns
 
 
@@ -293,8 +298,10 @@ def _refined_answer(L, GR, cRo, A, uf, rR, W, S, ns, kept, F, q, dp, v, P):
         if not err < best:
             break
         best = err
-        vbest[:] = vv
-        qbest[:] = q
+        for j in range(n):  # (element by element: a slice copy compiles numba's shape checks)
+            vbest[j] = vv[j]
+        for i in range(k):
+            qbest[i] = q[i]
         if err == 0.0 or step == 3:
             break
         if _solve_on(W, t, S, ns, kept, dp, F) != ns:
