@@ -252,6 +252,18 @@ def test_cli_options_out_of_range(argv, message, capsys):
     assert re.search(message, err.splitlines()[-1])
 
 
+def test_cli_solver_whose_backend_is_not_installed_is_one_line_exit_2(tmp_path, monkeypatch, capsys):
+    """``--solver`` offers every name make_solver knows (the parser does not import
+    qpsolvers); a qpsolvers back-end that is not installed is refused by the run, by name."""
+    import qpsolvers
+
+    monkeypatch.setattr(qpsolvers, "available_solvers", [s for s in qpsolvers.available_solvers if s != "daqp"])
+    assert main(["ball", "--solver", "daqp", "--t-end", "0.01", "--no-progress", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("moreau ball: error: ") and "'daqp'" in err[0], err
+    assert not list(tmp_path.iterdir())  # nothing written
+
+
 def test_cli_piston_negative_step_exits_2_with_one_error_line():
     r = subprocess.run([sys.executable, "-m", "moreau", "piston", "--h", "-1"], capture_output=True, text=True)
     assert r.returncode == 2 and r.stdout == ""

@@ -9,7 +9,8 @@ where G (m, n) and c (m,) are full-size (entries of inactive rows are ignored).
 
 Backends
 --------
-``"osqp"`` : :class:`OSQPSolver` (default). Set up once per scene, changed each step with
+``"exact"`` : :class:`ExactSolver` (the default): the loop's dual active-set method.
+``"osqp"`` : :class:`OSQPSolver`. Set up once per scene, changed each step with
     OSQP's ``update()`` on a fixed sparsity pattern (inactive rows opened with l = −∞),
     warm-started, eps 1e-9 with polishing, on the QP in mass-normalized units (identity
     Hessian, rows of unit length); its active set is then made exact (and corrected where
@@ -50,7 +51,12 @@ __all__ = [
     "SolveFailed",
     "make_solver",
     "available_solvers",
+    "SOLVER_NAMES",
 ]
+
+#: the names :func:`make_solver` knows, without asking which of qpsolvers' back-ends are
+#: installed (:func:`available_solvers` does, importing qpsolvers: half a second)
+SOLVER_NAMES = ("daqp", "enum", "exact", "osqp", "quadprog")
 
 _SIMPLE = {
     "osqp": lambda: OSQPSolver(),
