@@ -38,10 +38,9 @@ def loop_variants_side_by_side(request):
     """Under pytest-xdist, the first two workers load what the suite compiles before their
     first test: on an empty cache gw0 compiles the plain and the friction variants of the
     compiled loop (:data:`moreau.compiled.variants.VARIANTS`) with step-size control's judge
-    of each, while gw1 compiles OSQP's exact refinement and the tangent map's smooth steps
-    (neither shares the loop's kernels), then the full variant, whose kernels the plain one
-    has put in the cache by then, and its judge; each under its own lock, instead of a
-    worker waiting in its first test that needs one for another's compile."""
+    of each, while gw1 compiles OSQP's exact refinement and the tangent map's smooth steps,
+    then the full variant and its judge (each under its own lock), so that no test compiles
+    one of them or waits for another worker's compile."""
     worker = getattr(request.config, "workerinput", {}).get("workerid")
     if worker in ("gw0", "gw1"):
         from moreau.compiled.cache import ensure_judged

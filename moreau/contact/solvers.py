@@ -9,8 +9,8 @@ where G (m, n) and c (m,) are full-size (entries of inactive rows are ignored).
 
 Backends
 --------
-``"exact"`` : :class:`ExactSolver` (the default), exact: the dual active-set method of
-    Goldfarb & Idnani, compiled in the loop.
+``"exact"`` : :class:`ExactSolver` (the default), exact: block principal pivoting from 8
+    rows, the dual active-set method (Goldfarb–Idnani) below that, in the loop.
 ``"osqp"`` : :class:`OSQPSolver`. Set up once per scene, changed each step with
     OSQP's ``update()`` on a fixed sparsity pattern (inactive rows opened with l = −∞),
     warm-started, eps 1e-9 with polishing, on the QP in mass-normalized units (identity
