@@ -55,22 +55,24 @@ __all__ = [
     "SOLVER_NAMES",
 ]
 
-#: the names :func:`make_solver` knows, without asking which of qpsolvers' back-ends are
-#: installed (:func:`available_solvers` does, importing qpsolvers: half a second)
-SOLVER_NAMES = ("daqp", "enum", "exact", "osqp", "quadprog")
-
 _SIMPLE = {
     "osqp": lambda: OSQPSolver(),
     "enum": lambda: EnumerationSolver(),
     "exact": lambda: ExactSolver(),
 }
+#: the exact active-set QPs of qpsolvers that :func:`make_solver` knows by name
+_EXACT_QP = ("daqp", "quadprog")
+
+#: the names :func:`make_solver` knows, without asking which of qpsolvers' back-ends are
+#: installed (:func:`available_solvers` does, importing qpsolvers: half a second)
+SOLVER_NAMES = tuple(sorted([*_SIMPLE, *_EXACT_QP]))
 
 
 def available_solvers() -> list[str]:
     """Names accepted by :func:`make_solver`."""
     import qpsolvers
 
-    exact_qp = [s for s in ("daqp", "quadprog") if s in qpsolvers.available_solvers]
+    exact_qp = [s for s in _EXACT_QP if s in qpsolvers.available_solvers]
     return sorted(_SIMPLE) + exact_qp
 
 
@@ -90,6 +92,6 @@ def make_solver(spec: str | ContactSolver) -> ContactSolver:
     if spec in _SIMPLE:
         return _SIMPLE[spec]()
     name = spec.split(":", 1)[1] if spec.startswith("qpsolvers:") else spec
-    if name in ("daqp", "quadprog") or spec.startswith("qpsolvers:"):
+    if name in _EXACT_QP or spec.startswith("qpsolvers:"):
         return QpsolversSolver(name)
     raise ValueError(f"unknown solver {spec!r}; choose one of {available_solvers()}")
