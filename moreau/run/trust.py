@@ -129,19 +129,16 @@ def penetration_warnings(scene, traj, h: float, limit: float | None,
     ``drift_control``: the run's (None: a penetration deepest in contact, away from the
     row's impacts, is named as the drift it is)."""
     pen = traj.max_penetration
-    if pen is None or not np.any(pen > 0.0):
+    if pen is None or not (pen > 0.0).any():
         return []
-    out = []
-    carried = np.asarray(traj.impulses).sum(axis=0) > 0.0 if len(traj) else np.zeros(len(pen), dtype=bool)
-    # round-off: the row's activation tolerance, or its gap's round-off over the run
-    gap_size = np.nanmax(np.abs(traj.gaps), axis=0, initial=0.0) if len(traj) else np.zeros(len(pen))
-    tol = np.maximum(np.asarray(getattr(scene, "activation_tol", np.zeros(len(pen))), dtype=float),
-                     8.0 * np.finfo(float).eps * gap_size)
+    out: list[str] = []
+    n_rec = len(traj)
+    carried = np.asarray(traj.impulses).sum(axis=0) > 0.0 if n_rec else np.zeros(len(pen), dtype=bool)
     when = traj.max_penetration_t if traj.max_penetration_t is not None else np.full(len(pen), np.nan)
-
-    impacts = traj.impacts  # (a selection made at each access)
-    U_all = np.abs(impacts.U_before)
-    scene_scale = h * float(U_all.max()) if U_all.size else 0.0  # the deepest step scale h·|U⁻| of any impact
+    onsets = traj.onsets  # its impacts (``traj.impacts``): the fast onsets after a flight
+    is_impact = onsets.flight & onsets.fast
+    U_imp, row_imp, t_imp_all = np.abs(onsets.U_before[is_impact]), onsets.row[is_impact], onsets.t[is_impact]
+    tol = None  # each row's round-off (see below), computed when a row never enforced penetrated
 
     def at(r: int | np.integer) -> str:  # the time of the row's deepest penetration, when the run kept it
         return f" at t = {when[r]:.9g} s" if np.isfinite(when[r]) else ""
@@ -151,6 +148,11 @@ def penetration_warnings(scene, traj, h: float, limit: float | None,
             lim, why = float(limit), "the given limit"
         elif not carried[r]:  # never an impulse: the row was never enforced (a vanishing Jacobian?), unless
             # it penetrated no deeper than the scene's impacts may (a row whose twin carried the impulse, say)
+            if tol is None:  # round-off: the row's activation tolerance, or its gap's round-off over the run
+                gap_size = np.nanmax(np.abs(traj.gaps), axis=0, initial=0.0) if n_rec else np.zeros(len(pen))
+                tol = np.maximum(np.asarray(getattr(scene, "activation_tol", np.zeros(len(pen))), dtype=float),
+                                 8.0 * np.finfo(float).eps * gap_size)
+            scene_scale = h * float(U_imp.max()) if U_imp.size else 0.0  # the deepest h·|U⁻| of any impact
             if pen[r] > max(tol[r], scene_scale, initial_penetration):
                 if _crossed_at_the_end(scene, traj, r, h, pen[r], when[r]):
                     why = ("in the run's last step, before a step could close its contact: the final state penetrates "
@@ -161,12 +163,13 @@ def penetration_warnings(scene, traj, h: float, limit: float | None,
                 out.append(f"row {traj.row_names[r]!r} penetrated {pen[r]:.3g} (gap units){at(r)} {why}")
             continue
         else:
-            U = np.abs(impacts.U_before[impacts.row == r])
+            U = U_imp[row_imp == r]
             if U.size == 0:
                 continue  # no impact: the drift of a sliding contact, left to drift control
-            lim, why = h * float(U.max()), f"h·|U⁻| = {h:g} × {float(U.max()):.3g}, the step's own scale"
+            U_max = float(U.max())
+            lim, why = h * U_max, f"h·|U⁻| = {h:g} × {U_max:.3g}, the step's own scale"
         if pen[r] > lim:
-            t_imp = impacts.t[impacts.row == r]
+            t_imp = t_imp_all[row_imp == r]
             away = float(np.min(np.abs(t_imp - when[r]), initial=np.inf))
             cause = "the contact is not resolved at this step size"
             if drift_control is None and carried[r] and away > 2.0 * h:  # deepest in contact, not at an impact
