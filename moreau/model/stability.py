@@ -80,8 +80,10 @@ def _rate_matrices(scene: Any, t: float, q: np.ndarray, v: np.ndarray) -> tuple[
     v = np.asarray(v, dtype=float)
     M = np.asarray(scene.system.mass_matrix(q), dtype=float)
     Kq = _jacobian(lambda x: scene.force(t, x, v), q)
-    Cv = _jacobian(lambda x: scene.force(t, q, x), v)
-    return (np.linalg.solve(M, -Kq) if Kq.any() else None), (np.linalg.solve(M, Cv) if Cv.any() else None)
+    # no effect depends on v (the scene's flag, which the step's order relies on too): ∂f/∂v = 0
+    Cv = _jacobian(lambda x: scene.force(t, q, x), v) if getattr(scene, "velocity_dependent", True) else None
+    return ((np.linalg.solve(M, -Kq) if Kq.any() else None),
+            (np.linalg.solve(M, Cv) if Cv is not None and Cv.any() else None))
 
 
 def _rates(A: np.ndarray | None, B: np.ndarray | None) -> tuple[float, float]:
