@@ -138,7 +138,7 @@ def penetration_warnings(scene, traj, h: float, limit: float | None,
     onsets = traj.onsets  # its impacts (``traj.impacts``): the fast onsets after a flight
     is_impact = onsets.flight & onsets.fast
     U_imp, row_imp, t_imp_all = np.abs(onsets.U_before[is_impact]), onsets.row[is_impact], onsets.t[is_impact]
-    tol = None  # each row's round-off (see below), computed when a row never enforced penetrated
+    tol, scene_scale = None, 0.0  # for the rows never enforced, computed at the first that penetrated
 
     def at(r: int | np.integer) -> str:  # the time of the row's deepest penetration, when the run kept it
         return f" at t = {when[r]:.9g} s" if np.isfinite(when[r]) else ""
@@ -152,7 +152,7 @@ def penetration_warnings(scene, traj, h: float, limit: float | None,
                 gap_size = np.nanmax(np.abs(traj.gaps), axis=0, initial=0.0) if n_rec else np.zeros(len(pen))
                 tol = np.maximum(np.asarray(getattr(scene, "activation_tol", np.zeros(len(pen))), dtype=float),
                                  8.0 * np.finfo(float).eps * gap_size)
-            scene_scale = h * float(U_imp.max()) if U_imp.size else 0.0  # the deepest h·|U⁻| of any impact
+                scene_scale = h * float(U_imp.max()) if U_imp.size else 0.0  # the deepest h·|U⁻| of any impact
             if pen[r] > max(tol[r], scene_scale, initial_penetration):
                 if _crossed_at_the_end(scene, traj, r, h, pen[r], when[r]):
                     why = ("in the run's last step, before a step could close its contact: the final state penetrates "
