@@ -81,3 +81,26 @@ def pytest_collection_modifyitems(config, items):
     kept): on an empty cache the worker that compiled the plain variant runs the others
     while the full one still compiles (loop_variants_side_by_side), instead of waiting."""
     items.sort(key=lambda item: item.nodeid.split("::")[0].removeprefix("tests/").startswith(_FULL_VARIANT))
+
+
+@pytest.fixture
+def cli_error(capsys):
+    """Run the command line in this process, ``cli_error(*args, code=2)``: it must exit with
+    ``code`` having written nothing to stdout and one line, no traceback, to stderr; returns
+    that line. (A process of its own adds two seconds; tests/test_cli.py and
+    tests/test_bad_inputs.py still run the command as one.)"""
+    from moreau.cli import main
+
+    def run(*args: str, code: int = 2) -> str:
+        try:
+            rc = main(list(args))
+        except SystemExit as exc:  # argparse's errors
+            rc = exc.code
+        said = capsys.readouterr()
+        assert rc == code, said.err
+        assert said.out == "" and "Traceback" not in said.err, said
+        lines = said.err.strip().splitlines()
+        assert len(lines) == 1, said.err
+        return lines[0]
+
+    return run

@@ -264,11 +264,8 @@ def test_cli_solver_whose_backend_is_not_installed_is_one_line_exit_2(tmp_path, 
     assert not list(tmp_path.iterdir())  # nothing written
 
 
-def test_cli_piston_negative_step_exits_2_with_one_error_line():
-    r = subprocess.run([sys.executable, "-m", "moreau", "piston", "--h", "-1"], capture_output=True, text=True)
-    assert r.returncode == 2 and r.stdout == ""
-    assert "Traceback" not in r.stderr
-    assert r.stderr.splitlines()[-1] == "moreau piston: error: argument --h: -1 is outside (0, 0.05]"
+def test_cli_piston_negative_step_exits_2_with_one_error_line(cli_error):
+    assert cli_error("piston", "--h", "-1") == "moreau piston: error: argument --h: -1 is outside (0, 0.05]"
 
 
 # -- bugs this catalogue found, fixed; the tests keep them fixed ----------------------------

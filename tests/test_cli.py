@@ -54,10 +54,9 @@ def test_piston_command_writes_figure_summary_trajectory(tmp_path):
     assert traj.extra["case"]["e"] == 0.0 and traj.completed
 
 
-def test_piston_bad_diameter_is_rejected(tmp_path):
-    r = subprocess.run([sys.executable, "-m", "moreau", "piston", "--D", "79", "--out", str(tmp_path)],
-                       capture_output=True, text=True)
-    assert r.returncode == 2 and "argument --D: 79 is outside (80, 100]" in r.stderr
+def test_piston_bad_diameter_is_rejected(tmp_path, cli_error):
+    line = cli_error("piston", "--D", "79", "--out", str(tmp_path))
+    assert line == "moreau piston: error: argument --D: 79 is outside (80, 100]"
 
 
 def test_piston_into_a_log_file_prints_a_line_per_case_not_bar_codes(tmp_path, capsys):

@@ -331,18 +331,18 @@ def one_error_line(r, code=2) -> str:
     return lines[0]
 
 
-def test_out_that_is_a_file_or_inside_a_file_is_one_line_exit_2(tmp_path):
+def test_out_that_is_a_file_or_inside_a_file_is_one_line_exit_2(tmp_path, cli_error):
     f = tmp_path / "file"
     f.write_text("x")
-    line = one_error_line(run_cli("ball", "--out", str(f)))
+    line = cli_error("ball", "--out", str(f))
     assert line == f"moreau ball: error: --out {str(f)!r} is a file, not a directory"
-    line = one_error_line(run_cli("piston", "--out", str(f / "sub")))
+    line = cli_error("piston", "--out", str(f / "sub"))
     assert line.startswith(f"moreau piston: error: --out {str(f / 'sub')!r}: cannot create the directory")
-    line = one_error_line(run_cli("sweep", "piston", "--out", str(f / "t.csv")))
+    line = cli_error("sweep", "piston", "--out", str(f / "t.csv"))
     assert line == f"moreau sweep: error: --out {str(f / 't.csv')!r}: {str(f)!r} is a file, not a directory"
-    line = one_error_line(run_cli("sweep", "piston", "--out", str(f / "sub" / "t.csv")))
+    line = cli_error("sweep", "piston", "--out", str(f / "sub" / "t.csv"))
     assert line.startswith(f"moreau sweep: error: --out {str(f / 'sub' / 't.csv')!r}: cannot create the directory")
-    line = one_error_line(run_cli("sweep", "piston", "--out", str(tmp_path)))
+    line = cli_error("sweep", "piston", "--out", str(tmp_path))
     assert "is a directory; give the table's file name" in line
 
 
