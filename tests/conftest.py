@@ -87,8 +87,8 @@ def pytest_collection_modifyitems(config, items):
 def cli_error(capsys):
     """Run the command line in this process, ``cli_error(*args, code=2)``: it must exit with
     ``code`` having written nothing to stdout and one line, no traceback, to stderr; returns
-    that line. (A process of its own adds two seconds; tests/test_cli.py and
-    tests/test_bad_inputs.py still run the command as one.)"""
+    that line, without the cost of a new process (tests/test_cli.py and
+    tests/test_bad_inputs.py run the command as its own process)."""
     from moreau.cli import main
 
     def run(*args: str, code: int = 2) -> str:
