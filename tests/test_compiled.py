@@ -307,6 +307,13 @@ def _force_raising(t, q, v):
     return np.array([0.0, -9.81])
 
 
+
+@numba.njit
+def _gap_raising_with_a_value(q):  # a dynamic exception: its message built at run time
+    if q[1] < 0.3:
+        raise ValueError("no table below y =", q[1])
+    return np.array([q[1]])
+
 @numba.njit
 def _gap_changing(q):  # 1 row, then 3 once the ball is below 0.5 m
     return np.array([q[1]]) if q[1] > 0.5 else np.array([q[1], q[1], q[1]])
@@ -330,6 +337,12 @@ def test_user_callables_that_go_wrong_mid_run_stop_it_by_name_on_the_compiled_pa
                         [mo.Contact(mo.FunctionBarrier(_gap_changing, _jac_ball), 0.6, name="floor")])
     with pytest.raises(mo.SimulationError, match="user gap function 'floor' returned an array of the wrong shape"):
         mo.simulate(changing, (0.0, 2.0), [0.0, 1.0], [0.0, 0.0], 1e-3, backend="compiled")
+    dynamic = mo.Scene(system, [mo.ConstantForce([0.0, -9.81])],
+                       [mo.Contact(mo.FunctionBarrier(_gap_raising_with_a_value, _jac_ball), 0.6, name="floor")])
+    for _ in range(2):  # the wrapper's error path leaves the process able to run again
+        with pytest.raises(mo.SimulationError, match="user gap function 'floor' raised ValueError") as info:
+            mo.simulate(dynamic, (0.0, 2.0), [0.0, 1.0], [0.0, 0.0], 1e-3, backend="compiled")
+        assert info.value.trajectory.status == "failed" and 0.3 < info.value.trajectory.q[-1, 1] < 0.32
 
 
 @numba.njit

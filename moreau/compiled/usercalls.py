@@ -33,7 +33,8 @@ from typing import Any
 
 import numpy as np
 from llvmlite import ir  # type: ignore[import-untyped]
-from numba import carray, cfunc, types
+from numba import carray, cfunc, njit, types
+from numba.core import cgutils
 from numba.extending import intrinsic
 
 from moreau.compiled.callbacks import (
@@ -113,91 +114,111 @@ def _call_solver(typingctx, addr, M, b, G, c, v, P, n, k):
 call_solver: Any = intrinsic(_call_solver)
 
 
-# -- the wrappers' source, one template per slot ------------------------------------------
+def _guarded(typingctx, fn, args):
+    """``(ok, value)`` of the ``@njit`` function ``fn`` called on the tuple ``args``; ``ok``
+    is False when it raised (the exception is not propagated: no ``try`` block to compile)."""
+    if not isinstance(fn, types.Dispatcher) or not isinstance(args, (types.Tuple, types.UniTuple)):
+        return None
+    target = typingctx.resolve_function_type(fn, tuple(args.types), {})
+    if target is None:
+        return None
+    cres = fn.dispatcher.overloads[target.args]
+    if cres.objectmode:
+        return None
+
+    def codegen(context, builder, signature, llargs):
+        vals = cgutils.unpack_tuple(builder, llargs[1])
+        # parameters left to their defaults (numba's Omitted types)
+        vals += [context.get_constant_generic(builder, ty, ty.value) for ty in target.args[len(vals):]]
+        context.add_linking_libs([cres.library])
+        func = context.declare_function(builder.module, cres.fndesc)
+        status, value = context.call_conv.call_function(builder, func, cres.fndesc.restype,
+                                                        cres.fndesc.argtypes, vals)
+        return context.make_tuple(builder, signature.return_type, [status.is_ok, value])
+
+    return types.Tuple((types.boolean, target.return_type))(fn, args), codegen
+
+
+#: ``guarded(fn, args) -> (ok, value)`` in compiled code
+guarded: Any = intrinsic(_guarded)
+
+
+@njit(cache=True, nogil=True)
+def _put_vector(r: np.ndarray, dst: np.ndarray) -> int:
+    """Write a callable's result ``r`` (k,) to ``dst`` (k,); 0, or the code of a wrong shape
+    or a non-finite entry."""
+    if r.shape[0] != dst.shape[0]:
+        return WRONG_SHAPE
+    for j in range(dst.shape[0]):
+        if not math.isfinite(r[j]):
+            return NONFINITE
+        dst[j] = r[j]
+    return 0
+
+
+@njit(cache=True, nogil=True)
+def _add_vector(r: np.ndarray, dst: np.ndarray) -> int:
+    """Add a callable's result ``r`` (n,) to ``dst`` (n,); codes as :func:`_put_vector`."""
+    if r.shape[0] != dst.shape[0]:
+        return WRONG_SHAPE
+    for j in range(dst.shape[0]):
+        if not math.isfinite(r[j]):
+            return NONFINITE
+        dst[j] += r[j]
+    return 0
+
+
+@njit(cache=True, nogil=True)
+def _put_matrix(r: np.ndarray, dst: np.ndarray) -> int:
+    """Write a callable's result ``r`` (k, n) to ``dst`` (k, n); codes as :func:`_put_vector`."""
+    if r.shape[0] != dst.shape[0] or r.shape[1] != dst.shape[1]:
+        return WRONG_SHAPE
+    for j in range(dst.shape[0]):
+        for i in range(dst.shape[1]):
+            if not math.isfinite(r[j, i]):
+                return NONFINITE
+            dst[j, i] = r[j, i]
+    return 0
+
+
+# -- the wrappers' source: one call of each callable, its result checked and put --------
 _HEAD = """
 def slot(t, qp, vp, outp, n, m):
     q = carray(qp, (n,))
     v = carray(vp, (n,))
+    out = carray(outp, {shape})
 """
 _CALL = """
-    try:
-        r = {fn}({args})
-    except Exception:
+    ok, r = guarded({fn}, ({args},))
+    if not ok:
         return {code} + RAISED
+    c = {put}
+    if c != 0:
+        return {code} + c
 """
-_BODY = {
-    "mass": _HEAD + "    out = carray(outp, (n, n))\n" + _CALL.format(fn="f0", args="q", code=8) + """
-    if r.shape[0] != n or r.shape[1] != n:
-        return 8 + WRONG_SHAPE
-    for i in range(n):
-        for j in range(n):
-            x = r[i, j]
-            if not isfinite(x):
-                return 8 + NONFINITE
-            out[i, j] = x
-    return 0
-""",
-    "bias": _HEAD + "    out = carray(outp, (n,))\n" + _CALL.format(fn="f0", args="q, v", code=8) + """
-    if r.shape[0] != n:
-        return 8 + WRONG_SHAPE
-    for i in range(n):
-        x = r[i]
-        if not isfinite(x):
-            return 8 + NONFINITE
-        out[i] += x
-    return 0
-""",
-}
-_FORCE = _CALL + """
-    if r.shape[0] != n:
-        return {code} + WRONG_SHAPE
-    for i in range(n):
-        x = r[i]
-        if not isfinite(x):
-            return {code} + NONFINITE
-        out[i] += x
-"""
-_GAP = _CALL + """
-    if r.shape[0] != {k}:
-        return {code} + WRONG_SHAPE
-    for j in range({k}):
-        x = r[j]
-        if not isfinite(x):
-            return {code} + NONFINITE
-        out[{r0} + j] = x
-"""
-_JAC = _CALL + """
-    if r.shape[0] != {k} or r.shape[1] != n:
-        return {code} + WRONG_SHAPE
-    for j in range({k}):
-        for i in range(n):
-            x = r[j, i]
-            if not isfinite(x):
-                return {code} + NONFINITE
-            out[{r0} + j, i] = x
-"""
+#: per slot: the shape of ``out``, the arguments, how a result is put (a callable's rows
+#: as a slice: constants passed to the helpers would compile them again for each value)
+_SLOTS = {"mass": ("(n, n)", "q", "put_matrix(r, out)"),
+          "bias": ("(n,)", "q, v", "add_vector(r, out)"),
+          "forces": ("(n,)", "t, q, v", "add_vector(r, out)"),
+          "gaps": ("(m,)", "q", "put_vector(r, out[{r0}:{r1}])"),
+          "jacobians": ("(m, n)", "q", "put_matrix(r, out[{r0}:{r1}])")}
 
 
 def _source(slot: str, fns: tuple, rows: tuple[int, ...], nrows: tuple[int, ...]) -> str:
-    if slot in _BODY:
-        return _BODY[slot]
-    if slot == "forces":
-        src = _HEAD + "    out = carray(outp, (n,))\n"
-        for i in range(len(fns)):
-            src += _FORCE.format(fn=f"f{i}", args="t, q, v", code=8 * (i + 1))
-    else:
-        src = _HEAD + ("    out = carray(outp, (m,))\n" if slot == "gaps" else "    out = carray(outp, (m, n))\n")
-        for i in range(len(fns)):
-            if fns[i] is None:  # tangent rows: no gaps
-                continue
-            src += (_GAP if slot == "gaps" else _JAC).format(fn=f"f{i}", args="q", code=8 * (i + 1),
-                                                             k=nrows[i], r0=rows[i])
+    shape, args, put = _SLOTS[slot]
+    src = _HEAD.format(shape=shape)
+    for i, f in enumerate(fns):
+        if f is None:  # tangent rows: no gaps
+            continue
+        at = {"r0": rows[i], "r1": rows[i] + nrows[i]} if rows else {}
+        src += _CALL.format(fn=f"f{i}", args=args, code=8 * (i + 1), put=put.format(**at))
     return src + "    return 0\n"
 
 
 def _compile(slot: str, fns: tuple, rows: tuple[int, ...] = (), nrows: tuple[int, ...] = ()) -> Any:
-    names = {"carray": carray, "isfinite": math.isfinite, "RAISED": RAISED, "WRONG_SHAPE": WRONG_SHAPE,
-             "NONFINITE": NONFINITE}
+    names = {"carray": carray, "guarded": guarded, "put_vector": _put_vector, "add_vector": _add_vector,
+             "put_matrix": _put_matrix, "RAISED": RAISED}
     names.update({f"f{i}": f for i, f in enumerate(fns)})
     exec(_source(slot, fns, rows, nrows), names)  # noqa: S102 - our own template
     return cfunc(SIGNATURE)(names["slot"])
