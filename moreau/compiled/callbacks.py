@@ -96,8 +96,8 @@ def compile_or_reason(fun: Any, argtypes: tuple) -> tuple[Any, str]:
 
     if is_dispatcher(fun):
         jit = fun
-    elif isinstance(fun, pytypes.FunctionType):
-        jit = numba.njit(fun)
+    elif isinstance(fun, pytypes.FunctionType):  # called from its slot's wrapper only: no Python entry to build
+        jit = numba.njit(fun, no_cpython_wrapper=True, no_cfunc_wrapper=True)  # type: ignore[call-overload]
     else:
         return None, f"a {type(fun).__name__}, not a plain function"
     try:
