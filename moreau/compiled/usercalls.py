@@ -122,8 +122,8 @@ def _guarded(typingctx, fn, args):
     target = typingctx.resolve_function_type(fn, tuple(args.types), {})
     if target is None:
         return None
-    cres = fn.dispatcher.overloads[target.args]
-    if cres.objectmode:
+    cres = fn.dispatcher.overloads.get(tuple(target.args))
+    if cres is None or cres.objectmode:  # a slot numba cannot build: the callable is called back
         return None
 
     def codegen(context, builder, signature, llargs):
