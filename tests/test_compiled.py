@@ -307,12 +307,12 @@ def _force_raising(t, q, v):
     return np.array([0.0, -9.81])
 
 
-
 @numba.njit
 def _gap_raising_with_a_value(q):  # a dynamic exception: its message built at run time
     if q[1] < 0.3:
         raise ValueError("no table below y =", q[1])
     return np.array([q[1]])
+
 
 @numba.njit
 def _gap_changing(q):  # 1 row, then 3 once the ball is below 0.5 m
