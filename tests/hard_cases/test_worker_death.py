@@ -39,8 +39,8 @@ def _children(pid):
 
 def test_piston_command_with_a_killed_worker_fails_that_case_only(tmp_path):
     env = dict(os.environ, MPLBACKEND="Agg")
-    # cases of 20 cycles (seconds each, on any machine): the victim is busy when it is killed
-    proc = subprocess.Popen([sys.executable, "-m", "moreau", "piston", "--cycles", "20", "--transient", "0",
+    # the victim is killed while it imports or steps its case
+    proc = subprocess.Popen([sys.executable, "-m", "moreau", "piston", "--cycles", "3", "--transient", "0",
                              "--workers", "2", "--no-progress", "--out", "out"], cwd=tmp_path, env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
