@@ -73,6 +73,23 @@ def test_a_gap_numba_cannot_compile_is_called_back_logged_by_name_with_the_same_
     np.testing.assert_allclose(back.q, jit.q, rtol=0, atol=1e-12)
 
 
+def test_a_callable_returning_what_the_loop_cannot_take_is_called_back_with_its_type_named(caplog):
+    # numba compiles each lambda; its slot cannot take a tuple, a list of lists or a 1-D Jacobian
+    with caplog.at_level(logging.WARNING, logger="moreau.run.simulation"):
+        back = run(inclined(lambda q: (q[1] - 0.2 * q[0],), lambda q: [[-0.2, 1.0]]))
+        with pytest.raises(ValueError, match=r"has shape \(2,\), expected \(1, 2\)"):
+            run(inclined(plain_gap, lambda q: np.array([-0.2, 1.0])))
+    lines = [r.getMessage() for r in caplog.records if "Python callback" in r.getMessage()]
+    assert len(lines) == 3, lines
+    assert "gap function 'floor'" in lines[0] and "it returns UniTuple(float64 x 1)" in lines[0]
+    assert "shape (m,)" in lines[0]
+    assert "Jacobian 'floor'" in lines[1] and "it returns list(list(float64)" in lines[1]
+    assert "it returns array(float64, 1d, C)" in lines[2] and "shape (m, n)" in lines[2]
+    jit = run(inclined(numba.njit(plain_gap), numba.njit(plain_jac)))
+    assert back.completed and len(back.impacts) == len(jit.impacts) >= 3
+    np.testing.assert_allclose(back.q, jit.q, rtol=0, atol=1e-12)
+
+
 def test_a_plain_callable_is_compiled_again_when_a_value_it_reads_changes():
     shift = 0.0  # a closure cell holding a float: numba freezes its value
 

@@ -230,6 +230,20 @@ _ARGTYPES = {"mass": (_ARRAY,), "bias": (_ARRAY, _ARRAY), "forces": (types.float
              "gaps": (_ARRAY,), "jacobians": (_ARRAY,)}
 
 
+def _returned(slot: str, jit: Any) -> str:
+    """Why the slot cannot take what a compiled callable returns (not a real array of the
+    slot's rank: a tuple, a list, a 1-D Jacobian), naming numba's type of it; "" when it can."""
+    want = 2 if slot in ("mass", "jacobians") else 1
+    argtypes = _ARGTYPES[slot]
+    for sig, cres in jit.overloads.items():
+        if tuple(sig[:len(argtypes)]) != argtypes:
+            continue
+        rt = cres.signature.return_type
+        if not (isinstance(rt, types.Array) and rt.ndim == want and isinstance(rt.dtype, (types.Float, types.Integer))):
+            return f"it returns {rt}, and the loop takes an array of shape {_SLOTS[slot][0]}"
+    return ""
+
+
 def _slot(slot: str, fns: tuple, names: tuple[str, ...], rows: tuple[int, ...] = (),
           nrows: tuple[int, ...] = ()) -> Any:
     """The slot's wrapper: one ``cfunc`` when numba compiles every callable in it (plain
@@ -246,7 +260,7 @@ def _slot(slot: str, fns: tuple, names: tuple[str, ...], rows: tuple[int, ...] =
         try:
             return _compile(slot, tuple(jitted), rows, nrows)
         except NumbaError as exc:  # the callables compile, the slot does not (e.g. a list returned)
-            reasons = [first_reason(exc) if f is not None else "" for f in fns]
+            reasons = [(_returned(slot, j) or first_reason(exc)) if f is not None else "" for f, j in zip(fns, jitted)]
     for name, f, why in zip(names, fns, reasons):
         if f is not None:
             log.warning("user %s %r runs as a Python callback in the compiled loop, several µs a call; "
