@@ -107,11 +107,6 @@ def as_record_every(k) -> int:
     return int(k)
 
 
-def start_integrator(integ, scene, t0: float, q0, v0) -> None:
-    """``integ.init(t0, q0, v0)`` through :func:`checked_start`."""
-    checked_start(lambda: integ.init(t0, q0, v0), scene, t0, q0, v0)
-
-
 _T = TypeVar("_T")
 
 

@@ -8,7 +8,6 @@ the end point.
 from __future__ import annotations
 
 import logging
-import math
 from collections.abc import Callable
 from typing import Any
 
@@ -148,11 +147,6 @@ def jacobian_fd(fun: Callable[[np.ndarray], np.ndarray], x, eps: float | np.ndar
         else:
             cols.append((np.asarray(fun(x + e), float) - f0) / eps[j])
     return np.column_stack(cols)
-
-
-def steps_for(T: float, h: float) -> int:
-    """Number of steps ``round(T / h)`` (at least one)."""
-    return max(1, int(math.floor(T / h + 0.5)))
 
 
 class PoincareMap:

@@ -138,7 +138,6 @@ class JointSprings(Effect):
         self._D = _relative_matrix(n)
         self.K = self._D.T @ (self.k[:, None] * self._D)
         self.K.setflags(write=False)
-        self._negK = -self.K
         self._b = self._D.T @ (self.k * self.rest)
         self._p = _k.flat(self.K, self._b)
         self.name = name
