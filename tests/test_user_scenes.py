@@ -73,18 +73,31 @@ def test_a_gap_numba_cannot_compile_is_called_back_logged_by_name_with_the_same_
     np.testing.assert_allclose(back.q, jit.q, rtol=0, atol=1e-12)
 
 
+def test_gaps_and_forces_returned_as_tuples_or_lists_are_compiled_with_the_array_answers():
+    m = 2.0
+    system = mo.FunctionSystem(m * np.eye(2))
+    floor = mo.FunctionBarrier(gap=lambda q: (q[1] - 0.2 * q[0],), jacobian=plain_jac)
+    gravity = mo.FunctionForce(lambda t, q, v: (0.0, -G0 * m), name="gravity")
+    tuples = mo.Scene(system, [gravity], [mo.Contact(floor, mo.NewtonImpact(0.7), name="floor")])
+    listed = inclined(lambda q: [q[1] - 0.2 * q[0]], plain_jac)
+    assert lower(tuples).user.callbacks == () and lower(listed).user.callbacks == ()
+    jit = run(inclined(numba.njit(plain_gap), numba.njit(plain_jac)))
+    for traj in (run(tuples), run(listed)):
+        assert traj.completed and len(traj.impacts) == len(jit.impacts) >= 3
+        np.testing.assert_array_equal(traj.q, jit.q)
+
+
 def test_a_callable_returning_what_the_loop_cannot_take_is_called_back_with_its_type_named(caplog):
-    # numba compiles each lambda; its slot cannot take a tuple, a list of lists or a 1-D Jacobian
+    # numba compiles each lambda; its slot cannot take a list of rows or a 1-D Jacobian
     with caplog.at_level(logging.WARNING, logger="moreau.run.simulation"):
-        back = run(inclined(lambda q: (q[1] - 0.2 * q[0],), lambda q: [[-0.2, 1.0]]))
+        back = run(inclined(plain_gap, lambda q: [[-0.2, 1.0]]))
         with pytest.raises(ValueError, match=r"has shape \(2,\), expected \(1, 2\)"):
             run(inclined(plain_gap, lambda q: np.array([-0.2, 1.0])))
     lines = [r.getMessage() for r in caplog.records if "Python callback" in r.getMessage()]
-    assert len(lines) == 3, lines
-    assert "gap function 'floor'" in lines[0] and "it returns UniTuple(float64 x 1)" in lines[0]
-    assert "shape (m,)" in lines[0]
-    assert "Jacobian 'floor'" in lines[1] and "it returns list(list(float64)" in lines[1]
-    assert "it returns array(float64, 1d, C)" in lines[2] and "shape (m, n)" in lines[2]
+    assert len(lines) == 2, lines
+    assert "Jacobian 'floor'" in lines[0]
+    assert "it returns list(list(float64)), and the loop takes an array of shape (m, n)" in lines[0]
+    assert "it returns array(float64, 1d, C)" in lines[1] and "shape (m, n)" in lines[1]
     jit = run(inclined(numba.njit(plain_gap), numba.njit(plain_jac)))
     assert back.completed and len(back.impacts) == len(jit.impacts) >= 3
     np.testing.assert_allclose(back.q, jit.q, rtol=0, atol=1e-12)

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import logging
 import math
+import re
 import threading
 from dataclasses import dataclass
 from typing import Any
@@ -146,8 +147,8 @@ guarded: Any = intrinsic(_guarded)
 @njit(cache=True, nogil=True)
 def _put_vector(r: np.ndarray, dst: np.ndarray) -> int:
     """Write a callable's result ``r`` (k,) to ``dst`` (k,); 0, or the code of a wrong shape
-    or a non-finite entry."""
-    if r.shape[0] != dst.shape[0]:
+    or a non-finite entry. ``r`` may be a tuple of k numbers, as the checks take it."""
+    if len(r) != dst.shape[0]:
         return WRONG_SHAPE
     for j in range(dst.shape[0]):
         if not math.isfinite(r[j]):
@@ -159,7 +160,7 @@ def _put_vector(r: np.ndarray, dst: np.ndarray) -> int:
 @njit(cache=True, nogil=True)
 def _add_vector(r: np.ndarray, dst: np.ndarray) -> int:
     """Add a callable's result ``r`` (n,) to ``dst`` (n,); codes as :func:`_put_vector`."""
-    if r.shape[0] != dst.shape[0]:
+    if len(r) != dst.shape[0]:
         return WRONG_SHAPE
     for j in range(dst.shape[0]):
         if not math.isfinite(r[j]):
@@ -231,16 +232,20 @@ _ARGTYPES = {"mass": (_ARRAY,), "bias": (_ARRAY, _ARRAY), "forces": (types.float
 
 
 def _returned(slot: str, jit: Any) -> str:
-    """Why the slot cannot take what a compiled callable returns (not a real array of the
-    slot's rank: a tuple, a list, a 1-D Jacobian), naming numba's type of it; "" when it can."""
+    """Why the slot cannot take what a compiled callable returns (a vector slot takes an
+    array, a tuple or a list of numbers; a matrix slot an array of rank 2, not a list of rows
+    or a 1-D Jacobian), naming numba's type of it; "" when it can."""
     want = 2 if slot in ("mass", "jacobians") else 1
     argtypes = _ARGTYPES[slot]
     for sig, cres in jit.overloads.items():
         if tuple(sig[:len(argtypes)]) != argtypes:
             continue
         rt = cres.signature.return_type
-        if not (isinstance(rt, types.Array) and rt.ndim == want and isinstance(rt.dtype, (types.Float, types.Integer))):
-            return f"it returns {rt}, and the loop takes an array of shape {_SLOTS[slot][0]}"
+        if not (isinstance(rt, types.Array) and rt.ndim == want and isinstance(rt.dtype, (types.Float, types.Integer))
+                or want == 1 and isinstance(rt, (types.UniTuple, types.List))
+                and isinstance(rt.dtype, (types.Float, types.Integer))):
+            shown = re.sub(r"<iv=[^>]*>", "", str(rt))  # (numba's initial values of a list: noise here)
+            return f"it returns {shown}, and the loop takes an array of shape {_SLOTS[slot][0]}"
     return ""
 
 
