@@ -3,6 +3,7 @@ they are, callables numba cannot compile called back into Python, friction on a 
 and the result's slip velocities computed in one compiled pass."""
 
 import logging
+import re
 
 import numba
 import numpy as np
@@ -73,34 +74,47 @@ def test_a_gap_numba_cannot_compile_is_called_back_logged_by_name_with_the_same_
     np.testing.assert_allclose(back.q, jit.q, rtol=0, atol=1e-12)
 
 
-def test_gaps_and_forces_returned_as_tuples_or_lists_are_compiled_with_the_array_answers():
+def test_results_returned_as_tuples_or_lists_are_compiled_with_the_array_answers():
     m = 2.0
     system = mo.FunctionSystem(m * np.eye(2))
-    floor = mo.FunctionBarrier(gap=lambda q: (q[1] - 0.2 * q[0],), jacobian=plain_jac)
+    floor = mo.FunctionBarrier(gap=lambda q: (q[1] - 0.2 * q[0],), jacobian=lambda q: ((-0.2, 1.0),))
     gravity = mo.FunctionForce(lambda t, q, v: (0.0, -G0 * m), name="gravity")
     tuples = mo.Scene(system, [gravity], [mo.Contact(floor, mo.NewtonImpact(0.7), name="floor")])
-    listed = inclined(lambda q: [q[1] - 0.2 * q[0]], plain_jac)
+    listed = inclined(lambda q: [q[1] - 0.2 * q[0]], lambda q: [[-0.2, 1.0]])
     assert lower(tuples).user.callbacks == () and lower(listed).user.callbacks == ()
     jit = run(inclined(numba.njit(plain_gap), numba.njit(plain_jac)))
     for traj in (run(tuples), run(listed)):
         assert traj.completed and len(traj.impacts) == len(jit.impacts) >= 3
         np.testing.assert_array_equal(traj.q, jit.q)
 
+    def with_mass(mass):  # a mass matrix M(q) given by a callable
+        contact = mo.Contact(mo.FunctionBarrier(gap=plain_gap, jacobian=plain_jac), mo.NewtonImpact(0.7), name="floor")
+        return mo.Scene(mo.FunctionSystem(mass, ndof=2), [mo.ConstantForce([0.0, -G0 * m])], [contact])
+
+    rows = with_mass(lambda q: [[m, 0.0], [0.0, m]])
+    assert lower(rows).user.callbacks == ()
+    np.testing.assert_array_equal(run(rows).q, run(with_mass(lambda q: m * np.eye(2))).q)
+
 
 def test_a_callable_returning_what_the_loop_cannot_take_is_called_back_with_its_type_named(caplog):
-    # numba compiles each lambda; its slot cannot take a list of rows or a 1-D Jacobian
+    # numba compiles the lambda; its slot cannot take a 1-D Jacobian, and the check then names the shape
     with caplog.at_level(logging.WARNING, logger="moreau.run.simulation"):
-        back = run(inclined(plain_gap, lambda q: [[-0.2, 1.0]]))
         with pytest.raises(ValueError, match=r"has shape \(2,\), expected \(1, 2\)"):
             run(inclined(plain_gap, lambda q: np.array([-0.2, 1.0])))
     lines = [r.getMessage() for r in caplog.records if "Python callback" in r.getMessage()]
-    assert len(lines) == 2, lines
+    assert len(lines) == 1, lines
     assert "Jacobian 'floor'" in lines[0]
-    assert "it returns list(list(float64)), and the loop takes an array of shape (m, n)" in lines[0]
-    assert "it returns array(float64, 1d, C)" in lines[1] and "shape (m, n)" in lines[1]
-    jit = run(inclined(numba.njit(plain_gap), numba.njit(plain_jac)))
-    assert back.completed and len(back.impacts) == len(jit.impacts) >= 3
-    np.testing.assert_allclose(back.q, jit.q, rtol=0, atol=1e-12)
+    assert "it returns array(float64, 1d, C), and the loop takes an array of shape (m, n)" in lines[0]
+
+
+def test_a_list_of_rows_of_the_wrong_length_mid_run_stops_it_by_name():
+    jac = lambda q: [[-0.2, 1.0]] if q[1] > 0.5 else [[-0.2, 1.0, 0.0]]  # noqa: E731 - a row grows below y = 0.5
+    with pytest.raises(mo.SimulationError, match=r"user Jacobian 'floor' returned an array of the wrong shape "
+                                                 r"at step (\d+)") as exc:
+        run(inclined(plain_gap, jac))
+    step = int(re.search(r"at step (\d+)", str(exc.value)).group(1))
+    kept = exc.value.trajectory  # the Jacobian is evaluated near the floor: the run up to that step is kept
+    assert step > 300 and kept.status == "failed" and len(kept) == step + 1 and np.all(np.isfinite(kept.q))
 
 
 def test_a_plain_callable_is_compiled_again_when_a_value_it_reads_changes():

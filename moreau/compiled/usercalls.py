@@ -182,6 +182,22 @@ def _put_matrix(r: np.ndarray, dst: np.ndarray) -> int:
     return 0
 
 
+@njit(cache=True, nogil=True)
+def _put_rows(r, dst: np.ndarray) -> int:
+    """As :func:`_put_matrix`, for a result given row by row (a list or tuple of rows)."""
+    if len(r) != dst.shape[0]:
+        return WRONG_SHAPE
+    for j in range(dst.shape[0]):
+        row = r[j]
+        if len(row) != dst.shape[1]:
+            return WRONG_SHAPE
+        for i in range(dst.shape[1]):
+            if not math.isfinite(row[i]):
+                return NONFINITE
+            dst[j, i] = row[i]
+    return 0
+
+
 # -- the wrappers' source: one call of each callable, its result checked and put --------
 _HEAD = """
 def slot(t, qp, vp, outp, n, m):
@@ -213,13 +229,24 @@ def _source(slot: str, fns: tuple, rows: tuple[int, ...], nrows: tuple[int, ...]
         if f is None:  # tangent rows: no gaps
             continue
         at = {"r0": rows[i], "r1": rows[i] + nrows[i]} if rows else {}
-        src += _CALL.format(fn=f"f{i}", args=args, code=8 * (i + 1), put=put.format(**at))
+        how = put.replace("put_matrix", "put_rows") if _by_rows(slot, f) else put
+        src += _CALL.format(fn=f"f{i}", args=args, code=8 * (i + 1), put=how.format(**at))
     return src + "    return 0\n"
+
+
+def _by_rows(slot: str, jit: Any) -> bool:
+    """Whether a matrix slot's compiled callable returns its rows as a list or a tuple."""
+    if slot not in ("mass", "jacobians"):
+        return False
+    argtypes = _ARGTYPES[slot]
+    return any(tuple(sig[:len(argtypes)]) == argtypes
+               and isinstance(cres.signature.return_type, (types.List, types.UniTuple))
+               for sig, cres in jit.overloads.items())
 
 
 def _compile(slot: str, fns: tuple, rows: tuple[int, ...] = (), nrows: tuple[int, ...] = ()) -> Any:
     names = {"carray": carray, "guarded": guarded, "put_vector": _put_vector, "add_vector": _add_vector,
-             "put_matrix": _put_matrix, "RAISED": RAISED}
+             "put_matrix": _put_matrix, "put_rows": _put_rows, "RAISED": RAISED}
     names.update({f"f{i}": f for i, f in enumerate(fns)})
     exec(_source(slot, fns, rows, nrows), names)  # noqa: S102 - our own template
     return cfunc(SIGNATURE)(names["slot"])
@@ -233,9 +260,11 @@ _ARGTYPES = {"mass": (_ARRAY,), "bias": (_ARRAY, _ARRAY), "forces": (types.float
 
 def _returned(slot: str, jit: Any) -> str:
     """Why the slot cannot take what a compiled callable returns (a vector slot takes an
-    array, a tuple or a list of numbers; a matrix slot an array of rank 2, not a list of rows
-    or a 1-D Jacobian), naming numba's type of it; "" when it can."""
+    array, a tuple or a list of numbers; a matrix slot an array of rank 2 or its rows as a
+    list or tuple, not a 1-D Jacobian), naming numba's type of it; "" when it can."""
     want = 2 if slot in ("mass", "jacobians") else 1
+    if _by_rows(slot, jit):
+        return ""
     argtypes = _ARGTYPES[slot]
     for sig, cres in jit.overloads.items():
         if tuple(sig[:len(argtypes)]) != argtypes:
