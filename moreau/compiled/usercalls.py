@@ -145,7 +145,7 @@ guarded: Any = intrinsic(_guarded)
 
 
 @njit(cache=True, nogil=True)
-def _put_vector(r: np.ndarray, dst: np.ndarray) -> int:
+def _put_vector(r: Any, dst: np.ndarray) -> int:
     """Write a callable's result ``r`` (k,) to ``dst`` (k,); 0, or the code of a wrong shape
     or a non-finite entry. ``r`` may be a tuple of k numbers, as the checks take it."""
     if len(r) != dst.shape[0]:
@@ -158,7 +158,7 @@ def _put_vector(r: np.ndarray, dst: np.ndarray) -> int:
 
 
 @njit(cache=True, nogil=True)
-def _add_vector(r: np.ndarray, dst: np.ndarray) -> int:
+def _add_vector(r: Any, dst: np.ndarray) -> int:
     """Add a callable's result ``r`` (n,) to ``dst`` (n,); codes as :func:`_put_vector`."""
     if len(r) != dst.shape[0]:
         return WRONG_SHAPE
@@ -183,7 +183,7 @@ def _put_matrix(r: np.ndarray, dst: np.ndarray) -> int:
 
 
 @njit(cache=True, nogil=True)
-def _put_rows(r, dst: np.ndarray) -> int:
+def _put_rows(r: Any, dst: np.ndarray) -> int:
     """As :func:`_put_matrix`, for a result given row by row (a list or tuple of rows)."""
     if len(r) != dst.shape[0]:
         return WRONG_SHAPE
@@ -213,35 +213,27 @@ _CALL = """
     if c != 0:
         return {code} + c
 """
-#: per slot: the shape of ``out``, the arguments, how a result is put (a callable's rows
-#: as a slice: constants passed to the helpers would compile them again for each value)
-_SLOTS = {"mass": ("(n, n)", "q", "put_matrix(r, out)"),
-          "bias": ("(n,)", "q, v", "add_vector(r, out)"),
-          "forces": ("(n,)", "t, q, v", "add_vector(r, out)"),
-          "gaps": ("(m,)", "q", "put_vector(r, out[{r0}:{r1}])"),
-          "jacobians": ("(m, n)", "q", "put_matrix(r, out[{r0}:{r1}])")}
+#: per slot: the shape of ``out``, the arguments, the helper that puts a result and where
+#: (a callable's rows as a slice: constants passed to the helpers would compile them again
+#: for each value); a matrix given as a list or tuple of rows is put by ``put_rows``
+_SLOTS = {"mass": ("(n, n)", "q", "put_matrix", "out"),
+          "bias": ("(n,)", "q, v", "add_vector", "out"),
+          "forces": ("(n,)", "t, q, v", "add_vector", "out"),
+          "gaps": ("(m,)", "q", "put_vector", "out[{r0}:{r1}]"),
+          "jacobians": ("(m, n)", "q", "put_matrix", "out[{r0}:{r1}]")}
 
 
 def _source(slot: str, fns: tuple, rows: tuple[int, ...], nrows: tuple[int, ...]) -> str:
-    shape, args, put = _SLOTS[slot]
+    shape, args, helper, target = _SLOTS[slot]
     src = _HEAD.format(shape=shape)
     for i, f in enumerate(fns):
         if f is None:  # tangent rows: no gaps
             continue
         at = {"r0": rows[i], "r1": rows[i] + nrows[i]} if rows else {}
-        how = put.replace("put_matrix", "put_rows") if _by_rows(slot, f) else put
-        src += _CALL.format(fn=f"f{i}", args=args, code=8 * (i + 1), put=how.format(**at))
+        rowwise = helper == "put_matrix" and any(isinstance(rt, _SEQUENCE) for rt in _returns(slot, f))
+        put = f"{'put_rows' if rowwise else helper}(r, {target.format(**at)})"
+        src += _CALL.format(fn=f"f{i}", args=args, code=8 * (i + 1), put=put)
     return src + "    return 0\n"
-
-
-def _by_rows(slot: str, jit: Any) -> bool:
-    """Whether a matrix slot's compiled callable returns its rows as a list or a tuple."""
-    if slot not in ("mass", "jacobians"):
-        return False
-    argtypes = _ARGTYPES[slot]
-    return any(tuple(sig[:len(argtypes)]) == argtypes
-               and isinstance(cres.signature.return_type, (types.List, types.UniTuple))
-               for sig, cres in jit.overloads.items())
 
 
 def _compile(slot: str, fns: tuple, rows: tuple[int, ...] = (), nrows: tuple[int, ...] = ()) -> Any:
@@ -258,23 +250,29 @@ _ARGTYPES = {"mass": (_ARRAY,), "bias": (_ARRAY, _ARRAY), "forces": (types.float
              "gaps": (_ARRAY,), "jacobians": (_ARRAY,)}
 
 
+#: what numba types a list or a tuple of one item type as, and real numbers as
+_SEQUENCE = (types.List, types.UniTuple)
+_REAL = (types.Float, types.Integer)
+
+
+def _returns(slot: str, jit: Any) -> list:
+    """numba's return types of a compiled callable for its slot's arguments."""
+    argtypes = _ARGTYPES[slot]
+    return [cres.signature.return_type for sig, cres in jit.overloads.items() if tuple(sig[:len(argtypes)]) == argtypes]
+
+
 def _returned(slot: str, jit: Any) -> str:
     """Why the slot cannot take what a compiled callable returns (a vector slot takes an
     array, a tuple or a list of numbers; a matrix slot an array of rank 2 or its rows as a
     list or tuple, not a 1-D Jacobian), naming numba's type of it; "" when it can."""
-    want = 2 if slot in ("mass", "jacobians") else 1
-    if _by_rows(slot, jit):
-        return ""
-    argtypes = _ARGTYPES[slot]
-    for sig, cres in jit.overloads.items():
-        if tuple(sig[:len(argtypes)]) != argtypes:
+    matrix = _SLOTS[slot][2] == "put_matrix"
+    for rt in _returns(slot, jit):
+        if isinstance(rt, types.Array) and rt.ndim == (2 if matrix else 1) and isinstance(rt.dtype, _REAL):
             continue
-        rt = cres.signature.return_type
-        if not (isinstance(rt, types.Array) and rt.ndim == want and isinstance(rt.dtype, (types.Float, types.Integer))
-                or want == 1 and isinstance(rt, (types.UniTuple, types.List))
-                and isinstance(rt.dtype, (types.Float, types.Integer))):
-            shown = re.sub(r"<iv=[^>]*>", "", str(rt))  # (numba's initial values of a list: noise here)
-            return f"it returns {shown}, and the loop takes an array of shape {_SLOTS[slot][0]}"
+        if isinstance(rt, _SEQUENCE) and (matrix or isinstance(rt.dtype, _REAL)):
+            continue
+        shown = re.sub(r"<iv=[^>]*>", "", str(rt))  # (numba's initial values of a list: noise here)
+        return f"it returns {shown}, and the loop takes an array of shape {_SLOTS[slot][0]}"
     return ""
 
 
