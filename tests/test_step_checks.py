@@ -122,10 +122,36 @@ def test_the_jacobian_check_has_no_false_alarm_at_a_large_crank_angle():
     model = piston_model(e=0.0)
     q0, _ = model.initial_state()
     q = q0 + np.array([4 * np.pi * 1000, 0.0, 0.0])
-    check_jacobians(model.scene, q)
+    # the piston's corner gaps as a user's barrier: a built-in barrier is not checked at run time
+    own = [mo.Contact(mo.FunctionBarrier(c.barrier.gap, c.barrier.jacobian, nrows=c.barrier.nrows), 0.0, name=c.name)
+           for c in model.scene.contacts]
+    check_jacobians(mo.Scene(model.scene.system, [], own), q)
     bad = mo.FunctionBarrier(lambda q: np.array([1.0 + np.sin(q[0])]), lambda q: np.array([[-np.cos(q[0])]]))
     with pytest.raises(ValueError, match="does not match its gap"):  # a wrong sign is still caught there
         check_jacobians(mo.Scene(mo.FunctionSystem(np.eye(1)), [], [mo.Contact(bad, 0.0)]), np.array([1e4]))
+
+
+def test_a_run_checks_the_jacobians_of_user_barriers_only(monkeypatch):
+    """A built-in barrier's Jacobian is its kernel's, tested at random states
+    (tests/test_chain.py): a run does not difference its gaps again; a user's barrier in
+    the same scene still is, and a wrong Jacobian of it is refused."""
+    import moreau.run.trust as trust
+    from moreau.problems.piston import piston_model
+
+    model = piston_model(e=0.9)
+    q0, v0 = model.initial_state()
+    differenced, real = [], trust.finite_difference_jacobian
+    monkeypatch.setattr(trust, "finite_difference_jacobian",
+                        lambda f, q, **kw: differenced.append(f) or real(f, q, **kw))
+    assert mo.simulate(model.scene, (0.0, 1e-3), q0, v0, 1e-4).completed
+    assert differenced == []
+    row = np.eye(model.scene.ndof)[:1]
+    wrong = mo.FunctionBarrier(lambda q: 10.0 + row @ q, lambda q: -row)  # open, its Jacobian's sign wrong
+    scene = mo.Scene(model.scene.system, model.scene.effects,
+                     [*model.scene.contacts, mo.Contact(wrong, 0.0, name="own stop")])
+    with pytest.raises(ValueError, match="own stop"):
+        mo.simulate(scene, (0.0, 1e-3), q0, v0, 1e-4)
+    assert differenced and all(f is wrong.gap for f in differenced)  # its gaps only
 
 
 @pytest.mark.parametrize("backend", ["compiled", "python"])
