@@ -277,21 +277,28 @@ class Scene:
 
     # -- checks -----------------------------------------------------------------------
     def check_state(self, t: float, q: np.ndarray, v: np.ndarray, where: str = "") -> None:
-        """Evaluate every part once at (t, q, v) and check shapes and finiteness.
+        """Evaluate every part given by the user once at (t, q, v) and check shapes and
+        finiteness (a built-in part, one with a kernel of moreau's own, is checked when it
+        is built: its shapes are fixed there, its parameters finite, a chain's or a constant
+        mass matrix symmetric positive definite).
 
         Raises ``ValueError`` naming the part, the bad shape or value, and ``where``.
         """
         n = self.ndof
-        M = np.asarray(self.system.mass_matrix(q), dtype=float)
-        if M.shape != (n, n):
-            raise ValueError(f"mass matrix{where} has shape {M.shape}, expected ({n}, {n})")
-        check_spd(M, "mass matrix", where)
-        if self.system.has_bias:
-            _check_vec(self.system.bias_force(q, v), n, f"bias force{where}")
+        if _users(self.system.mass_kernel()):
+            M = np.asarray(self.system.mass_matrix(q), dtype=float)
+            if M.shape != (n, n):
+                raise ValueError(f"mass matrix{where} has shape {M.shape}, expected ({n}, {n})")
+            check_spd(M, "mass matrix", where)
+            if self.system.has_bias:
+                _check_vec(self.system.bias_force(q, v), n, f"bias force{where}")
         for e in self.effects:
-            _check_vec(e.force(t, q, v), n, f"force of effect {e.name!r}{where}")
+            if _users(e.kernel()):
+                _check_vec(e.force(t, q, v), n, f"force of effect {e.name!r}{where}")
         for c in self.contacts:
             b = c.barrier
+            if not _users(b.kernel()):
+                continue
             g = np.asarray(b.gap(q), dtype=float)
             if g.shape != (b.nrows,):
                 raise ValueError(f"gap of contact {c.name!r}{where} has shape {g.shape}, expected ({b.nrows},)")
@@ -304,13 +311,15 @@ class Scene:
                 )
             if not np.all(np.isfinite(G)):
                 raise ValueError(f"Jacobian of contact {c.name!r}{where} is not finite: {G.tolist()}")
-            if np.any(c.friction > 0.0):
+            if np.any(c.friction > 0.0) and _users(b.tangent_kernel()):
                 T = np.asarray(b.tangent_jacobian(q), dtype=float)
                 if T.shape != (b.nrows, n) or not np.all(np.isfinite(T)):
                     raise ValueError(f"tangent rows of contact {c.name!r}{where} have shape {T.shape}, "
                                      f"expected ({b.nrows}, {n}), or are not finite: {T.tolist()}")
         for bc in self.constraints:
             geo = bc.geometry
+            if not _users(geo.kernel()):
+                continue
             g = np.asarray(geo.gap(q), dtype=float)
             if g.shape != (geo.nrows,) or not np.all(np.isfinite(g)):
                 raise ValueError(f"gap of constraint {bc.name!r}{where} has shape {g.shape}, expected "
@@ -381,3 +390,9 @@ def _check_vec(x: Any, n: int, what: str) -> None:
         raise ValueError(f"{what} has shape {a.shape}, expected ({n},)")
     if not np.all(np.isfinite(a)):
         raise ValueError(f"{what} is not finite: {a.tolist()}")
+
+
+def _users(kernel: Any) -> bool:
+    """True for a part the user gives (its ``kernel()`` None or ``("user", ...)``): checked
+    at the initial state; False for a built-in part, checked when it is built."""
+    return kernel is None or kernel[0] == "user"
