@@ -139,6 +139,7 @@ class LinearBarrier(Barrier):
                 raise ValueError(f"LinearBarrier.tangent has shape {self.T.shape}, expected {self.A.shape} "
                                  "(one tangent row per row of A)")
             self.T.setflags(write=False)
+            self._pt = _k.flat(self.T, np.zeros(self.nrows))  # the tangent rows' kernel: gaps unused
             self.has_tangents = True
 
     def tangent_jacobian(self, q):
@@ -160,7 +161,7 @@ class LinearBarrier(Barrier):
     def tangent_kernel(self):
         if self.T is None:
             return None
-        return _k.BAR_LINEAR, (_k.flat(self.T, np.zeros(self.nrows)),)
+        return _k.BAR_LINEAR, (self._pt,)
 
     def gap_scale(self):
         return np.abs(self.b) + np.abs(self.A).sum(axis=1)

@@ -7,6 +7,8 @@ both paths of :func:`moreau.simulate`.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 __all__ = ["initial_flight", "flight_gaps"]
@@ -24,6 +26,8 @@ def initial_flight(scene, q0: np.ndarray, v0: np.ndarray) -> np.ndarray:
 
 def flight_gaps(flight_gap, m: int) -> np.ndarray:
     """``flight_gap`` as an array of shape (m,), validated."""
+    if type(flight_gap) in (float, int) and math.isfinite(flight_gap) and flight_gap >= 0:  # the common case
+        return np.full(m, float(flight_gap))
     if isinstance(flight_gap, (bool, str)) or flight_gap is None:
         raise ValueError(f"flight_gap must be a number >= 0 or an array of shape ({m},), got {flight_gap!r}")
     try:
