@@ -363,3 +363,29 @@ def test_a_rough_floor_redundant_with_a_rail_warns_naming_both(backend):
     alone = mo.Scene(scene.system, scene.effects, scene.contacts)
     held = oracle.simulate(alone, (0.0, 0.1), [0.0, 0.0], [0.0, 0.0], 1e-3, backend=backend, progress=False)
     assert not any("redundant" in w for w in held.warnings) and abs(held.q[-1, 0]) < 1e-12
+
+
+def test_a_built_in_part_whose_method_a_user_replaced_runs_the_users_method():
+    """A subclass of a built-in part that overrides a method its kernel computes (a
+    ConstantForce whose force grows with t, a LinearBarrier whose gap is raised), or an
+    instance given its own gap, runs through the user's method: never the stale kernel."""
+
+    class Wind(mo.ConstantForce):
+        def force(self, t, q, v):
+            return np.array([6.0 * t, 0.0])
+
+    free = mo.Scene(mo.FunctionSystem(np.eye(2)), [Wind([0.0, 0.0], name="wind")], [])
+    traj = mo.simulate(free, (0.0, 1.0), [0.0, 0.0], [0.0, 0.0], 1e-3)
+    assert traj.q[-1, 0] == pytest.approx(1.0, abs=1e-5)  # x = t^3 under a force 6 t on a unit mass
+
+    class Raised(mo.LinearBarrier):
+        def gap(self, q):
+            return super().gap(q) - 0.5
+
+    floor = mo.LinearBarrier([0.0, 1.0])
+    floor.gap = lambda q: np.array([q[1] - 0.25])  # this instance's own gap
+    gravity = mo.ConstantForce([0.0, -9.81])
+    for barrier, height in ((Raised([0.0, 1.0]), 0.5), (floor, 0.25)):
+        scene = mo.Scene(mo.FunctionSystem(np.eye(2)), [gravity], [mo.Contact(barrier, 0.0)])
+        traj = mo.simulate(scene, (0.0, 1.0), [0.0, 1.0], [0.0, 0.0], 1e-3)
+        assert len(traj.impacts) == 1 and traj.q[-1, 1] == pytest.approx(height, abs=5e-3)

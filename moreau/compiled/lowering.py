@@ -21,6 +21,7 @@ import numpy as np
 from moreau.compiled.layout import ModelArrays
 from moreau.compiled.usercalls import UserKernels, user_kernels
 from moreau.core import kernels as _k
+from moreau.model.overrides import kernel_of
 from moreau.model.scene import Scene
 
 __all__ = ["CompiledScene", "NotCompilable", "lower"]
@@ -122,7 +123,7 @@ def lower(scene: Scene) -> CompiledScene:
     pool = _Pool()
     sysm = scene.system
     # a part without a kernel of its own is called through its Python methods
-    mk: tuple[Any, Any] = sysm.mass_kernel() or ("user", (sysm.mass_matrix,
+    mk: tuple[Any, Any] = kernel_of(sysm, "mass_kernel") or ("user", (sysm.mass_matrix,
                                                             sysm.bias_force if sysm.has_bias else None))
     mass_fun = bias_fun = None
     if mk[0] == "user":
@@ -141,7 +142,7 @@ def lower(scene: Scene) -> CompiledScene:
     python_potentials = False
     for e in scene.effects:
         kind: Any
-        kind, params = e.kernel() or ("user", e.force)
+        kind, params = kernel_of(e) or ("user", e.force)
         if kind == "user":
             python_potentials = python_potentials or bool(e.has_potential)
             ekind.append(_k.USER)
@@ -155,7 +156,7 @@ def lower(scene: Scene) -> CompiledScene:
     bars = _Barriers(pool)
     row = 0
     for c in scene.contacts:
-        bars.add(c.barrier.kernel() or ("user", (c.barrier.gap, c.barrier.jacobian)), row, c.barrier.nrows, c.name)
+        bars.add(kernel_of(c.barrier) or ("user", (c.barrier.gap, c.barrier.jacobian)), row, c.barrier.nrows, c.name)
         row += c.barrier.nrows
     # friction: each frictional contact's tangent rows as one more barrier whose Jacobian
     # (rows m, m + 1, ... of G) the same evaluation computes; its gaps are never evaluated
@@ -164,7 +165,7 @@ def lower(scene: Scene) -> CompiledScene:
     for c, first in zip(scene.contacts, bars.brow[:len(scene.contacts)]):
         if not np.any(c.friction > 0.0):
             continue
-        spec = c.barrier.tangent_kernel() or ("user", (None, c.barrier.tangent_jacobian))
+        spec = kernel_of(c.barrier, "tangent_kernel") or ("user", (None, c.barrier.tangent_jacobian))
         bars.add(spec, scene.nrows + mf, c.barrier.nrows, f"{c.name} (tangent rows)")
         tmap[first:first + c.barrier.nrows] = scene.nrows + mf + np.arange(c.barrier.nrows)
         mf += c.barrier.nrows
@@ -172,7 +173,7 @@ def lower(scene: Scene) -> CompiledScene:
     first_eq = len(bars.bkind)
     me = 0
     for bc in scene.constraints:
-        bars.add(bc.geometry.kernel() or ("user", (bc.geometry.gap, bc.geometry.jacobian)), scene.nrows + mf + me,
+        bars.add(kernel_of(bc.geometry) or ("user", (bc.geometry.gap, bc.geometry.jacobian)), scene.nrows + mf + me,
                  bc.nrows, bc.name)
         me += bc.nrows
     bkind, bar_fns, bar_names = bars.bkind, bars.fns, bars.names
