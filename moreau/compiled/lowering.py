@@ -163,7 +163,7 @@ def lower(scene: Scene) -> CompiledScene:
     tmap = np.full(scene.nrows, -1, dtype=np.int64)
     mf = 0
     for c, first in zip(scene.contacts, bars.brow[:len(scene.contacts)]):
-        if not np.any(c.friction > 0.0):
+        if not c.frictional:
             continue
         spec = kernel_of(c.barrier, "tangent_kernel") or ("user", (None, c.barrier.tangent_jacobian))
         bars.add(spec, scene.nrows + mf, c.barrier.nrows, f"{c.name} (tangent rows)")

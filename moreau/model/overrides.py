@@ -34,8 +34,9 @@ def kernel_of(part: Any, method: str = "kernel") -> Any:
             break
         if any(name in vars(cls) for name in computes):
             return None
-    own = getattr(part, "__dict__", {})
-    # (a method of the part's own class bound at its construction, as PointForce's, is its kernel's)
-    if any(name in own and getattr(own[name], "__self__", None) is not part for name in computes):
-        return None
+    own = getattr(part, "__dict__", None) or {}
+    for name in computes:  # (a method of its own class bound at its construction, as PointForce's, is the kernel's)
+        f = own.get(name)
+        if f is not None and getattr(f, "__self__", None) is not part:
+            return None
     return spec

@@ -78,10 +78,13 @@ class Contact:
                 )
         object.__setattr__(self, "restitution", e)
         object.__setattr__(self, "friction", mu)
+        object.__setattr__(self, "frictional", bool(np.any(mu > 0.0)))
 
     restitution: np.ndarray = field(init=False, repr=False, compare=False)
     #: friction coefficient per row, shape (m,) (zeros without a friction law)
     friction: np.ndarray = field(init=False, repr=False, compare=False)
+    #: some row has friction (mu > 0): its tangent rows are built and solved
+    frictional: bool = field(init=False, repr=False, compare=False)
 
 
 class Scene:
@@ -252,7 +255,7 @@ class Scene:
     def _build_tangent_call(self) -> GapFn:
         """T(q) of all rows: each frictional contact's tangent rows, zeros elsewhere."""
         n = self.ndof
-        parts = [(c.barrier.tangent_jacobian if np.any(c.friction > 0.0) else None, c.barrier.nrows)
+        parts = [(c.barrier.tangent_jacobian if c.frictional else None, c.barrier.nrows)
                  for c in self.contacts]
         only = parts[0][0]
         if len(parts) == 1 and only is not None:
@@ -312,7 +315,7 @@ class Scene:
                 )
             if not np.all(np.isfinite(G)):
                 raise ValueError(f"Jacobian of contact {c.name!r}{where} is not finite: {G.tolist()}")
-            if np.any(c.friction > 0.0) and _users(kernel_of(b, "tangent_kernel")):
+            if c.frictional and _users(kernel_of(b, "tangent_kernel")):
                 T = np.asarray(b.tangent_jacobian(q), dtype=float)
                 if T.shape != (b.nrows, n) or not np.all(np.isfinite(T)):
                     raise ValueError(f"tangent rows of contact {c.name!r}{where} have shape {T.shape}, "
@@ -348,7 +351,7 @@ class Scene:
             "effects": [e.describe() for e in self.effects],
             "contacts": [
                 {"name": c.name, "barrier": c.barrier.describe(), "restitution": c.restitution.tolist(),
-                 **({"friction": c.friction.tolist()} if np.any(c.friction > 0.0) else {})}
+                 **({"friction": c.friction.tolist()} if c.frictional else {})}
                 for c in self.contacts
             ],
             "units": self.units,
