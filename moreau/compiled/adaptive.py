@@ -195,8 +195,8 @@ def _attempt_step(phase, H, last, ctl, sn, k_end, fset, active, T, IMP, m, q, v,
 
 
 @_part
-def _after_step(phase, H, last, model, iset, fset, Minv, work, q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs,
-                pen, cnt, acc, fr, eqw, IMP, ctl, sn):
+def _after_step(phase, H, last, model, user, iset, fset, Minv, work, q, v, in_contact, P_acc, act_acc, last_imp, gmax,
+                rs, pen, cnt, acc, fr, eqw, IMP, ctl, sn):
     """After step ``phase`` of an attempt (0 the step of H, 1 and 2 the two of H/2): the
     next phase, and 1 when the state is to be recorded (else 0; ``native.MISMATCH``: the
     judge's address was made for other types). After the step of H its end is kept (the
@@ -232,14 +232,14 @@ def _after_step(phase, H, last, model, iset, fset, Minv, work, q, v, in_contact,
         return 2, np.int64(0)
     # the attempt judged in its own compiled function, called through its address (S_JUDGE): only
     # a run with step-size control compiles it, and the loop's compile holds none of it
-    return 0, call_checked(iset[S_JUDGE], iset[S_JUDGE_KEY], (H, last, model, iset, Minv, work, q, v, in_contact,
-                                                              P_acc, act_acc, last_imp, gmax, rs, pen, cnt, acc, fr,
-                                                              eqw, IMP, ctl, sn))
+    return 0, call_checked(iset[S_JUDGE], iset[S_JUDGE_KEY], (H, last, model, user, iset, Minv, work, q, v,
+                                                              in_contact, P_acc, act_acc, last_imp, gmax, rs, pen, cnt,
+                                                              acc, fr, eqw, IMP, ctl, sn))
 
 
 @_call
-def judge_attempt(H, last, model, iset, Minv, work, q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, pen, cnt,
-                  acc, fr, eqw, IMP, ctl, sn):
+def judge_attempt(H, last, model, user, iset, Minv, work, q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, pen,
+                  cnt, acc, fr, eqw, IMP, ctl, sn):
     """The attempt of step ``H`` after its second step of H/2: accepted (extrapolated where
     smooth; 1 when the state is to be recorded, else 0) or rejected (the start restored, 0),
     and the next H chosen (``ctl[K_H]``)."""
@@ -251,7 +251,7 @@ def judge_attempt(H, last, model, iset, Minv, work, q, v, in_contact, P_acc, act
     t = ctl[K_T]
     nimp0, eok0, mg = sn.cnt[C_NIMP], sn.cnt[C_EOK], m + ints[SC_MF] + ints[SC_ME]
     p = 1 if iset[S_STEP] == STEP_MIDPOINT and ints[SC_VELOCITY_DEPENDENT] != 0 else 2
-    kind, unseen = _step_kind(model, Minv, work, m, n, H, q, v, gq, rs, end, sn, fr, nimp0, cnt[C_NIMP])
+    kind, unseen = _step_kind(model, user, Minv, work, m, n, H, q, v, gq, rs, end, sn, fr, nimp0, cnt[C_NIMP])
     c = (2.0 ** p - 1.0) if kind == 0 else 1.0
     order = p if kind == 0 else (1 if kind == 1 else 0)
     err = max(_error(q, v, sn, ctl[K_RTOL], c), unseen)
@@ -297,7 +297,7 @@ def judge_attempt(H, last, model, iset, Minv, work, q, v, in_contact, P_acc, act
     return np.int64(1) if cnt[C_ACCEPTED] % iset[S_RECORD] == 0 or last else np.int64(0)
 
 
-def judge_address(model: tuple, settings, state, records, tally, work: tuple, control: np.ndarray,
+def judge_address(model: tuple, user: np.ndarray, settings, state, records, tally, work: tuple, control: np.ndarray,
                   snap: Snapshot) -> tuple[int, int]:
     """The address of ``judge_attempt``'s machine code for a run's arrays (those of
     :func:`moreau.compiled.loop.run_chunk`) and the key of its argument types, as
@@ -305,7 +305,7 @@ def judge_address(model: tuple, settings, state, records, tally, work: tuple, co
     machine, by one process at a time; logged) when the run is the first with step-size
     control for its variant of the loop."""
     st = state
-    args = (0.0, False, model, settings.iset, settings.Minv, work[:3], st.q, st.v, st.in_contact, st.P_acc,
+    args = (0.0, False, model, user, settings.iset, settings.Minv, work[:3], st.q, st.v, st.in_contact, st.P_acc,
             st.act_acc, st.last_imp, st.gmax, st.rs, st.pen, tally.cnt, tally.acc, work[3], work[4], records.IMP,
             control, snap)
     variant = variant_of(work)

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 
+from moreau.compiled import evaluate as ev
 from moreau.compiled.layout import K_C0, K_C1, K_CB, K_HMAX, R_GAP
 from moreau.compiled.layout import part as _part
 from moreau.compiled.step import _free_acceleration
@@ -179,19 +180,25 @@ def _least(atol, n):
 
 
 @_part
-def _crossing(model, Minv, work, m, sn, rs, end):
+def _crossing(model, user, Minv, work, m, sn, rs, end):
     """The state error (over the velocities' tolerances) of a barrier crossed inside the
     step: a row neither closed nor in contact at the start that ends the coarse and the fine steps a
     depth p deeper than at the start (gap ``sn.rs[r, R_GAP]``; the end gaps before drift
     control put the row back on its barrier, ``rs[:, end]``) has its impact late by
     p / |ġ|, and the impact's velocity jump, (1 + e) ġ M⁻¹ G_rᵀ / W_rr (W_rr = G_r M⁻¹ G_rᵀ),
-    that long in the state makes p (1 + e) max_i |(M⁻¹ G_rᵀ)_i| / (atol_(n+i) W_rr) (0 if none)."""
-    worst = 0.0
+    that long in the state makes p (1 + e) max_i |(M⁻¹ G_rᵀ)_i| / (atol_(n+i) W_rr) (0 if none).
+    G is evaluated here, at the last step's midpoint: a step that closes no row leaves the
+    Jacobian of an earlier one (or, before the run's first contact, none) in ``work``."""
+    worst, fresh = 0.0, 0
     for r in range(m):
         if not (sn.in_contact[r] or sn.closed0[r]):
             p = min(-rs[r, end], -sn.gu[r]) - max(0.0, -sn.rs[r, R_GAP])
             if p > 0.0:
-                big, w = _response(model, Minv, work, r, sn)
+                if fresh == 0:  # 1: G(q_m) evaluated; -1: a user's Jacobian failed there
+                    own = work[0]
+                    fresh = 1 if ev.jacobian_apart(model.ints, model.bkind, model.boff, model.brow, model.bnrows,
+                                                   model.pool, user, own.qm, own.cm, own.sm, own.G) == 0 else -1
+                big, w = _response(model, Minv, work, r, sn) if fresh == 1 else (0.0, 0.0)
                 worst = max(worst, p * (1.0 + model.e[r]) * big / w if w > 0.0 else p / _least(sn.atol, sn.q.shape[0]))
     return worst
 
@@ -222,13 +229,13 @@ def _remembered(ctl, kind, order, err, H, t):
 
 
 @_part
-def _step_kind(model, Minv, work, m, n, H, q, v, gq, rs, end, sn, fr, nimp0, nimp):
+def _step_kind(model, user, Minv, work, m, n, H, q, v, gq, rs, end, sn, fr, nimp0, nimp):
     """The kind of the attempt (0 smooth, 1 persistent contact, 2 switching) and the
     scaled error of a switch its midpoints do not see (:func:`_crossing`, :func:`_pull`);
     a persistent-contact step whose rows are held at rest counts as smooth."""
     active = work[0].active
     kind = _kind(m, active, sn, nimp0, nimp, work[0].P, fr)
-    unseen = _crossing(model, Minv, work, m, sn, rs, end)
+    unseen = _crossing(model, user, Minv, work, m, sn, rs, end)
     if unseen > 0.0:
         kind = 2
     if kind == 1:  # (not with an impact: its impulse is no force to extrapolate)

@@ -370,7 +370,7 @@ def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact,
                 return status
         record = k % stride == 0 or k == nsteps
         if controlled:  # the attempt's next step, or its end (accepted or rejected; 1: record it)
-            phase, code = _after_step(phase, H, last, model, iset, fset, Minv, work, q, v, in_contact, P_acc,
+            phase, code = _after_step(phase, H, last, model, user, iset, fset, Minv, work, q, v, in_contact, P_acc,
                                       act_acc, last_imp, gmax, rs, pen, cnt, acc, fr, eqw, IMP, ctl, sn)
             h, t0 = fset[F_H], fset[F_T0]
             if code < 0:

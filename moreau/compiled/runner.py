@@ -138,8 +138,8 @@ def run_compiled(scene, cs: CompiledScene | None, t0: float, q0: np.ndarray, v0:
             h, t0, t_end, rtol, h, h_min, t0)
         snap = ad.snapshot(n, m, mf, me)
         snap.atol[:] = atol  # one per component of (q, v)
-        iset[lay.S_JUDGE], iset[lay.S_JUDGE_KEY] = ad.judge_address(model, settings, state, recs, tally, work, ctl,
-                                                                    snap)
+        iset[lay.S_JUDGE], iset[lay.S_JUDGE_KEY] = ad.judge_address(model, user, settings, state, recs, tally, work,
+                                                                    ctl, snap)
 
     status, message, interrupt = "completed", "", None
     wall0 = time.perf_counter()
