@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["kernel_of"]
+__all__ = ["kernel_of", "users"]
 
 #: the Python methods each kernel method stands for (``kernel``: by the kind of part)
 _COMPUTES = {"mass_kernel": ("mass_matrix", "bias_force"), "tangent_kernel": ("tangent_jacobian",)}
@@ -40,3 +40,9 @@ def kernel_of(part: Any, method: str = "kernel") -> Any:
         if f is not None and getattr(f, "__self__", None) is not part:
             return None
     return spec
+
+
+def users(spec: Any) -> bool:
+    """True for the part of a :func:`kernel_of` answer the user gives (None or
+    ``("user", ...)``): checked at a run's start; False for a built-in one, checked when built."""
+    return spec is None or spec[0] == "user"

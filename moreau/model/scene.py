@@ -19,7 +19,7 @@ from moreau.model.barriers import Barrier
 from moreau.model.constraints import Bilateral, check_constraints, constrained_velocity
 from moreau.model.forces import Effect
 from moreau.model.laws import NewtonImpact, NewtonImpactFriction
-from moreau.model.overrides import kernel_of
+from moreau.model.overrides import kernel_of, users
 from moreau.model.system import MechanicalSystem, check_spd
 from moreau.model.units import complete_units
 
@@ -289,7 +289,7 @@ class Scene:
         Raises ``ValueError`` naming the part, the bad shape or value, and ``where``.
         """
         n = self.ndof
-        if _users(kernel_of(self.system, "mass_kernel")):
+        if users(kernel_of(self.system, "mass_kernel")):
             M = np.asarray(self.system.mass_matrix(q), dtype=float)
             if M.shape != (n, n):
                 raise ValueError(f"mass matrix{where} has shape {M.shape}, expected ({n}, {n})")
@@ -297,11 +297,11 @@ class Scene:
             if self.system.has_bias:
                 _check_vec(self.system.bias_force(q, v), n, f"bias force{where}")
         for e in self.effects:
-            if _users(kernel_of(e)):
+            if users(kernel_of(e)):
                 _check_vec(e.force(t, q, v), n, f"force of effect {e.name!r}{where}")
         for c in self.contacts:
             b = c.barrier
-            if not _users(kernel_of(b)):
+            if not users(kernel_of(b)):
                 continue
             g = np.asarray(b.gap(q), dtype=float)
             if g.shape != (b.nrows,):
@@ -315,14 +315,14 @@ class Scene:
                 )
             if not np.all(np.isfinite(G)):
                 raise ValueError(f"Jacobian of contact {c.name!r}{where} is not finite: {G.tolist()}")
-            if c.frictional and _users(kernel_of(b, "tangent_kernel")):
+            if c.frictional and users(kernel_of(b, "tangent_kernel")):
                 T = np.asarray(b.tangent_jacobian(q), dtype=float)
                 if T.shape != (b.nrows, n) or not np.all(np.isfinite(T)):
                     raise ValueError(f"tangent rows of contact {c.name!r}{where} have shape {T.shape}, "
                                      f"expected ({b.nrows}, {n}), or are not finite: {T.tolist()}")
         for bc in self.constraints:
             geo = bc.geometry
-            if not _users(kernel_of(geo)):
+            if not users(kernel_of(geo)):
                 continue
             g = np.asarray(geo.gap(q), dtype=float)
             if g.shape != (geo.nrows,) or not np.all(np.isfinite(g)):
@@ -394,9 +394,3 @@ def _check_vec(x: Any, n: int, what: str) -> None:
         raise ValueError(f"{what} has shape {a.shape}, expected ({n},)")
     if not np.all(np.isfinite(a)):
         raise ValueError(f"{what} is not finite: {a.tolist()}")
-
-
-def _users(kernel: Any) -> bool:
-    """True for a part the user gives (its ``kernel()`` None or ``("user", ...)``): checked
-    at the initial state; False for a built-in part, checked when it is built."""
-    return kernel is None or kernel[0] == "user"

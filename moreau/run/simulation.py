@@ -115,9 +115,8 @@ def simulate(
     drift_control : CombinedProjection or PositionProjection or None
         Drift control after each step (see :mod:`moreau.step.drift`); default none.
     check_jacobian : bool
-        Compare the Jacobian of every barrier of the user's (not a built-in one, tested in the
-        suite) with finite differences of its gap at q0 and a little off it, and a system's own
-        bias force with its M(q)'s (:func:`moreau.check_bias`); refuse a mismatch; default True.
+        Compare each user barrier's Jacobian with finite differences of its gap at and near q0,
+        and a system's own bias force with its M(q)'s (:func:`moreau.check_bias`); default True.
     initial_penetration : float
         An initial state with a gap below ``-initial_penetration`` (gap units) is refused
         (default 1e-12); to continue from where another run ended (an impact step may end
