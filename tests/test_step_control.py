@@ -417,3 +417,24 @@ def test_no_run_reads_a_work_array_before_writing_it(monkeypatch):
         for traj in trajs[1:]:
             assert traj.t.shape == first.t.shape, label
             assert np.array_equal(traj.q, first.q) and np.array_equal(traj.v, first.v), label
+
+
+def test_a_users_jacobian_failing_where_a_crossing_is_judged_stops_the_run_by_name():
+    """A barrier crossed inside a step is judged with the Jacobian at the step's midpoint;
+    a user's Jacobian that raises there stops the run naming it, and the run keeps the last
+    accepted state (free fall, exact for the midpoint step: y = 1 - g t^2 / 2)."""
+    undefined = {"below": 0.05}
+
+    def jacobian(q):  # a dict lookup: called back, not compiled
+        if q[0] < undefined["below"]:
+            raise ValueError("the Jacobian is undefined this close to the floor")
+        return np.array([[1.0]])
+
+    floor = mo.FunctionBarrier(lambda q: np.array([q[0]]), jacobian)
+    scene = mo.Scene(mo.FunctionSystem(np.eye(1)), [mo.ConstantForce([-9.81])], [mo.Contact(floor, 0.5, name="floor")])
+    with pytest.raises(mo.SimulationError, match="user Jacobian 'floor' raised ValueError: the Jacobian is undefined"
+                       ) as info:
+        mo.simulate(scene, (0.0, 1.0), [1.0], [0.0], 0.1, step_control=mo.StepControl(1e-3), check_jacobian=False)
+    traj = info.value.trajectory
+    assert traj.status == "failed" and 0.0 < traj.t[-1] < 0.45
+    assert traj.q[-1, 0] == pytest.approx(1.0 - 0.5 * 9.81 * traj.t[-1] ** 2, abs=1e-12)

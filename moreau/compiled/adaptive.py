@@ -52,6 +52,7 @@ import numpy as np
 from moreau.compiled.layout import (
     C_ACCEPTED,
     C_EOK,
+    C_FAILKIND,
     C_FALLBACKS,
     C_FORCED,
     C_K,
@@ -60,6 +61,7 @@ from moreau.compiled.layout import (
     C_REJECTED,
     C_SOLVES,
     C_UPDATES,
+    C_USER,
     DONE,
     DRIFT_NONE,
     F_H,
@@ -93,6 +95,7 @@ from moreau.compiled.layout import (
     SC_VELOCITY_DEPENDENT,
     STEP_MIDPOINT,
     STEP_ON,
+    USER_FAILED,
     Snapshot,
 )
 from moreau.compiled.layout import call as _call
@@ -108,6 +111,9 @@ log = logging.getLogger(__name__)
 # the variants whose judge this process has loaded: later runs take no file lock (a set's
 # add is atomic; a race only takes the lock once more)
 _judged: set[str] = set()
+
+#: what ``judge_attempt`` returns when a user callable failed (the status in ``cnt[C_USER]``)
+JUDGE_FAILED = -2
 
 # the counters a rejected attempt keeps: the work it did
 _KEPT = (C_SOLVES, C_FALLBACKS, C_UPDATES, C_ACCEPTED, C_REJECTED, C_FORCED)
@@ -251,7 +257,14 @@ def judge_attempt(H, last, model, user, iset, Minv, work, q, v, in_contact, P_ac
     t = ctl[K_T]
     nimp0, eok0, mg = sn.cnt[C_NIMP], sn.cnt[C_EOK], m + ints[SC_MF] + ints[SC_ME]
     p = 1 if iset[S_STEP] == STEP_MIDPOINT and ints[SC_VELOCITY_DEPENDENT] != 0 else 2
-    kind, unseen = _step_kind(model, user, Minv, work, m, n, H, q, v, gq, rs, end, sn, fr, nimp0, cnt[C_NIMP])
+    kind, unseen, status = _step_kind(model, user, Minv, work, m, n, H, q, v, gq, rs, end, sn, fr, nimp0,
+                                      cnt[C_NIMP])
+    if status != 0:  # a user's Jacobian failed at the step's midpoint: the run stops at the attempt's start
+        _swap(False, q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, pen, cnt, acc, fr, eqw, sn)
+        for r in range(m):
+            active[r] = sn.closed0[r]
+        cnt[C_FAILKIND], cnt[C_USER] = USER_FAILED, status
+        return JUDGE_FAILED
     c = (2.0 ** p - 1.0) if kind == 0 else 1.0
     order = p if kind == 0 else (1 if kind == 1 else 0)
     err = max(_error(q, v, sn, ctl[K_RTOL], c), unseen)

@@ -186,21 +186,25 @@ def _crossing(model, user, Minv, work, m, sn, rs, end):
     depth p deeper than at the start (gap ``sn.rs[r, R_GAP]``; the end gaps before drift
     control put the row back on its barrier, ``rs[:, end]``) has its impact late by
     p / |ġ|, and the impact's velocity jump, (1 + e) ġ M⁻¹ G_rᵀ / W_rr (W_rr = G_r M⁻¹ G_rᵀ),
-    that long in the state makes p (1 + e) max_i |(M⁻¹ G_rᵀ)_i| / (atol_(n+i) W_rr) (0 if none).
-    G is evaluated here, at the last step's midpoint: a step that closes no row leaves the
-    Jacobian of an earlier one (or, before the run's first contact, none) in ``work``."""
-    worst, fresh = 0.0, 0
+    that long in the state makes p (1 + e) max_i |(M⁻¹ G_rᵀ)_i| / (atol_(n+i) W_rr) (0 if none),
+    and the status of the evaluation of G, at the last step's midpoint (a user callable's,
+    0 when it did not fail): a step that closes no row leaves the Jacobian of an earlier one
+    (or, before the run's first contact, none) in ``work``."""
+    worst, fresh = 0.0, False
     for r in range(m):
         if not (sn.in_contact[r] or sn.closed0[r]):
             p = min(-rs[r, end], -sn.gu[r]) - max(0.0, -sn.rs[r, R_GAP])
             if p > 0.0:
-                if fresh == 0:  # 1: G(q_m) evaluated; -1: a user's Jacobian failed there
+                if not fresh:
                     own = work[0]
-                    fresh = 1 if ev.jacobian_apart(model.ints, model.bkind, model.boff, model.brow, model.bnrows,
-                                                   model.pool, user, own.qm, own.cm, own.sm, own.G) == 0 else -1
-                big, w = _response(model, Minv, work, r, sn) if fresh == 1 else (0.0, 0.0)
+                    status = ev.jacobian_apart(model.ints, model.bkind, model.boff, model.brow, model.bnrows,
+                                               model.pool, user, own.qm, own.cm, own.sm, own.G)
+                    if status != 0:
+                        return worst, status
+                    fresh = True
+                big, w = _response(model, Minv, work, r, sn)
                 worst = max(worst, p * (1.0 + model.e[r]) * big / w if w > 0.0 else p / _least(sn.atol, sn.q.shape[0]))
-    return worst
+    return worst, 0
 
 
 @_part
@@ -230,12 +234,15 @@ def _remembered(ctl, kind, order, err, H, t):
 
 @_part
 def _step_kind(model, user, Minv, work, m, n, H, q, v, gq, rs, end, sn, fr, nimp0, nimp):
-    """The kind of the attempt (0 smooth, 1 persistent contact, 2 switching) and the
-    scaled error of a switch its midpoints do not see (:func:`_crossing`, :func:`_pull`);
-    a persistent-contact step whose rows are held at rest counts as smooth."""
+    """The kind of the attempt (0 smooth, 1 persistent contact, 2 switching), the scaled
+    error of a switch its midpoints do not see (:func:`_crossing`, :func:`_pull`) and the
+    status of a user callable that failed there (0: none); a persistent-contact step whose
+    rows are held at rest counts as smooth."""
     active = work[0].active
     kind = _kind(m, active, sn, nimp0, nimp, work[0].P, fr)
-    unseen = _crossing(model, user, Minv, work, m, sn, rs, end)
+    unseen, status = _crossing(model, user, Minv, work, m, sn, rs, end)
+    if status != 0:
+        return kind, unseen, status
     if unseen > 0.0:
         kind = 2
     if kind == 1:  # (not with an impact: its impulse is no force to extrapolate)
@@ -244,4 +251,4 @@ def _step_kind(model, user, Minv, work, m, n, H, q, v, gq, rs, end, sn, fr, nimp
             kind = 2
     if kind == 1 and _tangential(m, n, active, work[0].G, q, v, gq, sn):
         kind = 0
-    return kind, unseen
+    return kind, unseen, 0

@@ -19,7 +19,7 @@ import numpy as np
 from numba import njit
 
 from moreau.compiled import evaluate as ev
-from moreau.compiled.adaptive import _after_step, _attempt_step, snapshot
+from moreau.compiled.adaptive import JUDGE_FAILED, _after_step, _attempt_step, snapshot
 from moreau.compiled.bilateral import _eq_hold, _eq_project_velocity, _eq_records
 from moreau.compiled.drift import _project
 from moreau.compiled.energy import _energy_check, _kinetic_energy, _step_work
@@ -374,7 +374,7 @@ def _run_chunk(model, user, iset, fset, Minv, eligible, q, v, k_end, in_contact,
                                       act_acc, last_imp, gmax, rs, pen, cnt, acc, fr, eqw, IMP, ctl, sn)
             h, t0 = fset[F_H], fset[F_T0]
             if code < 0:
-                return NATIVE_MISMATCH
+                return USER_FAILED if code == JUDGE_FAILED else NATIVE_MISMATCH
             record = code == 1
         if record and _record(model, user, iset, fset, ctl[K_T] if controlled else t0 + k * h, q, v, cq, sq, M, P_acc,
                               act_acc, gq, T, Q, V, PS, ACT, GP, KE, PE, cnt, fr, PTS, eqw) != DONE:
