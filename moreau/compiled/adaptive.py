@@ -259,21 +259,18 @@ def judge_attempt(H, last, model, user, iset, Minv, work, q, v, in_contact, P_ac
     p = 1 if iset[S_STEP] == STEP_MIDPOINT and ints[SC_VELOCITY_DEPENDENT] != 0 else 2
     kind, unseen, status = _step_kind(model, user, Minv, work, m, n, H, q, v, gq, rs, end, sn, fr, nimp0,
                                       cnt[C_NIMP])
-    if status != 0:  # a user's Jacobian failed at the step's midpoint: the run stops at the attempt's start
-        _swap(False, q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, pen, cnt, acc, fr, eqw, sn)
-        for r in range(m):
-            active[r] = sn.closed0[r]
-        cnt[C_FAILKIND], cnt[C_USER] = USER_FAILED, status
-        return JUDGE_FAILED
     c = (2.0 ** p - 1.0) if kind == 0 else 1.0
     order = p if kind == 0 else (1 if kind == 1 else 0)
     err = max(_error(q, v, sn, ctl[K_RTOL], c), unseen)
     hmax, hmin = ctl[K_HMAX], ctl[K_HMIN]
-    if err > 1.0 and 0.5 * H > hmin:  # rejected: back to the start, a smaller step
-        cnt[C_REJECTED] += 1
+    if status != 0 or (err > 1.0 and 0.5 * H > hmin):  # back to the start (one copy of _swap's code)
         _swap(False, q, v, in_contact, P_acc, act_acc, last_imp, gmax, rs, pen, cnt, acc, fr, eqw, sn)
         for r in range(m):
             active[r] = sn.closed0[r]
+        if status != 0:  # a user's Jacobian failed at the step's midpoint: the run stops here, naming it
+            cnt[C_FAILKIND], cnt[C_USER] = USER_FAILED, status
+            return JUDGE_FAILED
+        cnt[C_REJECTED] += 1  # rejected: a smaller step
         ctl[K_H] = max(hmin, H * max(0.1, min(0.9, 0.9 * err ** (-1.0 / (order + 1)))))
         return np.int64(0)
     if err > 1.0:

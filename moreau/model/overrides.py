@@ -26,7 +26,7 @@ def kernel_of(part: Any, method: str = "kernel") -> Any:
     but a method bound to it), overrides a method that kernel computes (then the part runs
     through its Python methods)."""
     spec = getattr(part, method)()
-    if spec is None or spec[0] == "user":
+    if users(spec):
         return spec
     computes = _COMPUTES.get(method) or (_BARRIER if hasattr(part, "gap") else _EFFECT)
     for cls in type(part).__mro__:
